@@ -1,0 +1,20 @@
+# One static library per module, built from every .cpp in its folder; files ending in
+# _test.cpp form the module's test binary, which is registered with CTest.
+function(ffloc_module name)
+  cmake_parse_arguments(ARG "" "" "DEPS;TEST_DEPS" ${ARGN})
+  file(GLOB sources CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*.cpp)
+  file(GLOB tests CONFIGURE_DEPENDS ${CMAKE_CURRENT_SOURCE_DIR}/*_test.cpp)
+  if(tests)
+    list(REMOVE_ITEM sources ${tests})
+  endif()
+  add_library(ffloc_${name} STATIC ${sources})
+  target_include_directories(ffloc_${name} PUBLIC ${PROJECT_SOURCE_DIR}/src)
+  target_link_libraries(ffloc_${name} PUBLIC ${ARG_DEPS})
+  target_compile_options(ffloc_${name} PRIVATE -Wall -Wextra)
+  if(FFLOC_BUILD_TESTS AND tests)
+    add_executable(ffloc_${name}_test ${tests})
+    target_link_libraries(ffloc_${name}_test PRIVATE ffloc_${name} ffloc_testing ${ARG_TEST_DEPS} GTest::gtest GTest::gtest_main)
+    gtest_discover_tests(ffloc_${name}_test DISCOVERY_TIMEOUT 60
+      PROPERTIES ENVIRONMENT "FFLOC_SHARED_DIR=${FFLOC_SHARED_DIR}")
+  endif()
+endfunction()

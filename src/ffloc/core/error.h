@@ -1,0 +1,21 @@
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace ffloc {
+
+// Raised for bad user input: a missing or malformed file, an unknown camera model, an empty
+// split. The message always names the file and the line or field at fault, so the CLI can print
+// it as it is and exit non-zero.
+class InputError : public std::runtime_error {
+ public:
+  explicit InputError(const std::string& message) : std::runtime_error(message) {}
+};
+
+// "<file>:<line>: <what>" or "<file>: <what>" when the line is unknown (line <= 0).
+std::string locate(const std::string& file, int line, const std::string& what);
+
+[[noreturn]] void throwInputError(const std::string& file, int line, const std::string& what);
+
+}  // namespace ffloc

@@ -1,0 +1,46 @@
+#include "ffloc/core/progress.h"
+
+#include <cstdio>
+#include <unistd.h>
+
+namespace ffloc {
+
+ProgressBar::ProgressBar(std::string label, std::size_t total, bool quiet)
+    : label_(std::move(label)), total_(total), quiet_(quiet),
+      start_(std::chrono::steady_clock::now()), last_draw_(start_) {}
+
+double ProgressBar::elapsedSeconds() const {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+void ProgressBar::update(std::size_t done) {
+  if (quiet_) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (done < total_ && now - last_draw_ < std::chrono::milliseconds(100)) return;
+  last_draw_ = now;
+  draw(done, false);
+}
+
+void ProgressBar::finish() {
+  if (quiet_ || finished_) return;
+  finished_ = true;
+  draw(total_, true);
+}
+
+void ProgressBar::draw(std::size_t done, bool final_line) {
+  const int width = 30;
+  const double fraction = total_ ? static_cast<double>(done) / static_cast<double>(total_) : 1.0;
+  const int filled = static_cast<int>(fraction * width);
+  const double elapsed = elapsedSeconds();
+  const double eta = done ? elapsed / static_cast<double>(done) * static_cast<double>(total_ - done) : 0.0;
+  // A terminal gets an in-place bar; a log file gets only the final line.
+  const bool tty = isatty(fileno(stderr));
+  if (!tty && !final_line) return;
+  std::fprintf(stderr, "%s%s [%.*s%*s] %zu/%zu  %.1fs", tty ? "\r" : "", label_.c_str(), filled,
+               "==============================", width - filled, "", done, total_, elapsed);
+  if (!final_line) std::fprintf(stderr, "  eta %.1fs", eta);
+  std::fprintf(stderr, final_line ? "\n" : "   ");
+  std::fflush(stderr);
+}
+
+}  // namespace ffloc

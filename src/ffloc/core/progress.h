@@ -1,0 +1,29 @@
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <string>
+
+namespace ffloc {
+
+// A one-line progress bar on stderr for long loops; redraws at most ~10 times a second and
+// prints nothing when quiet. finish() prints the total time.
+class ProgressBar {
+ public:
+  ProgressBar(std::string label, std::size_t total, bool quiet = false);
+  void update(std::size_t done);
+  void finish();
+  double elapsedSeconds() const;
+
+ private:
+  void draw(std::size_t done, bool final_line);
+
+  std::string label_;
+  std::size_t total_;
+  bool quiet_;
+  bool finished_ = false;
+  std::chrono::steady_clock::time_point start_;
+  std::chrono::steady_clock::time_point last_draw_;
+};
+
+}  // namespace ffloc

@@ -1,0 +1,1 @@
+#include "ffloc/eval/coordinate_source.h"

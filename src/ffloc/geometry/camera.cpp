@@ -1,0 +1,94 @@
+#include "ffloc/geometry/camera.h"
+
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace ffloc {
+
+Eigen::Matrix3d Intrinsics::K() const {
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  K(0, 0) = fx;
+  K(1, 1) = fy;
+  K(0, 2) = cx;
+  K(1, 2) = cy;
+  return K;
+}
+
+cv::Mat Intrinsics::cvK() const {
+  return (cv::Mat_<double>(3, 3) << fx, 0, cx, 0, fy, cy, 0, 0, 1);
+}
+
+cv::Mat Intrinsics::cvDistortion() const {
+  if (!hasDistortion()) return cv::Mat();
+  return cv::Mat(distortion, true).reshape(1, 1);
+}
+
+bool Intrinsics::hasDistortion() const {
+  for (double d : distortion)
+    if (d != 0.0) return true;
+  return false;
+}
+
+bool Intrinsics::isValid() const {
+  return std::isfinite(fx) && std::isfinite(fy) && std::isfinite(cx) && std::isfinite(cy) && fx > 0 &&
+         fy > 0 && width > 0 && height > 0;
+}
+
+Eigen::Vector2d Intrinsics::project(const Eigen::Vector3d& p) const {
+  return {fx * p.x() / p.z() + cx, fy * p.y() / p.z() + cy};
+}
+
+Eigen::Vector3d Intrinsics::backproject(const Eigen::Vector2d& pixel, double depth) const {
+  return {(pixel.x() - cx) / fx * depth, (pixel.y() - cy) / fy * depth, depth};
+}
+
+Intrinsics Intrinsics::scaled(double sx, double sy, int new_width, int new_height) const {
+  // Pixel centres sit at integer coordinates, so a pixel edge at -0.5 must stay at -0.5 after
+  // scaling: c' = (c + 0.5) * s - 0.5.
+  Intrinsics out = *this;
+  out.fx = fx * sx;
+  out.fy = fy * sy;
+  out.cx = (cx + 0.5) * sx - 0.5;
+  out.cy = (cy + 0.5) * sy - 0.5;
+  out.width = new_width;
+  out.height = new_height;
+  return out;
+}
+
+Intrinsics Intrinsics::cropped(int x0, int y0, int new_width, int new_height) const {
+  Intrinsics out = *this;
+  out.cx = cx - x0;
+  out.cy = cy - y0;
+  out.width = new_width;
+  out.height = new_height;
+  return out;
+}
+
+Intrinsics Intrinsics::undistorted() const {
+  Intrinsics out = *this;
+  out.distortion.clear();
+  return out;
+}
+
+std::vector<Eigen::Vector2d> undistortPixels(const Intrinsics& camera,
+                                             const std::vector<Eigen::Vector2d>& pixels) {
+  if (!camera.hasDistortion() || pixels.empty()) return pixels;
+  std::vector<cv::Point2d> in(pixels.size()), out;
+  for (size_t i = 0; i < pixels.size(); ++i) in[i] = {pixels[i].x(), pixels[i].y()};
+  const cv::Mat K = camera.cvK();
+  cv::undistortPoints(in, out, K, camera.cvDistortion(), cv::noArray(), K,
+                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 1e-10));
+  std::vector<Eigen::Vector2d> result(out.size());
+  for (size_t i = 0; i < out.size(); ++i) result[i] = {out[i].x, out[i].y};
+  return result;
+}
+
+cv::Mat undistortImage(const cv::Mat& image, const Intrinsics& camera) {
+  if (!camera.hasDistortion()) return image;
+  cv::Mat out;
+  cv::undistort(image, out, camera.cvK(), camera.cvDistortion(), camera.cvK());
+  return out;
+}
+
+}  // namespace ffloc

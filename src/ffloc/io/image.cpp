@@ -1,0 +1,1 @@
+#include "ffloc/io/image.h"

@@ -1,0 +1,1 @@
+#include "ffloc/pose/pnp.h"

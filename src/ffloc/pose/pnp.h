@@ -1,0 +1,50 @@
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "ffloc/geometry/camera.h"
+#include "ffloc/geometry/pose.h"
+#include "ffloc/pose/correspondences.h"
+
+namespace ffloc {
+
+enum class PnpSolver {
+  kOpenCvUsac,  // cv::solvePnPRansac with USAC (P3P minimal solver, local optimisation)
+  kLoRansac,    // the project's own LO-RANSAC around a P3P minimal solver
+};
+const char* toString(PnpSolver solver);
+PnpSolver parsePnpSolver(const std::string& name);  // throws InputError for unknown names
+
+// Defaults are the paper's: drop C < 1.5, keep at most 5000 pairs.
+struct PnpOptions {
+  PnpSolver solver = PnpSolver::kLoRansac;
+  float confidence_threshold = 1.5f;
+  size_t max_correspondences = 5000;
+  uint64_t seed = 0;
+  double inlier_threshold_px = 8.0;
+  int max_iterations = 10000;
+  double success_probability = 0.9999;
+  int min_inliers = 12;
+  bool refine = true;  // non-linear refinement on the final inliers
+};
+
+enum class PnpStatus { kSuccess, kTooFewCorrespondences, kNoModel, kTooFewInliers };
+const char* toString(PnpStatus status);
+
+struct PnpResult {
+  PnpStatus status = PnpStatus::kNoModel;
+  Pose camera_to_world;  // valid when status == kSuccess
+  int inliers = 0;
+  int used_correspondences = 0;  // after the confidence filter and subsampling
+  double seconds = 0;
+  bool ok() const { return status == PnpStatus::kSuccess; }
+};
+
+// Confidence filter, seeded subsampling, robust estimation and refinement. `camera` is the
+// pinhole camera of the pixels (no distortion). Never throws for a failed estimate: failure is
+// a status.
+PnpResult estimatePose(const Correspondences& correspondences, const Intrinsics& camera,
+                       const PnpOptions& options = {});
+
+}  // namespace ffloc
