@@ -1,0 +1,1 @@
+#include "ffloc/data/synthetic/synthetic.h"
