@@ -1,0 +1,155 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/eval/evaluator.h"
+#include "ffloc/eval/metrics.h"
+#include "ffloc/eval/oracle_depth_source.h"
+#include "ffloc/eval/report.h"
+
+namespace ffloc {
+namespace {
+
+FrameResult frame(double t, double r, bool ok = true, double seconds = 0.01) {
+  FrameResult f;
+  f.dataset = "d";
+  f.method = "m";
+  f.status = ok ? PnpStatus::kSuccess : PnpStatus::kTooFewInliers;
+  f.translation_error = ok ? t : std::numeric_limits<double>::infinity();
+  f.rotation_error_deg = ok ? r : std::numeric_limits<double>::infinity();
+  f.source_seconds = seconds;
+  return f;
+}
+
+TEST(Metrics, AccuracyAndMediansCountFailuresAsInfinite) {
+  const std::vector<FrameResult> frames = {frame(0.01, 0.5), frame(0.07, 3.0), frame(0.15, 12.0),
+                                           frame(0.0, 0.0, false)};
+  const MethodSummary s = summarize(frames);
+  EXPECT_EQ(s.frames, 4);
+  EXPECT_EQ(s.failed, 1);
+  EXPECT_DOUBLE_EQ(s.median_translation, 0.07);  // lower median of {0.01, 0.07, 0.15, inf}
+  EXPECT_DOUBLE_EQ(s.median_rotation_deg, 3.0);
+  EXPECT_DOUBLE_EQ(s.accuracy_percent[0], 25.0);  // 5cm,5deg
+  EXPECT_DOUBLE_EQ(s.accuracy_percent[1], 50.0);  // 10cm,10deg
+  EXPECT_DOUBLE_EQ(s.accuracy_percent[2], 75.0);  // 20cm,20deg
+  EXPECT_DOUBLE_EQ(s.accuracy_percent[3], 25.0);  // 10cm,1deg
+  EXPECT_DOUBLE_EQ(s.accuracy_percent[4], 50.0);  // 25cm,5deg
+
+  const MethodSummary mostly_failed = summarize({frame(0.01, 0.1), frame(0, 0, false), frame(0, 0, false)});
+  EXPECT_TRUE(std::isinf(mostly_failed.median_translation));
+}
+
+TEST(Metrics, MedianAndPercentile) {
+  EXPECT_DOUBLE_EQ(median({3, 1, 2}), 2);
+  EXPECT_DOUBLE_EQ(median({4, 1, 3, 2}), 2);
+  EXPECT_DOUBLE_EQ(percentile({1, 2, 3, 4, 5, 6, 7, 8, 9, 10}, 0.9), 9);
+  EXPECT_DOUBLE_EQ(median({}), 0);
+}
+
+TEST(Report, SummaryJsonFollowsTheFixedSchema) {
+  const MethodSummary s = summarize({frame(0.01, 0.5), frame(0, 0, false), frame(0, 0, false)});
+  const nlohmann::json j = summaryJson({s});
+  ASSERT_TRUE(j.contains("results"));
+  const auto& r = j["results"][0];
+  for (const char* key : {"dataset", "method", "frames", "failed", "median_t", "median_r_deg", "acc", "latency_ms"})
+    EXPECT_TRUE(r.contains(key)) << key;
+  for (const char* key : {"5cm_5deg", "10cm_10deg", "20cm_20deg", "10cm_1deg", "25cm_5deg"})
+    EXPECT_TRUE(r["acc"][key].is_number()) << key;
+  EXPECT_TRUE(r["latency_ms"]["median"].is_number());
+  EXPECT_TRUE(r["latency_ms"]["p90"].is_number());
+  EXPECT_TRUE(r["median_t"].is_null());  // infinite: more than half failed
+  EXPECT_EQ(r["frames"], 3);
+  EXPECT_EQ(r["failed"], 2);
+  EXPECT_NEAR(r["acc"]["5cm_5deg"].get<double>(), 100.0 / 3.0, 1e-9);
+}
+
+TEST(Report, CsvHasOneRowPerFrame) {
+  const std::string csv = perFrameCsv({frame(0.01, 0.5), frame(0, 0, false)});
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 3);
+  EXPECT_NE(csv.find("inf"), std::string::npos);
+  const std::string table = markdownTable({summarize({frame(0.01, 0.5)})}, {"d"});
+  EXPECT_NE(table.find("units not metric"), std::string::npos);
+}
+
+// A scene with known geometry and a source that projects points the query camera sees, with a
+// fraction of them corrupted: the harness must recover every pose.
+class ProjectingSource : public CoordinateSource {
+ public:
+  std::string name() const override { return "projecting"; }
+  Correspondences correspondences(const Scene& scene, size_t query_index) override {
+    const Frame& f = scene.frames[query_index];
+    std::mt19937 rng(static_cast<unsigned>(query_index));
+    std::uniform_real_distribution<double> u(0, 1);
+    Correspondences c;
+    for (int i = 0; i < 400; ++i) {
+      const Eigen::Vector2d pixel(u(rng) * f.intrinsics.width, u(rng) * f.intrinsics.height);
+      Eigen::Vector3d world = f.camera_to_world * f.intrinsics.backproject(pixel, 1.0 + 3.0 * u(rng));
+      if (i % 4 == 0) world += Eigen::Vector3d(u(rng), u(rng), u(rng)) * 2.0;  // 25% outliers
+      c.add(pixel, world, 5.0f);
+    }
+    return c;
+  }
+};
+
+Scene syntheticScene() {
+  Scene scene;
+  scene.name = "toy";
+  for (int i = 0; i < 6; ++i) {
+    Frame f;
+    f.name = "frame" + std::to_string(i);
+    f.intrinsics = {500, 500, 320, 240, 640, 480, {}};
+    f.camera_to_world.R = Eigen::AngleAxisd(0.2 * i, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    f.camera_to_world.t = Eigen::Vector3d(0.3 * i, -0.1 * i, 0.05 * i);
+    f.split = i < 3 ? Split::kMapping : Split::kQuery;
+    scene.frames.push_back(f);
+  }
+  return scene;
+}
+
+TEST(Evaluator, RecoversPosesThroughTheSourceSeam) {
+  const Scene scene = syntheticScene();
+  ProjectingSource source;
+  EvaluationOptions options;
+  options.quiet = true;
+  const auto results = evaluate(scene, source, options);
+  ASSERT_EQ(results.size(), 3u);
+  for (const FrameResult& r : results) {
+    EXPECT_TRUE(r.succeeded()) << r.frame;
+    EXPECT_LT(r.translation_error, 1e-3) << r.frame;
+    EXPECT_LT(r.rotation_error_deg, 0.05) << r.frame;
+    EXPECT_EQ(r.correspondences, 400);
+  }
+  options.max_queries = 2;
+  EXPECT_EQ(evaluate(scene, source, options).size(), 2u);
+}
+
+TEST(Evaluator, EmptySplitIsAnInputError) {
+  Scene scene = syntheticScene();
+  for (Frame& f : scene.frames) f.split = Split::kMapping;
+  ProjectingSource source;
+  EXPECT_THROW(evaluate(scene, source, {}), InputError);
+}
+
+TEST(OracleDepth, SevenScenesWithOutliersIsAccurate) {
+  FFLOC_REQUIRE_SHARED(root, "data/7scenes_redkitchen");
+  const Scene scene = loadDataset(root);
+  OracleDepthOptions oracle;
+  oracle.outlier_fraction = 0.3;
+  OracleDepthSource source(oracle);
+  EvaluationOptions options;
+  options.quiet = true;
+  options.max_queries = 10;
+  const MethodSummary s = summarize(evaluate(scene, source, options));
+  EXPECT_EQ(s.frames, 10);
+  EXPECT_EQ(s.failed, 0);
+  EXPECT_GE(s.accuracy_percent[0], 100.0);
+  EXPECT_LT(s.median_translation, 0.01);
+}
+
+}  // namespace
+}  // namespace ffloc

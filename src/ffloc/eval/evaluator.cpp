@@ -1,0 +1,68 @@
+#include "ffloc/eval/evaluator.h"
+
+#include <chrono>
+#include <limits>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
+#include "ffloc/data/dataset.h"
+
+namespace ffloc {
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::vector<size_t> selectQueries(const Scene& scene, size_t max_queries) {
+  const std::vector<size_t> all = scene.queryIndices();
+  if (max_queries == 0 || max_queries >= all.size()) return all;
+  std::vector<size_t> chosen;
+  for (size_t k = 0; k < max_queries; ++k) chosen.push_back(all[k * all.size() / max_queries]);
+  return chosen;
+}
+
+}  // namespace
+
+std::vector<FrameResult> evaluate(const Scene& scene, CoordinateSource& source, const EvaluationOptions& options) {
+  requireSplits(scene);
+  source.prepare(scene);
+  const std::vector<size_t> queries = selectQueries(scene, options.max_queries);
+
+  std::vector<FrameResult> results;
+  ProgressBar progress(scene.name + " " + source.name(), queries.size(), options.quiet);
+  for (size_t q = 0; q < queries.size(); ++q) {
+    const Frame& frame = scene.frames[queries[q]];
+    FrameResult r;
+    r.dataset = scene.name;
+    r.method = source.name();
+    r.frame = frame.name;
+    r.truth = frame.camera_to_world;
+
+    const auto start = std::chrono::steady_clock::now();
+    const Correspondences pairs = source.correspondences(scene, queries[q]);
+    r.source_seconds = secondsSince(start);
+    r.correspondences = static_cast<int>(pairs.size());
+
+    PnpOptions pnp = options.pnp;
+    pnp.seed = options.pnp.seed + queries[q];
+    const PnpResult pose = estimatePose(pairs, frame.intrinsics.undistorted(), pnp);
+    r.pnp_seconds = pose.seconds;
+    r.status = pose.status;
+    r.inliers = pose.inliers;
+    if (pose.ok()) {
+      r.estimate = pose.camera_to_world;
+      r.translation_error = translationError(r.estimate, r.truth);
+      r.rotation_error_deg = rotationErrorDeg(r.estimate, r.truth);
+    } else {
+      r.translation_error = std::numeric_limits<double>::infinity();
+      r.rotation_error_deg = std::numeric_limits<double>::infinity();
+    }
+    results.push_back(r);
+    progress.update(q + 1);
+  }
+  progress.finish();
+  return results;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,63 @@
+#include "ffloc/eval/metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace ffloc {
+
+const std::array<AccuracyThreshold, 5>& accuracyThresholds() {
+  static const std::array<AccuracyThreshold, 5> thresholds = {{
+      {"5cm_5deg", 0.05, 5.0},
+      {"10cm_10deg", 0.10, 10.0},
+      {"20cm_20deg", 0.20, 20.0},
+      {"10cm_1deg", 0.10, 1.0},
+      {"25cm_5deg", 0.25, 5.0},
+  }};
+  return thresholds;
+}
+
+double median(std::vector<double> values) {
+  if (values.empty()) return 0;
+  const size_t middle = (values.size() - 1) / 2;
+  std::nth_element(values.begin(), values.begin() + middle, values.end());
+  return values[middle];
+}
+
+double percentile(std::vector<double> values, double q) {
+  if (values.empty()) return 0;
+  std::sort(values.begin(), values.end());
+  const double rank = std::ceil(std::clamp(q, 0.0, 1.0) * values.size());
+  const size_t index = rank < 1 ? 0 : static_cast<size_t>(rank) - 1;
+  return values[std::min(index, values.size() - 1)];
+}
+
+MethodSummary summarize(const std::vector<FrameResult>& frames) {
+  MethodSummary s;
+  if (frames.empty()) return s;
+  s.dataset = frames.front().dataset;
+  s.method = frames.front().method;
+  s.frames = static_cast<int>(frames.size());
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<double> t, r, latency_ms;
+  std::array<int, 5> hits{};
+  for (const FrameResult& f : frames) {
+    const bool ok = f.succeeded();
+    if (!ok) ++s.failed;
+    const double te = ok ? f.translation_error : inf;
+    const double re = ok ? f.rotation_error_deg : inf;
+    t.push_back(te);
+    r.push_back(re);
+    latency_ms.push_back(f.totalSeconds() * 1000.0);
+    for (size_t k = 0; k < accuracyThresholds().size(); ++k)
+      if (te <= accuracyThresholds()[k].translation && re <= accuracyThresholds()[k].rotation_deg) ++hits[k];
+  }
+  s.median_translation = median(t);
+  s.median_rotation_deg = median(r);
+  for (size_t k = 0; k < hits.size(); ++k) s.accuracy_percent[k] = 100.0 * hits[k] / s.frames;
+  s.latency_median_ms = median(latency_ms);
+  s.latency_p90_ms = percentile(latency_ms, 0.9);
+  return s;
+}
+
+}  // namespace ffloc

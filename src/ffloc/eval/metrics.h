@@ -1,0 +1,62 @@
+#pragma once
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "ffloc/geometry/pose.h"
+#include "ffloc/pose/pnp.h"
+
+namespace ffloc {
+
+// The outcome of localising one query frame with one method.
+struct FrameResult {
+  std::string dataset;
+  std::string method;
+  std::string frame;
+  PnpStatus status = PnpStatus::kNoModel;
+  Pose estimate;  // camera-to-world; meaningful when succeeded()
+  Pose truth;
+  double translation_error = 0;  // dataset units; +inf when the frame failed
+  double rotation_error_deg = 0;  // +inf when the frame failed
+  int correspondences = 0;  // produced by the coordinate source
+  int inliers = 0;
+  double source_seconds = 0;  // producing the correspondences
+  double pnp_seconds = 0;
+
+  bool succeeded() const { return status == PnpStatus::kSuccess; }
+  double totalSeconds() const { return source_seconds + pnp_seconds; }
+};
+
+// A (translation, rotation) accuracy threshold: a frame passes when both errors are within.
+struct AccuracyThreshold {
+  const char* key;  // the summary JSON key, e.g. "5cm_5deg"
+  double translation;  // dataset units (metres where metric)
+  double rotation_deg;
+};
+
+// The paper's thresholds, in the order the reports list them.
+const std::array<AccuracyThreshold, 5>& accuracyThresholds();
+
+struct MethodSummary {
+  std::string dataset;
+  std::string method;
+  int frames = 0;
+  int failed = 0;
+  double median_translation = 0;  // +inf when more than half the frames failed
+  double median_rotation_deg = 0;
+  std::array<double, 5> accuracy_percent{};  // per accuracyThresholds()
+  double latency_median_ms = 0;
+  double latency_p90_ms = 0;
+};
+
+// Failed frames count as infinite error in the medians and as misses in the accuracies.
+MethodSummary summarize(const std::vector<FrameResult>& frames);
+
+// The lower median (no interpolation), so an infinite error is reported as soon as half the
+// frames failed, never averaged with a finite one. Empty input gives 0.
+double median(std::vector<double> values);
+// Nearest-rank percentile, q in [0, 1].
+double percentile(std::vector<double> values, double q);
+
+}  // namespace ffloc

@@ -1,0 +1,101 @@
+#include "ffloc/eval/report.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <unistd.h>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+namespace {
+
+nlohmann::json finiteOrNull(double value) {
+  if (std::isfinite(value)) return value;
+  return nullptr;
+}
+
+std::string formatNumber(double value, int digits) {
+  if (!std::isfinite(value)) return "inf";
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.*f", digits, value);
+  return buffer;
+}
+
+}  // namespace
+
+nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries) {
+  nlohmann::json results = nlohmann::json::array();
+  for (const MethodSummary& s : summaries) {
+    nlohmann::json acc;
+    for (size_t k = 0; k < accuracyThresholds().size(); ++k) acc[accuracyThresholds()[k].key] = s.accuracy_percent[k];
+    results.push_back({{"dataset", s.dataset},
+                       {"method", s.method},
+                       {"frames", s.frames},
+                       {"failed", s.failed},
+                       {"median_t", finiteOrNull(s.median_translation)},
+                       {"median_r_deg", finiteOrNull(s.median_rotation_deg)},
+                       {"acc", acc},
+                       {"latency_ms", {{"median", s.latency_median_ms}, {"p90", s.latency_p90_ms}}}});
+  }
+  return {{"results", results}};
+}
+
+std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric) {
+  std::ostringstream out;
+  out << "| dataset | method | frames | failed | median t | median r (deg) | 5cm,5deg | 10cm,10deg | "
+         "20cm,20deg | 10cm,1deg | 25cm,5deg | latency median (ms) | latency p90 (ms) |\n";
+  out << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+  for (const MethodSummary& s : summaries) {
+    const bool metric = std::find(non_metric.begin(), non_metric.end(), s.dataset) == non_metric.end();
+    out << "| " << s.dataset << (metric ? "" : " (units not metric)") << " | " << s.method << " | " << s.frames
+        << " | " << s.failed << " | " << formatNumber(s.median_translation, 4) << (metric ? " m" : "") << " | "
+        << formatNumber(s.median_rotation_deg, 3);
+    for (double a : s.accuracy_percent) out << " | " << formatNumber(a, 1) << "%";
+    out << " | " << formatNumber(s.latency_median_ms, 1) << " | " << formatNumber(s.latency_p90_ms, 1) << " |\n";
+  }
+  return out.str();
+}
+
+std::string perFrameCsv(const std::vector<FrameResult>& frames) {
+  std::ostringstream out;
+  out.precision(9);
+  out << "dataset,method,frame,status,translation_error,rotation_error_deg,correspondences,inliers,"
+         "source_ms,pnp_ms,qw,qx,qy,qz,tx,ty,tz\n";
+  for (const FrameResult& f : frames) {
+    out << f.dataset << "," << f.method << "," << f.frame << "," << toString(f.status) << ","
+        << formatNumber(f.translation_error, 6) << "," << formatNumber(f.rotation_error_deg, 6) << ","
+        << f.correspondences << "," << f.inliers << "," << f.source_seconds * 1000.0 << ","
+        << f.pnp_seconds * 1000.0;
+    if (f.succeeded()) {
+      const Eigen::Quaterniond q = f.estimate.quaternion();
+      out << "," << q.w() << "," << q.x() << "," << q.y() << "," << q.z() << "," << f.estimate.t.x() << ","
+          << f.estimate.t.y() << "," << f.estimate.t.z();
+    } else {
+      out << ",,,,,,,";
+    }
+    out << "\n";
+  }
+  return out.str();
+}
+
+void writeTextFile(const std::filesystem::path& path, const std::string& text) {
+  if (path.has_parent_path() && !std::filesystem::exists(path.parent_path()))
+    throwInputError(path.string(), 0, "output folder does not exist");
+  const std::filesystem::path temporary = path.string() + ".tmp" + std::to_string(getpid());
+  {
+    std::ofstream out(temporary, std::ios::binary);
+    out << text;
+    if (!out) throwInputError(path.string(), 0, "cannot write file");
+  }
+  std::error_code error;
+  std::filesystem::rename(temporary, path, error);
+  if (error) {
+    std::filesystem::remove(temporary);
+    throwInputError(path.string(), 0, "cannot write file: " + error.message());
+  }
+}
+
+}  // namespace ffloc

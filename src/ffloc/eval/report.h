@@ -1,0 +1,31 @@
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "ffloc/eval/metrics.h"
+
+namespace ffloc {
+
+// The summary JSON, schema fixed because other tools read it:
+// {"results": [{"dataset", "method", "frames", "failed", "median_t", "median_r_deg",
+//               "acc": {"5cm_5deg", "10cm_10deg", "20cm_20deg", "10cm_1deg", "25cm_5deg"},
+//               "latency_ms": {"median", "p90"}}, ...]}
+// Accuracies are percentages; median_t is in the dataset's units. A median that is infinite
+// (more than half the frames failed) is written as null, since JSON has no infinity.
+nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries);
+
+// A markdown table like the paper's, one row per (dataset, method); datasets whose units are not
+// metres are marked so the thresholds are read in their units.
+std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric_datasets = {});
+
+// One row per (method, frame): errors, status, inliers, timings and the estimated pose.
+std::string perFrameCsv(const std::vector<FrameResult>& frames);
+
+// Writes text to a file atomically (temporary file, then rename). Throws InputError naming the file.
+void writeTextFile(const std::filesystem::path& path, const std::string& text);
+
+}  // namespace ffloc
