@@ -1,0 +1,211 @@
+#include "ffloc/io/map_file.h"
+
+#include <cstdio>
+#include <cstring>
+#include <nlohmann/json.hpp>
+
+#include "ffloc/core/error.h"
+#include "ffloc/io/tensor_archive.h"
+
+namespace ffloc {
+namespace {
+
+constexpr const char* kMetadataKey = "ffloc_map";
+constexpr const char* kDescriptorsTensor = "descriptors";
+
+std::string tokensTensorName(size_t index) { return "tokens." + std::to_string(index); }
+
+std::string hex64(uint64_t value) {
+  char buffer[17];
+  std::snprintf(buffer, sizeof(buffer), "%016llx", static_cast<unsigned long long>(value));
+  return buffer;
+}
+
+nlohmann::json poseJson(const Pose& pose) {
+  nlohmann::json rows = nlohmann::json::array();
+  const Eigen::Matrix4d T = pose.matrix();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  return rows;
+}
+
+template <typename T>
+T field(const nlohmann::json& object, const char* key, const std::string& where) {
+  if (!object.contains(key)) throw InputError(where + ": field '" + key + "' missing");
+  try {
+    return object.at(key).get<T>();
+  } catch (const nlohmann::json::exception&) {
+    throw InputError(where + ": field '" + key + "' has the wrong type");
+  }
+}
+
+Pose poseFromJson(const nlohmann::json& rows, const std::string& where) {
+  Eigen::Matrix4d T;
+  if (!rows.is_array() || rows.size() != 4) throw InputError(where + ": field 'camera_to_world' is not 4x4");
+  for (int r = 0; r < 4; ++r) {
+    if (!rows[r].is_array() || rows[r].size() != 4) throw InputError(where + ": field 'camera_to_world' is not 4x4");
+    for (int c = 0; c < 4; ++c) {
+      if (!rows[r][c].is_number()) throw InputError(where + ": field 'camera_to_world' holds a non-number");
+      T(r, c) = rows[r][c].get<double>();
+    }
+  }
+  Pose pose = Pose::fromMatrix(T);
+  if (!pose.isFinite()) throw InputError(where + ": field 'camera_to_world' is not finite");
+  return pose;
+}
+
+}  // namespace
+
+uint64_t fnv1a64(const uint8_t* data, size_t size, uint64_t hash) {
+  for (size_t i = 0; i < size; ++i) {
+    hash ^= data[i];
+    hash *= 0x100000001b3ULL;
+  }
+  return hash;
+}
+
+void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
+  if (map.token_dim <= 0) throw InputError(path.string() + ": map: token dimension must be positive");
+  std::vector<TensorView> tensors;
+  nlohmann::json images = nlohmann::json::array();
+  nlohmann::json checksums = nlohmann::json::object();
+  std::vector<float> descriptors;
+  const size_t descriptor_dim = map.images.empty() ? 0 : map.images.front().descriptor.size();
+
+  for (size_t i = 0; i < map.images.size(); ++i) {
+    const MapImage& image = map.images[i];
+    const std::string where = path.string() + ": map image '" + image.name + "'";
+    if (image.tokens.size() != image.tokenCount() * static_cast<size_t>(map.token_dim))
+      throw InputError(where + ": " + std::to_string(image.tokens.size()) + " token values for a " +
+                       std::to_string(image.grid_rows) + "x" + std::to_string(image.grid_cols) + " grid of dimension " +
+                       std::to_string(map.token_dim));
+    if (image.descriptor.size() != descriptor_dim)
+      throw InputError(where + ": descriptor of length " + std::to_string(image.descriptor.size()) + ", expected " +
+                       std::to_string(descriptor_dim));
+    TensorView view;
+    view.name = tokensTensorName(i);
+    view.dtype = DType::kF16;
+    view.shape = {static_cast<int64_t>(image.tokenCount()), map.token_dim};
+    view.data = reinterpret_cast<const uint8_t*>(image.tokens.data());
+    view.nbytes = image.tokens.size() * sizeof(uint16_t);
+    checksums[view.name] = hex64(fnv1a64(view.data, view.nbytes));
+    tensors.push_back(view);
+    descriptors.insert(descriptors.end(), image.descriptor.begin(), image.descriptor.end());
+
+    const Intrinsics& k = image.intrinsics;
+    const PreprocessGeometry& g = image.geometry;
+    images.push_back({{"name", image.name},
+                      {"camera_to_world", poseJson(image.camera_to_world)},
+                      {"intrinsics", {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy},
+                                      {"width", k.width}, {"height", k.height}}},
+                      {"preprocess", {{"original_width", g.original_width}, {"original_height", g.original_height},
+                                      {"resized_width", g.resized_width}, {"resized_height", g.resized_height},
+                                      {"crop_x", g.crop_x}, {"crop_y", g.crop_y},
+                                      {"width", g.width}, {"height", g.height}}},
+                      {"grid", {image.grid_rows, image.grid_cols}}});
+  }
+  TensorView descriptor_view;
+  descriptor_view.name = kDescriptorsTensor;
+  descriptor_view.dtype = DType::kF32;
+  descriptor_view.shape = {static_cast<int64_t>(map.images.size()), static_cast<int64_t>(descriptor_dim)};
+  descriptor_view.data = reinterpret_cast<const uint8_t*>(descriptors.data());
+  descriptor_view.nbytes = descriptors.size() * sizeof(float);
+  checksums[descriptor_view.name] = hex64(fnv1a64(descriptor_view.data, descriptor_view.nbytes));
+  tensors.push_back(descriptor_view);
+
+  const nlohmann::json metadata = {{"version", MapFile::kVersion}, {"model_id", map.model_id},
+                                   {"token_dim", map.token_dim},   {"metric", map.metric},
+                                   {"images", images},             {"checksums", checksums}};
+  writeSafetensors(path, tensors, {{kMetadataKey, metadata.dump()}});
+}
+
+MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {
+  const auto archive = openSafetensors(path);
+  const std::string file = path.string();
+  const auto entry = archive->metadata().find(kMetadataKey);
+  if (entry == archive->metadata().end())
+    throwInputError(file, 0, "not an ffloc map (no '" + std::string(kMetadataKey) + "' metadata)");
+  nlohmann::json metadata;
+  try {
+    metadata = nlohmann::json::parse(entry->second);
+  } catch (const nlohmann::json::exception& e) {
+    throwInputError(file, 0, std::string("map metadata is not valid JSON: ") + e.what());
+  }
+  const std::string where = file + ": map";
+  const int version = field<int>(metadata, "version", where);
+  if (version != MapFile::kVersion)
+    throwInputError(file, 0, "map version " + std::to_string(version) + " is not supported (this build reads version " +
+                                 std::to_string(MapFile::kVersion) + ")");
+  MapFile map;
+  map.model_id = field<std::string>(metadata, "model_id", where);
+  map.token_dim = field<int>(metadata, "token_dim", where);
+  map.metric = field<bool>(metadata, "metric", where);
+  if (!expected_model_id.empty() && map.model_id != expected_model_id)
+    throwInputError(file, 0, "map was built with model '" + map.model_id + "', but the loaded model is '" +
+                                 expected_model_id + "': rebuild the map with this model (ffloc map)");
+  if (map.token_dim <= 0) throwInputError(file, 0, "map field 'token_dim' must be positive");
+
+  const nlohmann::json checksums = field<nlohmann::json>(metadata, "checksums", where);
+  auto verified = [&](const std::string& name) -> const TensorView& {
+    const TensorView& view = archive->at(name);
+    const auto expected = checksums.find(name);
+    if (expected == checksums.end() || !expected->is_string())
+      throwInputError(file, 0, "tensor '" + name + "': no checksum recorded");
+    if (hex64(fnv1a64(view.data, view.nbytes)) != expected->get<std::string>())
+      throwInputError(file, 0, "tensor '" + name + "': checksum mismatch (the file is corrupted)");
+    return view;
+  };
+
+  const nlohmann::json images = field<nlohmann::json>(metadata, "images", where);
+  if (!images.is_array()) throwInputError(file, 0, "map field 'images' is not a list");
+  const TensorView& descriptors = verified(kDescriptorsTensor);
+  if (descriptors.dtype != DType::kF32 || descriptors.shape.size() != 2 ||
+      descriptors.shape[0] != static_cast<int64_t>(images.size()))
+    throwInputError(file, 0, "tensor 'descriptors' has shape " + descriptors.shapeString() + ", expected (" +
+                                 std::to_string(images.size()) + ", D) F32");
+  const size_t descriptor_dim = static_cast<size_t>(descriptors.shape[1]);
+
+  for (size_t i = 0; i < images.size(); ++i) {
+    const nlohmann::json& j = images[i];
+    const std::string image_where = where + " image #" + std::to_string(i);
+    MapImage image;
+    image.name = field<std::string>(j, "name", image_where);
+    image.camera_to_world = poseFromJson(field<nlohmann::json>(j, "camera_to_world", image_where), image_where);
+    const auto k = field<nlohmann::json>(j, "intrinsics", image_where);
+    image.intrinsics.fx = field<double>(k, "fx", image_where);
+    image.intrinsics.fy = field<double>(k, "fy", image_where);
+    image.intrinsics.cx = field<double>(k, "cx", image_where);
+    image.intrinsics.cy = field<double>(k, "cy", image_where);
+    image.intrinsics.width = field<int>(k, "width", image_where);
+    image.intrinsics.height = field<int>(k, "height", image_where);
+    const auto g = field<nlohmann::json>(j, "preprocess", image_where);
+    image.geometry.original_width = field<int>(g, "original_width", image_where);
+    image.geometry.original_height = field<int>(g, "original_height", image_where);
+    image.geometry.resized_width = field<int>(g, "resized_width", image_where);
+    image.geometry.resized_height = field<int>(g, "resized_height", image_where);
+    image.geometry.crop_x = field<int>(g, "crop_x", image_where);
+    image.geometry.crop_y = field<int>(g, "crop_y", image_where);
+    image.geometry.width = field<int>(g, "width", image_where);
+    image.geometry.height = field<int>(g, "height", image_where);
+    const auto grid = field<std::vector<int>>(j, "grid", image_where);
+    if (grid.size() != 2 || grid[0] <= 0 || grid[1] <= 0)
+      throwInputError(file, 0, "map image '" + image.name + "': field 'grid' must be two positive sizes");
+    image.grid_rows = grid[0];
+    image.grid_cols = grid[1];
+
+    const TensorView& tokens = verified(tokensTensorName(i));
+    const std::vector<int64_t> expected_shape = {static_cast<int64_t>(image.tokenCount()), map.token_dim};
+    if (tokens.dtype != DType::kF16 || tokens.shape != expected_shape)
+      throwInputError(file, 0, "tensor '" + tokens.name + "' of image '" + image.name + "' has shape " +
+                                   tokens.shapeString() + " " + toString(tokens.dtype) + ", expected (" +
+                                   std::to_string(expected_shape[0]) + ", " + std::to_string(expected_shape[1]) + ") F16");
+    image.tokens.resize(tokens.nbytes / sizeof(uint16_t));
+    std::memcpy(image.tokens.data(), tokens.data, tokens.nbytes);
+    image.descriptor.resize(descriptor_dim);
+    std::memcpy(image.descriptor.data(), descriptors.data + i * descriptor_dim * sizeof(float),
+                descriptor_dim * sizeof(float));
+    map.images.push_back(std::move(image));
+  }
+  return map;
+}
+
+}  // namespace ffloc

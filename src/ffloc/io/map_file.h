@@ -1,0 +1,51 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "ffloc/geometry/camera.h"
+#include "ffloc/geometry/pose.h"
+#include "ffloc/io/image.h"
+
+namespace ffloc {
+
+// One mapping image as the map stores it: encoded once at mapping time, so a query never
+// re-encodes the mapping images (the paper re-encodes them for every query).
+struct MapImage {
+  std::string name;
+  Pose camera_to_world;              // the frame's pose, scene units
+  Intrinsics intrinsics;             // of the preprocessed image the tokens were computed from
+  PreprocessGeometry geometry;       // original image -> preprocessed image
+  int grid_rows = 0, grid_cols = 0;  // token grid; tokens = grid_rows * grid_cols
+  std::vector<uint16_t> tokens;      // fp16 bits, row-major (token, channel)
+  std::vector<float> descriptor;     // global descriptor for retrieval
+
+  size_t tokenCount() const { return static_cast<size_t>(grid_rows) * grid_cols; }
+};
+
+// A map: one versioned safetensors file (tokens as F16 tensors, descriptors as one F32 matrix)
+// whose JSON metadata holds the poses, intrinsics, preprocessing geometry and image names, a
+// checksum of every tensor, and the identity of the model that made the tokens.
+struct MapFile {
+  static constexpr int kVersion = 1;
+
+  std::string model_id;  // identity of the weights that produced the tokens
+  int token_dim = 0;
+  bool metric = true;
+  std::vector<MapImage> images;
+};
+
+// Atomic: written to a temporary file beside `path`, then renamed, so an interrupted write
+// never damages an existing map. InputError naming the image for inconsistent sizes.
+void writeMapFile(const MapFile& map, const std::filesystem::path& path);
+
+// Validates the container, the version, every checksum and every size. When expected_model_id is
+// non-empty and differs from the map's, InputError says which model built the map.
+MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id = "");
+
+// FNV-1a, 64 bits: cheap, and enough to detect a corrupted or truncated byte range.
+uint64_t fnv1a64(const uint8_t* data, size_t size, uint64_t seed = 0xcbf29ce484222325ULL);
+
+}  // namespace ffloc

@@ -1,0 +1,124 @@
+#include "ffloc/io/map_file.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <random>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/io/half.h"
+
+namespace ffloc {
+namespace {
+
+MapFile smallMap(int images = 3) {
+  std::mt19937 rng(7);
+  std::normal_distribution<float> n(0.f, 1.f);
+  MapFile map;
+  map.model_id = "tiny-1234abcd";
+  map.token_dim = 8;
+  map.metric = true;
+  for (int i = 0; i < images; ++i) {
+    MapImage image;
+    image.name = "frame-" + std::to_string(i) + ".png";
+    image.camera_to_world.R = Eigen::AngleAxisd(0.3 * i, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    image.camera_to_world.t = Eigen::Vector3d(0.1 * i, 0.2, -0.3 * i);
+    image.intrinsics = {400.5, 401.25, 255.5, 191.5, 512, 384, {}};
+    image.geometry = preprocessGeometry(640, 480);
+    image.grid_rows = 3;
+    image.grid_cols = 4;
+    for (size_t t = 0; t < image.tokenCount() * map.token_dim; ++t) image.tokens.push_back(floatToHalf(n(rng)));
+    for (int d = 0; d < 16; ++d) image.descriptor.push_back(n(rng));
+    map.images.push_back(image);
+  }
+  return map;
+}
+
+TEST(MapFile, RoundTripIsExact) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  const MapFile map = smallMap();
+  writeMapFile(map, dir / "scene.ffmap");
+  const MapFile back = readMapFile(dir / "scene.ffmap", "tiny-1234abcd");
+  EXPECT_EQ(back.model_id, map.model_id);
+  EXPECT_EQ(back.token_dim, map.token_dim);
+  ASSERT_EQ(back.images.size(), map.images.size());
+  for (size_t i = 0; i < map.images.size(); ++i) {
+    const MapImage &a = map.images[i], &b = back.images[i];
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_EQ(a.camera_to_world.matrix(), b.camera_to_world.matrix());
+    EXPECT_EQ(a.intrinsics.fx, b.intrinsics.fx);
+    EXPECT_EQ(a.intrinsics.cy, b.intrinsics.cy);
+    EXPECT_EQ(a.geometry.crop_y, b.geometry.crop_y);
+    EXPECT_EQ(a.geometry.resized_width, b.geometry.resized_width);
+    EXPECT_EQ(a.tokens, b.tokens);
+    EXPECT_EQ(a.descriptor, b.descriptor);
+  }
+  // No temporary file is left behind.
+  size_t files = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(dir)) files += entry.is_regular_file();
+  EXPECT_EQ(files, 1u);
+}
+
+TEST(MapFile, RefusesAMapBuiltWithAnotherModel) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  writeMapFile(smallMap(), dir / "scene.ffmap");
+  try {
+    readMapFile(dir / "scene.ffmap", "large-99999999");
+    FAIL();
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("tiny-1234abcd"), std::string::npos) << message;
+    EXPECT_NE(message.find("large-99999999"), std::string::npos) << message;
+  }
+}
+
+TEST(MapFile, DetectsCorruptionAndTruncation) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  const auto path = dir / "scene.ffmap";
+  writeMapFile(smallMap(), path);
+  const auto size = std::filesystem::file_size(path);
+  {
+    // Flip one byte near the end (inside the token data).
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(static_cast<std::streamoff>(size - 100));
+    char c;
+    f.read(&c, 1);
+    c = static_cast<char>(c ^ 0x5a);
+    f.seekp(static_cast<std::streamoff>(size - 100));
+    f.write(&c, 1);
+  }
+  try {
+    readMapFile(path);
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos) << e.what();
+  }
+  writeMapFile(smallMap(), path);
+  std::filesystem::resize_file(path, size / 2);
+  EXPECT_THROW(readMapFile(path), InputError);
+  std::ofstream(dir / "empty.ffmap").close();
+  EXPECT_THROW(readMapFile(dir / "empty.ffmap"), InputError);
+}
+
+TEST(MapFile, RejectsInconsistentImages) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  MapFile map = smallMap();
+  map.images[1].tokens.pop_back();
+  try {
+    writeMapFile(map, dir / "bad.ffmap");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("frame-1.png"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.ffmap"));
+}
+
+TEST(MapFile, EmptyMapRoundTrips) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  writeMapFile(smallMap(0), dir / "empty.ffmap");
+  EXPECT_TRUE(readMapFile(dir / "empty.ffmap").images.empty());
+}
+
+}  // namespace
+}  // namespace ffloc
