@@ -13,7 +13,7 @@ enum class PnpSolver {
   kOpenCvUsac,  // cv::solvePnPRansac with USAC (P3P minimal solver, local optimisation)
   kLoRansac,    // the project's own LO-RANSAC around a P3P minimal solver
 };
-const char* toString(PnpSolver solver);
+const char* toString(PnpSolver solver);                // "opencv-usac", "lo-ransac"
 PnpSolver parsePnpSolver(const std::string& name);  // throws InputError for unknown names
 
 // Defaults are the paper's: drop C < 1.5, keep at most 5000 pairs.
@@ -21,21 +21,27 @@ struct PnpOptions {
   PnpSolver solver = PnpSolver::kLoRansac;
   float confidence_threshold = 1.5f;
   size_t max_correspondences = 5000;
-  uint64_t seed = 0;
+  uint64_t seed = 0;  // seeds the subsampling and, for kLoRansac, the minimal samples
   double inlier_threshold_px = 8.0;
-  int max_iterations = 10000;
+  int max_iterations = 10000;  // cap on minimal samples; the count adapts below it
   double success_probability = 0.9999;
   int min_inliers = 12;
   bool refine = true;  // non-linear refinement on the final inliers
 };
 
-enum class PnpStatus { kSuccess, kTooFewCorrespondences, kNoModel, kTooFewInliers };
+enum class PnpStatus {
+  kSuccess,
+  kTooFewCorrespondences,  // fewer than 4 pairs after the confidence filter
+  kNoModel,                // no hypothesis, or one whose inliers are collinear (pose ambiguous)
+  kTooFewInliers,          // best model has fewer than min_inliers inliers
+};
 const char* toString(PnpStatus status);
 
 struct PnpResult {
   PnpStatus status = PnpStatus::kNoModel;
-  Pose camera_to_world;  // valid when status == kSuccess
-  int inliers = 0;
+  // Valid when status == kSuccess; with kTooFewInliers it holds the rejected best model.
+  Pose camera_to_world;
+  int inliers = 0;  // pairs within inlier_threshold_px (positive depth) of the final pose
   int used_correspondences = 0;  // after the confidence filter and subsampling
   double seconds = 0;
   bool ok() const { return status == PnpStatus::kSuccess; }
@@ -43,7 +49,9 @@ struct PnpResult {
 
 // Confidence filter, seeded subsampling, robust estimation and refinement. `camera` is the
 // pinhole camera of the pixels (no distortion). Never throws for a failed estimate: failure is
-// a status.
+// a status. Throws InputError, naming the field, for an invalid camera or options and for
+// correspondences whose arrays differ in length. kLoRansac gives the same result for the same
+// seed and input.
 PnpResult estimatePose(const Correspondences& correspondences, const Intrinsics& camera,
                        const PnpOptions& options = {});
 

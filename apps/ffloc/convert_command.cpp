@@ -1,0 +1,48 @@
+#include <iostream>
+#include <memory>
+
+#include "commands.h"
+#include "ffloc/io/convert_weights.h"
+
+namespace ffloc::cli {
+namespace {
+
+struct ConvertArguments {
+  std::string input;
+  std::string output;
+  std::string dtype;
+  bool quiet = false;
+};
+
+void runConvert(const ConvertArguments& args) {
+  ConvertWeightsOptions options;
+  if (!args.dtype.empty()) options.float_dtype = parseFloatDType(args.dtype, "--dtype");
+  options.quiet = args.quiet;
+  const ConvertWeightsSummary summary = convertWeights(args.input, args.output, options);
+  std::cout << "wrote " << args.output << ": " << summary.tensors_written << " tensors ("
+            << summary.bytes_written / (1024.0 * 1024.0) << " MiB of data) from "
+            << summary.tensors_read << " names; " << summary.aliases_dropped
+            << " aliases stored once under their first name\n";
+}
+
+}  // namespace
+
+void registerConvertCommand(CLI::App& app) {
+  auto args = std::make_shared<ConvertArguments>();
+  CLI::App* cmd = app.add_subcommand(
+      "convert",
+      "Convert network weights (a zip-format torch.save() checkpoint such as DUSt3R's .pth, or a "
+      "safetensors file) to safetensors in the Hugging Face hub layout: names in order, aliases "
+      "stored once, metadata format=pt and source=<input file>.");
+  cmd->add_option("--input", args->input, "Checkpoint (.pth) or safetensors file to read")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--output", args->output, "safetensors file to write (atomically)")->required();
+  cmd->add_option("--dtype", args->dtype,
+                  "Store floating-point tensors as f32, f16 or bf16 (default: keep each tensor's "
+                  "dtype); integer tensors are never cast");
+  cmd->add_flag("--quiet", args->quiet, "No progress bar");
+  cmd->callback([args] { runConvert(*args); });
+}
+
+}  // namespace ffloc::cli

@@ -1,0 +1,332 @@
+// Bad input of every kind is an InputError naming the file and the line or field. Each test
+// writes a small dataset into a temporary folder and breaks one thing.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/data/depth.h"
+#include "ffloc/data/scene_test_util.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::expectInputError;
+using testing::writeTextFile;
+
+const char* kIdentityPose = "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+
+void writeImage(const fs::path& path, int width, int height) {
+  fs::create_directories(path.parent_path());
+  ASSERT_TRUE(cv::imwrite(path.string(), cv::Mat3b(height, width, cv::Vec3b(40, 80, 120))));
+}
+
+// Two 8x6 frames in the flat 7-Scenes layout.
+fs::path makeSevenScenes() {
+  const auto dir = testing::makeTempDir("ffloc-bad-7scenes");
+  writeTextFile(dir / "camera-intrinsics.txt", "5 0 3.5\n0 5 2.5\n0 0 1\n");
+  for (const std::string stem : {"frame-000000", "frame-000001"}) {
+    writeImage(dir / (stem + ".color.png"), 8, 6);
+    EXPECT_TRUE(cv::imwrite((dir / (stem + ".depth.png")).string(), cv::Mat1w(6, 8, uint16_t(1500))));
+    writeTextFile(dir / (stem + ".pose.txt"), kIdentityPose);
+  }
+  return dir;
+}
+
+TEST(BadInput, TinySevenScenesReads) {
+  const auto dir = makeSevenScenes();
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 2u);
+  EXPECT_EQ(scene.frames[1].intrinsics.width, 8);
+  EXPECT_EQ(readDepthMetres(scene.frames[1])(2, 3), 1.5f);
+}
+
+TEST(BadInput, MalformedPoses) {
+  struct Case {
+    std::string text, expected;
+  };
+  const std::vector<Case> cases = {
+      {"1 0 0 0\n0 1 0 0\n0 0 1 0\n", "4x4"},
+      {"1 0 0 0\n0 1 0\n0 0 1 0\n0 0 0 1\n", ":2: expected 4 numbers"},
+      {"1 0 0 0\n0 1 0 0\n0 0 1 nan\n0 0 0 1\n", ":3: non-finite value"},
+      {"1 0 0 0\n0 1 0 0\n0 0 1 x\n0 0 0 1\n", ":3: expected a number"},
+      {"1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n", "last row"},
+      {"1 0 0 0\n0 2 0 0\n0 0 1 0\n0 0 0 1\n", "not orthonormal"},
+  };
+  for (const auto& bad : cases) {
+    SCOPED_TRACE(bad.text);
+    const auto dir = makeSevenScenes();
+    writeTextFile(dir / "frame-000001.pose.txt", bad.text);
+    expectInputError([&] { loadDataset(dir); }, {"frame-000001.pose.txt", bad.expected});
+  }
+}
+
+TEST(BadInput, SevenScenesTextFormsAreAccepted) {
+  const auto dir = makeSevenScenes();
+  // The original 7-Scenes writing: leading spaces, tabs, trailing tab, CRLF, e-001 exponents.
+  writeTextFile(dir / "frame-000001.pose.txt",
+                "  1.0000000e+000\t  0.0000000e+000\t  0.0000000e+000\t -5.0000000e-001\t\r\n"
+                "  0.0000000e+000\t  1.0000000e+000\t  0.0000000e+000\t  2.5000000e-001\t\r\n"
+                "  0.0000000e+000\t  0.0000000e+000\t  1.0000000e+000\t  1.0000000e+000\t\r\n"
+                "  0.0000000e+000\t  0.0000000e+000\t  0.0000000e+000\t  1.0000000e+000\t\r\n");
+  const Scene scene = loadDataset(dir);
+  EXPECT_EQ(scene.frames[1].camera_to_world.t, Eigen::Vector3d(-0.5, 0.25, 1.0));
+}
+
+TEST(BadInput, MissingAndUnreadableImages) {
+  auto dir = makeSevenScenes();
+  fs::remove(dir / "frame-000001.color.png");
+  expectInputError([&] { loadDataset(dir); }, {"frame-000001.pose.txt", "no colour image"});
+  dir = makeSevenScenes();
+  writeTextFile(dir / "frame-000001.color.png", "this is not a PNG");
+  expectInputError([&] { loadDataset(dir); }, {"frame-000001.color.png", "cannot decode"});
+}
+
+TEST(BadInput, DepthOfWrongSize) {
+  const auto dir = makeSevenScenes();
+  ASSERT_TRUE(cv::imwrite((dir / "frame-000001.depth.png").string(), cv::Mat1w(3, 4, uint16_t(1000))));
+  const Scene scene = loadDataset(dir);
+  expectInputError([&] { readDepthMetres(scene.frames[1]); }, {"frame-000001.depth.png", "4x3", "8x6"});
+}
+
+TEST(BadInput, BadIntrinsicsFile) {
+  const auto dir = makeSevenScenes();
+  writeTextFile(dir / "camera-intrinsics.txt", "5 0 3.5\n0 5\n0 0 1\n");
+  expectInputError([&] { loadDataset(dir); }, {"camera-intrinsics.txt:2"});
+}
+
+TEST(BadInput, SequenceLayoutSplitNamesMissingSequence) {
+  const auto dir = testing::makeTempDir("ffloc-bad-seq");
+  writeImage(dir / "seq-01/frame-000000.color.png", 8, 6);
+  writeTextFile(dir / "seq-01/frame-000000.pose.txt", kIdentityPose);
+  writeTextFile(dir / "TrainSplit.txt", "sequence1\r\n");
+  writeTextFile(dir / "TestSplit.txt", "sequence1\r\n");
+  expectInputError([&] { loadDataset(dir); }, {"TestSplit.txt:1", "both"});
+  writeTextFile(dir / "TestSplit.txt", "sequence7\r\n");
+  expectInputError([&] { loadDataset(dir); }, {"TestSplit.txt:1", "seq-07"});
+  writeTextFile(dir / "TestSplit.txt", "");
+  const Scene scene = loadDataset(dir);  // an empty split reads fine ...
+  EXPECT_EQ(scene.mappingIndices().size(), 1u);
+  expectInputError([&] { requireSplits(scene); }, {dir.string(), "split 'query' is empty"});  // ... but cannot be evaluated
+}
+
+TEST(BadInput, SplitFiles) {
+  const auto dir = makeSevenScenes();
+  writeTextFile(dir / "split_mapping.txt", "frame-000000.color.png\n");
+  writeTextFile(dir / "split_query.txt", "# queries\n./frame-000001.color.png\n");
+  Scene scene = loadDataset(dir);
+  EXPECT_EQ(scene.frames[0].split, Split::kMapping);
+  EXPECT_EQ(scene.frames[1].split, Split::kQuery);
+  writeTextFile(dir / "split_query.txt", "frame-000001.color.png\nframe-000009.color.png\n");
+  expectInputError([&] { loadDataset(dir); }, {"split_query.txt:2", "frame-000009.color.png"});
+  writeTextFile(dir / "split_query.txt", "frame-000000.color.png\n");
+  expectInputError([&] { loadDataset(dir); }, {"split_query.txt:1", "already listed in split_mapping.txt:1"});
+  fs::remove(dir / "split_query.txt");
+  scene = loadDataset(dir);
+  EXPECT_EQ(scene.frames[1].split, Split::kUnassigned);
+  expectInputError([&] { requireSplits(scene); }, {"split 'query' is empty"});
+}
+
+TEST(BadInput, UnknownFormat) {
+  const auto dir = testing::makeTempDir("ffloc-bad-empty");
+  expectInputError([&] { detectDatasetFormat(dir); },
+                   {dir.string(), "unknown dataset format", "manifest.json", "transforms.json", "images.txt",
+                    "gt_dense_cameras", "dataset_train.txt", "pose.txt"});
+  expectInputError([&] { loadDataset(dir / "nope"); }, {"nope", "not found"});
+  expectInputError([&] { loadDataset(dir, "blender"); }, {"unknown dataset format 'blender'"});
+}
+
+fs::path makeColmap() {
+  const auto dir = testing::makeTempDir("ffloc-bad-colmap");
+  writeTextFile(dir / "sparse/0/cameras.txt", "# comment\n1 PINHOLE 8 6 5 5 4 3\n");
+  writeTextFile(dir / "sparse/0/images.txt",
+                "# comment\n1 1 0 0 0 0 0 0 1 a.png\n1.5 2.5 7 3.5 3.5 -1\n2 1 0 0 0 1 0 0 1 b.png\n\n");
+  writeTextFile(dir / "sparse/0/points3D.txt", "7 0 0 1 255 255 255 0.1 1 0\n");
+  writeImage(dir / "images/a.png", 8, 6);
+  writeImage(dir / "images/b.png", 8, 6);
+  return dir;
+}
+
+TEST(BadInput, ColmapTinyModelReads) {
+  const Scene scene = loadDataset(makeColmap());
+  ASSERT_EQ(scene.frames.size(), 2u);
+  EXPECT_EQ(scene.frames[1].name, "images/b.png");
+  EXPECT_EQ(scene.frames[1].camera_to_world.centre(), Eigen::Vector3d(-1, 0, 0));  // world-to-camera inverted
+  EXPECT_EQ(scene.frames[0].intrinsics.cx, 3.5);
+  ASSERT_EQ(scene.points.size(), 1u);
+  ASSERT_EQ(scene.points[0].observations.size(), 1u);
+  EXPECT_EQ(scene.points[0].observations[0].pixel, Eigen::Vector2d(1.0, 2.0));
+}
+
+TEST(BadInput, ColmapCameraModelsMapToOpenCv) {
+  const auto dir = makeColmap();
+  writeTextFile(dir / "sparse/0/cameras.txt",
+                "1 SIMPLE_PINHOLE 8 6 5 4 3\n2 PINHOLE 8 6 5 6 4 3\n3 SIMPLE_RADIAL 8 6 5 4 3 0.1\n"
+                "4 RADIAL 8 6 5 4 3 0.1 0.2\n5 OPENCV 8 6 5 6 4 3 0.1 0.2 0.3 0.4\n");
+  std::string images;
+  for (int id = 1; id <= 5; ++id) {
+    writeImage(dir / "images" / (std::to_string(id) + ".png"), 8, 6);
+    images += std::to_string(id) + " 1 0 0 0 0 0 0 " + std::to_string(id) + " " + std::to_string(id) + ".png\n\n";
+  }
+  writeTextFile(dir / "sparse/0/images.txt", images);
+  fs::remove(dir / "sparse/0/points3D.txt");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 5u);
+  const std::vector<std::vector<double>> distortion = {
+      {}, {}, {0.1, 0, 0, 0}, {0.1, 0.2, 0, 0}, {0.1, 0.2, 0.3, 0.4}};
+  for (size_t i = 0; i < 5; ++i) {
+    const Intrinsics& K = scene.frames[i].intrinsics;
+    EXPECT_EQ(K.fx, 5.0);
+    EXPECT_EQ(K.fy, i == 1 || i == 4 ? 6.0 : 5.0);
+    EXPECT_EQ(K.cx, 3.5);
+    EXPECT_EQ(K.cy, 2.5);
+    EXPECT_EQ(K.distortion, distortion[i]) << i;
+  }
+}
+
+TEST(BadInput, ColmapErrors) {
+  auto dir = makeColmap();
+  writeTextFile(dir / "sparse/0/cameras.txt", "# comment\n1 FOV 8 6 5 5 4 3 0.1\n");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:2", "'FOV'"});
+  dir = makeColmap();
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 PINHOLE 8 6 5 5 4\n");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1", "4 parameters"});
+  dir = makeColmap();
+  fs::remove(dir / "images/b.png");
+  expectInputError([&] { loadDataset(dir); }, {"images.txt:4", "b.png", "not found"});
+  dir = makeColmap();
+  writeTextFile(dir / "sparse/0/points3D.txt", "7 0 0 1 255 255 255 0.1 1 4\n");
+  expectInputError([&] { loadDataset(dir); }, {"points3D.txt:1", "POINT2D_IDX 4"});
+  dir = makeColmap();
+  writeTextFile(dir / "sparse/0/images.txt", "1 1 0 0 0 0 0 0 2 a.png\n\n");
+  expectInputError([&] { loadDataset(dir); }, {"images.txt:1", "CAMERA_ID 2"});
+  dir = makeColmap();
+  writeTextFile(dir / "sparse/0/images.txt", "1 0 0 0 0 0 0 0 1 a.png\n\n");
+  expectInputError([&] { loadDataset(dir); }, {"images.txt:1", "quaternion"});
+}
+
+fs::path makeNerf(const std::string& frame_extra = "", const std::string& top_extra = "") {
+  const auto dir = testing::makeTempDir("ffloc-bad-nerf");
+  writeImage(dir / "train/r_0.png", 8, 6);
+  writeTextFile(dir / "transforms_train.json",
+                R"({"camera_angle_x": 1.0)" + top_extra + R"(, "frames": [{"file_path": "./train/r_0")" + frame_extra +
+                    R"(, "transform_matrix": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  return dir;
+}
+
+TEST(BadInput, NerfBlenderStyleReads) {
+  const Scene scene = loadDataset(makeNerf());
+  ASSERT_EQ(scene.frames.size(), 1u);
+  const Frame& frame = scene.frames[0];
+  EXPECT_EQ(frame.name, "train/r_0.png");  // extension found
+  EXPECT_EQ(frame.split, Split::kMapping);
+  EXPECT_EQ(frame.intrinsics.width, 8);  // from the image, no w/h in the file
+  EXPECT_NEAR(frame.intrinsics.fx, 4.0 / std::tan(0.5), 1e-12);
+  EXPECT_EQ(frame.intrinsics.cx, 3.5);
+  // OpenGL -> OpenCV: the camera's y and z axes flip.
+  EXPECT_EQ(frame.camera_to_world.R.col(1), Eigen::Vector3d(0, -1, 0));
+  EXPECT_EQ(frame.camera_to_world.R.col(2), Eigen::Vector3d(0, 0, -1));
+}
+
+TEST(BadInput, NerfPerFrameIntrinsicsOverrideTheFile) {
+  const auto dir = testing::makeTempDir("ffloc-nerf-override");
+  writeImage(dir / "a.jpg", 8, 6);
+  writeImage(dir / "b.jpg", 8, 6);
+  writeTextFile(dir / "transforms.json", R"({"fl_x": 10, "fl_y": 11, "cx": 4, "cy": 3, "w": 8, "h": 6, "k1": 0.1,
+    "frames": [{"file_path": "a.jpg", "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]},
+               {"file_path": "b.jpg", "fl_x": 20, "cx": 5, "k1": 0,
+                "transform_matrix": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]})");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 2u);
+  const Intrinsics& a = scene.frames[0].intrinsics;
+  const Intrinsics& b = scene.frames[1].intrinsics;
+  EXPECT_EQ(a.fx, 10.0);
+  EXPECT_EQ(a.cx, 3.5);
+  EXPECT_EQ(a.distortion, (std::vector<double>{0.1, 0, 0, 0}));
+  EXPECT_EQ(b.fx, 20.0);
+  EXPECT_EQ(b.fy, 11.0);
+  EXPECT_EQ(b.cx, 4.5);
+  EXPECT_TRUE(b.distortion.empty());
+  EXPECT_FALSE(scene.metric);
+}
+
+TEST(BadInput, NerfErrors) {
+  auto dir = makeNerf();
+  fs::remove(dir / "train/r_0.png");
+  expectInputError([&] { loadDataset(dir); }, {"transforms_train.json", "frames[0].file_path", "not found"});
+  expectInputError([&] { loadDataset(makeNerf(R"(, "camera_model": "OPENCV_FISHEYE")")); },
+                   {"transforms_train.json", "frames[0].camera_model", "OPENCV_FISHEYE"});
+  expectInputError([&] { loadDataset(makeNerf("", R"(, "fl_x": "big")")); }, {"transforms_train.json", "field 'fl_x'"});
+}
+
+fs::path makeStrecha() {
+  const auto dir = testing::makeTempDir("ffloc-bad-strecha");
+  writeImage(dir / "images/0000.jpg", 8, 6);
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n8 6\n");
+  return dir;
+}
+
+TEST(BadInput, StrechaErrors) {
+  auto dir = makeStrecha();
+  EXPECT_EQ(loadDataset(dir).frames[0].camera_to_world.t, Eigen::Vector3d(1, 2, 3));
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera", "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera", "expected 9"});
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n16 12\n");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera", "16x12", "8x6"});
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 1 1\n1 2 3\n8 6\n");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:5", "not orthonormal"});
+}
+
+TEST(BadInput, CambridgeReadsPosesAsCentreAndWorldToCameraRotation) {
+  const auto dir = testing::makeTempDir("ffloc-cambridge");
+  writeImage(dir / "seq1/frame00001.png", 96, 54);
+  writeImage(dir / "seq2/frame00001.png", 96, 54);
+  // A camera at C looking at the world origin: its world-to-camera rotation has rows
+  // (x, y, z camera axes in world coordinates).
+  const Eigen::Vector3d C(0, -2, 0);
+  Eigen::Matrix3d R_world_to_camera;
+  R_world_to_camera << 1, 0, 0,  //
+      0, 0, -1,                  // camera y (down) = world -z
+      0, 1, 0;                   // camera z (forward) = world +y, towards the origin
+  const Eigen::Quaterniond q(R_world_to_camera);
+  char line[256];
+  std::snprintf(line, sizeof(line), "seq1/frame00001.png %.9f %.9f %.9f %.9f %.9f %.9f %.9f\n", C.x(), C.y(), C.z(),
+                q.w(), q.x(), q.y(), q.z());
+  writeTextFile(dir / "dataset_train.txt", std::string("Visual Landmark Dataset V1\nImageFile, Camera Position [X Y Z W P Q R]\n\n") + line);
+  writeTextFile(dir / "dataset_test.txt", "Visual Landmark Dataset V1\nImageFile, Camera Position [X Y Z W P Q R]\n\n"
+                                          "seq2/frame00001.png 0 0 -1 1 0 0 0\n");
+  ASSERT_EQ(detectDatasetFormat(dir), "cambridge");
+  Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 2u);
+  const Frame& frame = scene.frames[0];
+  EXPECT_EQ(frame.split, Split::kMapping);
+  EXPECT_EQ(scene.frames[1].split, Split::kQuery);
+  EXPECT_TRUE(frame.camera_to_world.centre().isApprox(C, 1e-9));
+  // The origin projects to the principal point, a point above it (world +z) above it in the image.
+  const Eigen::Vector3d origin = frame.camera_to_world.inverse() * Eigen::Vector3d::Zero();
+  EXPECT_TRUE(frame.intrinsics.project(origin).isApprox(Eigen::Vector2d(47.5, 26.5), 1e-6));
+  EXPECT_LT(frame.intrinsics.project(frame.camera_to_world.inverse() * Eigen::Vector3d(0, 0, 0.5)).y(), 26.5);
+  EXPECT_NEAR(frame.intrinsics.fx, 1670.0 * 96 / 1920, 1e-9);  // default focal, scaled to the image
+
+  // With the scene's reconstruction.nvm, each image gets its own focal length.
+  writeTextFile(dir / "reconstruction.nvm", "NVM_V3\n\n2\nseq1/frame00001.jpg 1700 1 0 0 0 0 0 0 0 0\n"
+                                            "seq2/frame00001.jpg 1600 1 0 0 0 0 0 0 0 0\n");
+  scene = loadDataset(dir);
+  EXPECT_NEAR(scene.frames[0].intrinsics.fx, 1700.0 * 96 / 1920, 1e-9);
+  EXPECT_NEAR(scene.frames[1].intrinsics.fx, 1600.0 * 96 / 1920, 1e-9);
+
+  writeTextFile(dir / "dataset_test.txt", "Visual Landmark Dataset V1\nImageFile, Camera Position [X Y Z W P Q R]\n\n"
+                                          "seq2/frame00001.png 0 0 -1 1 0 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:4"});
+  writeTextFile(dir / "dataset_test.txt", "Visual Landmark Dataset V1\nImageFile, Camera Position [X Y Z W P Q R]\n\n"
+                                          "seq2/frame00009.png 0 0 -1 1 0 0 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:4", "frame00009.png", "not found"});
+}
+
+}  // namespace
+}  // namespace ffloc

@@ -1,0 +1,224 @@
+#include <algorithm>
+#include <map>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/readers.h"
+#include "ffloc/data/text_file.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char* const kModelFolders[] = {"", "sparse/0", "sparse", "reconstruction", "model"};
+
+std::optional<fs::path> findModelFolder(const fs::path& dir, const char* file_name) {
+  for (const char* folder : kModelFolders)
+    if (fs::is_regular_file(dir / folder / file_name)) return (dir / folder).lexically_normal();
+  return std::nullopt;
+}
+
+struct ModelSpec {
+  const char* name;
+  size_t parameters;
+};
+
+// Number of parameters of each supported COLMAP model; others are rejected by name.
+const ModelSpec kModels[] = {{"SIMPLE_PINHOLE", 3}, {"PINHOLE", 4}, {"SIMPLE_RADIAL", 4},
+                             {"RADIAL", 5},         {"OPENCV", 8},  {"FULL_OPENCV", 12}};
+
+Intrinsics toIntrinsics(const std::string& model, const std::vector<double>& p) {
+  Intrinsics K;
+  if (model == "SIMPLE_PINHOLE" || model == "SIMPLE_RADIAL" || model == "RADIAL") {
+    K.fx = K.fy = p[0];
+    K.cx = p[1];
+    K.cy = p[2];
+    if (model == "SIMPLE_RADIAL") K.distortion = {p[3], 0, 0, 0};
+    if (model == "RADIAL") K.distortion = {p[3], p[4], 0, 0};
+  } else {
+    K.fx = p[0];
+    K.fy = p[1];
+    K.cx = p[2];
+    K.cy = p[3];
+    // COLMAP's OPENCV and FULL_OPENCV parameter order is OpenCV's: k1 k2 p1 p2 [k3 k4 k5 k6].
+    if (model == "OPENCV" || model == "FULL_OPENCV") K.distortion.assign(p.begin() + 4, p.end());
+  }
+  // COLMAP puts the top-left pixel's centre at (0.5, 0.5); OpenCV at (0, 0).
+  K.cx -= 0.5;
+  K.cy -= 0.5;
+  bool distorted = false;
+  for (double d : K.distortion) distorted = distorted || d != 0.0;
+  if (!distorted) K.distortion.clear();
+  return K;
+}
+
+std::map<long, Intrinsics> readCameras(const fs::path& file) {
+  std::map<long, Intrinsics> cameras;
+  for (const auto& line : contentLines(readTextLines(file), true)) {
+    const auto tokens = splitWhitespace(line.text);
+    if (tokens.size() < 4)
+      throwInputError(file.string(), line.number, "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]");
+    const long id = parseInteger(tokens[0], file, line.number, "CAMERA_ID");
+    const std::string& model = tokens[1];
+    const auto spec = std::find_if(std::begin(kModels), std::end(kModels),
+                                   [&](const ModelSpec& m) { return model == m.name; });
+    if (spec == std::end(kModels))
+      throwInputError(file.string(), line.number,
+                      "unsupported camera model '" + model +
+                          "' (supported: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV)");
+    if (tokens.size() != 4 + spec->parameters)
+      throwInputError(file.string(), line.number,
+                      model + " takes " + std::to_string(spec->parameters) + " parameters, found " +
+                          std::to_string(tokens.size() - 4));
+    std::vector<double> parameters;
+    for (size_t i = 4; i < tokens.size(); ++i)
+      parameters.push_back(parseDouble(tokens[i], file, line.number, "parameter " + std::to_string(i - 3)));
+    Intrinsics K = toIntrinsics(model, parameters);
+    K.width = static_cast<int>(parseInteger(tokens[2], file, line.number, "WIDTH"));
+    K.height = static_cast<int>(parseInteger(tokens[3], file, line.number, "HEIGHT"));
+    if (!K.isValid()) throwInputError(file.string(), line.number, "invalid camera (size and focal length must be positive)");
+    if (!cameras.emplace(id, K).second)
+      throwInputError(file.string(), line.number, "duplicate CAMERA_ID " + std::to_string(id));
+  }
+  return cameras;
+}
+
+bool isComment(const std::string& text) {
+  const size_t first = text.find_first_not_of(" \t");
+  return first != std::string::npos && text[first] == '#';
+}
+
+struct ColmapImage {
+  long id = 0;
+  std::string name;
+  int line = 0;
+  Frame frame;
+  std::vector<Eigen::Vector2d> points2d;  // COLMAP pixel convention, as stored
+};
+
+std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, Intrinsics>& cameras) {
+  std::vector<ColmapImage> images;
+  const auto lines = readTextLines(file);
+  size_t i = 0;
+  auto skipComments = [&] {
+    while (i < lines.size() && isComment(lines[i].text)) ++i;
+  };
+  while (true) {
+    // A pose line; blank lines between images are tolerated, but the POINTS2D line that follows
+    // a pose line may itself be blank (an image without keypoints).
+    skipComments();
+    while (i < lines.size() && splitWhitespace(lines[i].text).empty()) ++i;
+    if (i >= lines.size()) break;
+    const TextLine& pose_line = lines[i++];
+    const auto tokens = splitWhitespace(pose_line.text);
+    if (tokens.size() < 10)
+      throwInputError(file.string(), pose_line.number, "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
+    ColmapImage image;
+    image.line = pose_line.number;
+    image.id = parseInteger(tokens[0], file, pose_line.number, "IMAGE_ID");
+    double q[4], t[3];
+    const char* q_names[] = {"QW", "QX", "QY", "QZ"};
+    const char* t_names[] = {"TX", "TY", "TZ"};
+    for (int k = 0; k < 4; ++k) q[k] = parseDouble(tokens[1 + k], file, pose_line.number, q_names[k]);
+    for (int k = 0; k < 3; ++k) t[k] = parseDouble(tokens[5 + k], file, pose_line.number, t_names[k]);
+    const double q_norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!std::isfinite(q_norm) || std::abs(q_norm - 1.0) > 1e-2 || !Eigen::Vector3d(t[0], t[1], t[2]).allFinite())
+      throwInputError(file.string(), pose_line.number, "invalid pose (quaternion must be finite and unit length)");
+    const long camera_id = parseInteger(tokens[8], file, pose_line.number, "CAMERA_ID");
+    const auto camera = cameras.find(camera_id);
+    if (camera == cameras.end())
+      throwInputError(file.string(), pose_line.number, "CAMERA_ID " + std::to_string(camera_id) + " is not in cameras.txt");
+    image.name = tokens[9];
+    for (size_t k = 10; k < tokens.size(); ++k) image.name += " " + tokens[k];
+    image.frame.intrinsics = camera->second;
+    // images.txt stores world-to-camera.
+    image.frame.camera_to_world = Pose::fromQuaternion(q[0], q[1], q[2], q[3], Eigen::Vector3d(t[0], t[1], t[2])).inverse();
+
+    skipComments();
+    if (i < lines.size()) {
+      const TextLine& points_line = lines[i++];
+      const auto values = parseNumbers(points_line, file);
+      if (values.size() % 3 != 0)
+        throwInputError(file.string(), points_line.number, "POINTS2D must be triples X Y POINT3D_ID");
+      for (size_t k = 0; k < values.size(); k += 3) image.points2d.emplace_back(values[k], values[k + 1]);
+    }
+    images.push_back(std::move(image));
+  }
+  return images;
+}
+
+void readPoints(const fs::path& file, const std::map<long, size_t>& frame_of_image,
+                const std::map<long, const ColmapImage*>& image_of_id, Scene& scene) {
+  for (const auto& line : contentLines(readTextLines(file), true)) {
+    const auto values = parseNumbers(line, file);
+    if (values.size() < 8 || (values.size() - 8) % 2 != 0)
+      throwInputError(file.string(), line.number,
+                      "expected POINT3D_ID X Y Z R G B ERROR TRACK[] (pairs IMAGE_ID POINT2D_IDX)");
+    ScenePoint point;
+    point.position = Eigen::Vector3d(values[1], values[2], values[3]);
+    if (!point.position.allFinite()) throwInputError(file.string(), line.number, "point position is not finite");
+    for (size_t k = 8; k < values.size(); k += 2) {
+      const long image_id = static_cast<long>(values[k]);
+      const auto image = image_of_id.find(image_id);
+      if (image == image_of_id.end())
+        throwInputError(file.string(), line.number, "track names IMAGE_ID " + std::to_string(image_id) + ", not in images.txt");
+      const double index = values[k + 1];
+      if (index < 0 || index >= static_cast<double>(image->second->points2d.size()))
+        throwInputError(file.string(), line.number,
+                        "POINT2D_IDX " + std::to_string(static_cast<long>(index)) + " out of range for image " +
+                            std::to_string(image_id));
+      const Eigen::Vector2d colmap_pixel = image->second->points2d[static_cast<size_t>(index)];
+      point.observations.push_back({frame_of_image.at(image_id), colmap_pixel - Eigen::Vector2d(0.5, 0.5)});
+    }
+    scene.points.push_back(std::move(point));
+  }
+}
+
+}  // namespace
+
+bool looksLikeColmap(const fs::path& dir) {
+  return findModelFolder(dir, "images.txt").has_value() || findModelFolder(dir, "images.bin").has_value();
+}
+
+Scene readColmap(const fs::path& dir) {
+  const auto model = findModelFolder(dir, "images.txt");
+  if (!model) {
+    if (const auto binary = findModelFolder(dir, "images.bin"))
+      throwInputError((*binary / "images.bin").string(), 0,
+                      "binary COLMAP models are not supported; convert with "
+                      "'colmap model_converter --output_type TXT'");
+    throwInputError(dir.string(), 0, "no COLMAP images.txt in it or in sparse/0, sparse, reconstruction, model");
+  }
+  Scene scene = emptyScene(dir, "colmap", false);
+  const auto cameras = readCameras(*model / "cameras.txt");
+  auto images = readImages(*model / "images.txt", cameras);
+  std::sort(images.begin(), images.end(), [](const ColmapImage& a, const ColmapImage& b) { return a.name < b.name; });
+
+  const std::vector<fs::path> image_folders = {dir / "images", *model / "images", model->parent_path() / "images", *model, dir};
+  std::optional<fs::path> image_folder;
+  for (const auto& folder : image_folders) {
+    if (!images.empty() && fs::is_regular_file(folder / images.front().name)) {
+      image_folder = folder.lexically_normal();
+      break;
+    }
+  }
+  std::map<long, size_t> frame_of_image;
+  std::map<long, const ColmapImage*> image_of_id;
+  for (auto& image : images) {
+    if (!image_folder || !fs::is_regular_file(*image_folder / image.name)) {
+      std::string searched;
+      for (const auto& folder : image_folders) searched += (searched.empty() ? "" : ", ") + folder.lexically_normal().string();
+      throwInputError((*model / "images.txt").string(), image.line, "image '" + image.name + "' not found in " + searched);
+    }
+    if (!image_of_id.emplace(image.id, &image).second)
+      throwInputError((*model / "images.txt").string(), image.line, "duplicate IMAGE_ID " + std::to_string(image.id));
+    frame_of_image[image.id] = scene.frames.size();
+    image.frame.image_path = *image_folder / image.name;
+    image.frame.name = frameName(image.frame.image_path, dir);
+    scene.frames.push_back(image.frame);
+  }
+  if (fs::exists(*model / "points3D.txt")) readPoints(*model / "points3D.txt", frame_of_image, image_of_id, scene);
+  return scene;
+}
+
+}  // namespace ffloc

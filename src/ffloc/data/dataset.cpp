@@ -1,0 +1,81 @@
+#include "ffloc/data/dataset.h"
+
+#include <functional>
+#include <unordered_set>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/manifest.h"
+#include "ffloc/data/readers.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct DatasetFormat {
+  const char* name;
+  const char* looks_for;  // for the "nothing matched" message
+  std::function<bool(const fs::path&)> detect;
+  std::function<Scene(const fs::path&)> read;
+};
+
+const std::vector<DatasetFormat>& formats() {
+  static const std::vector<DatasetFormat> kFormats = {
+      {"manifest", "manifest.json with \"format\": \"ffloc-manifest\"",
+       [](const fs::path& dir) { return isManifestFile(dir / kManifestFileName); },
+       [](const fs::path& dir) { return readManifest(dir / kManifestFileName); }},
+      {"7scenes", "frame-XXXXXX.pose.txt (in the folder, rgbd-frames/ or seq-XX/) or TrainSplit.txt/TestSplit.txt",
+       looksLikeSevenScenes, readSevenScenes},
+      {"nerf", "transforms.json or transforms_train.json", looksLikeNerf, readNerf},
+      {"colmap", "images.txt/images.bin in the folder or sparse/0, sparse, reconstruction, model", looksLikeColmap,
+       readColmap},
+      {"strecha", "gt_dense_cameras/*.camera", looksLikeStrecha, readStrecha},
+      {"cambridge", "dataset_train.txt or dataset_test.txt", looksLikeCambridge, readCambridge},
+  };
+  return kFormats;
+}
+
+void requireUniqueNames(const Scene& scene) {
+  std::unordered_set<std::string> names;
+  for (const Frame& frame : scene.frames)
+    if (!names.insert(frame.name).second)
+      throwInputError(scene.root.string(), 0, "two frames share the image name '" + frame.name + "'");
+}
+
+}  // namespace
+
+std::vector<std::string> datasetFormats() {
+  std::vector<std::string> names;
+  for (const auto& format : formats()) names.push_back(format.name);
+  return names;
+}
+
+std::string detectDatasetFormat(const fs::path& dir) {
+  if (!fs::exists(dir)) throwInputError(dir.string(), 0, "dataset folder not found");
+  if (!fs::is_directory(dir)) throwInputError(dir.string(), 0, "not a folder (give the dataset's folder)");
+  for (const auto& format : formats())
+    if (format.detect(dir)) return format.name;
+  std::string looked_for;
+  for (const auto& format : formats()) looked_for += std::string("\n  ") + format.name + ": " + format.looks_for;
+  throwInputError(dir.string(), 0, "unknown dataset format; looked for:" + looked_for);
+}
+
+Scene loadDataset(const fs::path& dataset_dir, const std::string& format) {
+  // Absolute and normalised, so image paths compare equal however the folder was named.
+  fs::path dir = fs::absolute(dataset_dir).lexically_normal();
+  if (dir.filename().empty()) dir = dir.parent_path();
+  const std::string name = format == "auto" ? detectDatasetFormat(dir) : format;
+  for (const auto& candidate : formats()) {
+    if (name != candidate.name) continue;
+    if (!fs::is_directory(dir)) throwInputError(dir.string(), 0, "dataset folder not found");
+    Scene scene = candidate.read(dir);
+    requireUniqueNames(scene);
+    applySplitFiles(scene);
+    return scene;
+  }
+  std::string known;
+  for (const auto& candidate : datasetFormats()) known += (known.empty() ? "" : ", ") + candidate;
+  throwInputError(dir.string(), 0, "unknown dataset format '" + name + "' (known: auto, " + known + ")");
+}
+
+}  // namespace ffloc

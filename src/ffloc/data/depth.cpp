@@ -1,0 +1,52 @@
+#include "ffloc/data/depth.h"
+
+#include <cmath>
+#include <opencv2/imgcodecs.hpp>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+cv::Mat1f readDepthMetres(const Frame& frame) {
+  if (!frame.depth) throwInputError(frame.name, 0, "frame has no depth map");
+  const DepthSource& source = *frame.depth;
+  const std::string file = source.path.string();
+  if (!std::filesystem::exists(source.path)) throwInputError(file, 0, "depth file not found");
+  const cv::Mat stored = cv::imread(file, cv::IMREAD_ANYDEPTH);
+  if (stored.empty()) throwInputError(file, 0, "cannot decode depth image");
+  if (stored.channels() != 1)
+    throwInputError(file, 0, "depth image has " + std::to_string(stored.channels()) + " channels, expected 1");
+  if (stored.depth() == CV_8U || stored.depth() == CV_8S)
+    throwInputError(file, 0, "depth image is 8-bit; expected a 16-bit PNG or a 32-bit float TIFF");
+  const Intrinsics& camera = frame.intrinsics;
+  if (stored.cols != camera.width || stored.rows != camera.height)
+    throwInputError(file, 0,
+                    "depth image is " + std::to_string(stored.cols) + "x" + std::to_string(stored.rows) +
+                        " but the frame's image is " + std::to_string(camera.width) + "x" +
+                        std::to_string(camera.height));
+
+  cv::Mat1d values;
+  stored.convertTo(values, CV_64F);
+  cv::Mat1f depth(values.size());
+  for (int y = 0; y < values.rows; ++y) {
+    const double* in = values[y];
+    float* out = depth[y];
+    for (int x = 0; x < values.cols; ++x) {
+      const double v = in[x];
+      bool invalid = !std::isfinite(v) || v <= 0;
+      for (double bad : source.invalid_values) invalid = invalid || v == bad;
+      out[x] = invalid ? 0.0f : static_cast<float>(v * source.scale);
+    }
+  }
+  return depth;
+}
+
+void writeDepth(const cv::Mat1f& depth, const std::filesystem::path& path) {
+  const std::string extension = path.extension().string();
+  if (extension != ".tif" && extension != ".tiff")
+    throwInputError(path.string(), 0, "depth maps are written as float TIFF; use a .tif or .tiff name");
+  if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
+  if (!cv::imwrite(path.string(), depth)) throwInputError(path.string(), 0, "cannot write depth image");
+}
+
+}  // namespace ffloc

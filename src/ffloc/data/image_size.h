@@ -1,0 +1,15 @@
+#pragma once
+
+#include <filesystem>
+#include <opencv2/core.hpp>
+
+namespace ffloc {
+
+// Width and height of an image file as cv::imread would return it. PNG and JPEG sizes come from
+// the file header alone (readers call this for every frame, and decoding hundreds of full images
+// just for their size is slow); other formats, and JPEGs carrying EXIF data (whose orientation
+// tag may swap the sides), are decoded. Throws InputError naming the file when it is missing or
+// not a readable image.
+cv::Size readImageSize(const std::filesystem::path& path);
+
+}  // namespace ffloc

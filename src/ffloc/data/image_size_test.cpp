@@ -1,0 +1,44 @@
+#include "ffloc/data/image_size.h"
+
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/scene_test_util.h"
+
+namespace ffloc {
+namespace {
+
+TEST(ImageSize, ReadsHeadersOfEveryEncoding) {
+  const auto dir = testing::makeTempDir("ffloc-image-size");
+  const cv::Mat3b image(7, 13, cv::Vec3b(10, 20, 30));
+  const std::vector<std::pair<std::string, std::vector<int>>> files = {
+      {"a.png", {}},
+      {"b.jpg", {}},
+      {"c.jpg", {cv::IMWRITE_JPEG_PROGRESSIVE, 1}},  // SOF2 instead of SOF0
+      {"d.tiff", {}},                                // not parsed: decoded instead
+  };
+  for (const auto& [name, parameters] : files) {
+    ASSERT_TRUE(cv::imwrite((dir / name).string(), image, parameters));
+    EXPECT_EQ(readImageSize(dir / name), cv::Size(13, 7)) << name;
+  }
+  testing::writeTextFile(dir / "bad.jpg", std::string("\xFF\xD8\xFF\xE0\x00\x02garbage", 13));
+  testing::expectInputError([&] { readImageSize(dir / "bad.jpg"); }, {"bad.jpg", "cannot decode"});
+  testing::expectInputError([&] { readImageSize(dir / "none.png"); }, {"none.png", "not found"});
+}
+
+TEST(ImageSize, AgreesWithDecodingOnTheSharedSamples) {
+  FFLOC_REQUIRE_SHARED(data, "data");
+  for (const std::string name :
+       {"7scenes_redkitchen/frame-000000.color.jpg", "7scenes_redkitchen/frame-000000.depth.png",
+        "7scenes_redkitchen_png/rgbd-frames/frame-000150.color.png", "instant_ngp_fox/images/0001.jpg",
+        "colmap_maupertuis_kapture_sample/images/00.jpg", "strecha_herzjesu_p8/images/0000.jpg"}) {
+    const cv::Mat decoded = cv::imread((data / name).string(), cv::IMREAD_UNCHANGED);
+    ASSERT_FALSE(decoded.empty()) << name;
+    EXPECT_EQ(readImageSize(data / name), decoded.size()) << name;
+  }
+}
+
+}  // namespace
+}  // namespace ffloc

@@ -1,0 +1,91 @@
+#include "ffloc/data/json_fields.h"
+
+#include <fstream>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+using nlohmann::json;
+
+json parseJsonFile(const std::filesystem::path& file) {
+  if (!std::filesystem::exists(file)) throwInputError(file.string(), 0, "file not found");
+  std::ifstream in(file);
+  if (!in) throwInputError(file.string(), 0, "cannot open file");
+  try {
+    return json::parse(in);
+  } catch (const json::exception& e) {
+    throwInputError(file.string(), 0, std::string("invalid JSON: ") + e.what());
+  }
+}
+
+JsonFields::JsonFields(const json& object, std::filesystem::path file, std::string path)
+    : object_(object), file_(std::move(file)), path_(std::move(path)) {
+  if (!object_.is_object()) fail("", "expected a JSON object");
+}
+
+bool JsonFields::has(const std::string& key) const { return object_.contains(key) && !object_.at(key).is_null(); }
+
+std::string JsonFields::field(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+const json& JsonFields::get(const std::string& key) const {
+  if (!has(key)) fail(key, "missing field");
+  return object_.at(key);
+}
+
+double JsonFields::number(const std::string& key) const {
+  const json& value = get(key);
+  if (!value.is_number()) fail(key, "expected a number");
+  return value.get<double>();
+}
+
+int JsonFields::integer(const std::string& key) const {
+  const json& value = get(key);
+  if (!value.is_number_integer()) fail(key, "expected an integer");
+  return value.get<int>();
+}
+
+bool JsonFields::boolean(const std::string& key) const {
+  const json& value = get(key);
+  if (!value.is_boolean()) fail(key, "expected true or false");
+  return value.get<bool>();
+}
+
+std::string JsonFields::string(const std::string& key) const {
+  const json& value = get(key);
+  if (!value.is_string()) fail(key, "expected a string");
+  return value.get<std::string>();
+}
+
+std::vector<double> JsonFields::numbers(const std::string& key) const {
+  const json& value = get(key);
+  if (!value.is_array()) fail(key, "expected an array of numbers");
+  std::vector<double> out;
+  for (const auto& item : value) {
+    if (!item.is_number()) fail(key, "expected an array of numbers");
+    out.push_back(item.get<double>());
+  }
+  return out;
+}
+
+Eigen::Matrix4d JsonFields::matrix4(const std::string& key) const {
+  const json& rows = get(key);
+  const char* expected = "expected a 4x4 matrix (4 rows of 4 numbers)";
+  if (!rows.is_array() || rows.size() != 4) fail(key, expected);
+  Eigen::Matrix4d T;
+  for (int r = 0; r < 4; ++r) {
+    if (!rows[r].is_array() || rows[r].size() != 4) fail(key, expected);
+    for (int c = 0; c < 4; ++c) {
+      if (!rows[r][c].is_number()) fail(key, expected);
+      T(r, c) = rows[r][c].get<double>();
+    }
+  }
+  return T;
+}
+
+void JsonFields::fail(const std::string& key, const std::string& what) const {
+  const std::string name = key.empty() ? path_ : field(key);
+  throwInputError(file_.string(), 0, (name.empty() ? "" : "field '" + name + "': ") + what);
+}
+
+}  // namespace ffloc

@@ -1,0 +1,39 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+// Typed access to the fields of a JSON object for the JSON readers (manifest, transforms.json).
+// Every failure is an InputError "<file>: field '<path>.<key>': <what>".
+namespace ffloc {
+
+nlohmann::json parseJsonFile(const std::filesystem::path& file);
+
+class JsonFields {
+ public:
+  // `path` names the object inside the file ("frames[3]"); empty for the top level.
+  JsonFields(const nlohmann::json& object, std::filesystem::path file, std::string path);
+
+  bool has(const std::string& key) const;  // present and not null
+  std::string field(const std::string& key) const;
+
+  const nlohmann::json& get(const std::string& key) const;
+  double number(const std::string& key) const;
+  int integer(const std::string& key) const;
+  bool boolean(const std::string& key) const;
+  std::string string(const std::string& key) const;
+  std::vector<double> numbers(const std::string& key) const;
+  Eigen::Matrix4d matrix4(const std::string& key) const;  // 4 rows of 4 numbers
+
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const;
+
+ private:
+  const nlohmann::json& object_;
+  std::filesystem::path file_;
+  std::string path_;
+};
+
+}  // namespace ffloc

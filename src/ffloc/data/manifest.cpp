@@ -1,0 +1,185 @@
+#include "ffloc/data/manifest.h"
+
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+#include <unistd.h>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/json_fields.h"
+#include "ffloc/data/pose_check.h"
+
+namespace ffloc {
+namespace {
+
+using nlohmann::json;
+
+Intrinsics readCamera(const JsonFields& camera) {
+  Intrinsics intrinsics;
+  intrinsics.width = camera.integer("width");
+  intrinsics.height = camera.integer("height");
+  intrinsics.fx = camera.number("fx");
+  intrinsics.fy = camera.number("fy");
+  intrinsics.cx = camera.number("cx");
+  intrinsics.cy = camera.number("cy");
+  if (camera.has("distortion")) {
+    intrinsics.distortion = camera.numbers("distortion");
+    const size_t n = intrinsics.distortion.size();
+    if (n != 4 && n != 5 && n != 8) camera.fail("distortion", "expected 4, 5 or 8 OpenCV coefficients");
+  }
+  if (!intrinsics.isValid()) camera.fail("", "invalid intrinsics (need positive focal lengths and image size)");
+  return intrinsics;
+}
+
+Split parseSplit(const JsonFields& frame) {
+  if (!frame.has("split")) return Split::kUnassigned;
+  const std::string split = frame.string("split");
+  for (Split s : {Split::kMapping, Split::kQuery, Split::kUnassigned})
+    if (split == toString(s)) return s;
+  frame.fail("split", "unknown split '" + split + "' (expected mapping, query or unassigned)");
+}
+
+std::string relativeTo(const std::filesystem::path& path, const std::filesystem::path& folder) {
+  const auto absolute = std::filesystem::absolute(path).lexically_normal();
+  return absolute.lexically_relative(folder).generic_string();
+}
+
+bool sameIntrinsics(const Intrinsics& a, const Intrinsics& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
+         a.cy == b.cy && a.distortion == b.distortion;
+}
+
+json matrixJson(const Eigen::Matrix4d& T) {
+  json rows = json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  return rows;
+}
+
+}  // namespace
+
+Scene readManifest(const std::filesystem::path& manifest_json) {
+  const json root = parseJsonFile(manifest_json);
+  const JsonFields top(root, manifest_json, "");
+  if (top.string("format") != kManifestFormat)
+    top.fail("format", "expected \"" + std::string(kManifestFormat) + "\"");
+  if (top.integer("version") != kManifestVersion)
+    top.fail("version", "unsupported version " + std::to_string(top.integer("version")) + " (this build reads " +
+                            std::to_string(kManifestVersion) + ")");
+
+  const auto folder = std::filesystem::absolute(manifest_json).lexically_normal().parent_path();
+  Scene scene;
+  scene.root = folder;
+  scene.format = "manifest";
+  scene.name = top.has("name") ? top.string("name") : folder.filename().string();
+  scene.metric = top.has("metric") ? top.boolean("metric") : true;
+
+  std::map<std::string, Intrinsics> cameras;
+  const json& camera_list = top.get("cameras");
+  if (!camera_list.is_object()) top.fail("cameras", "expected an object of camera id -> camera");
+  for (const auto& [id, camera] : camera_list.items())
+    cameras[id] = readCamera(JsonFields(camera, manifest_json, "cameras." + id));
+
+  const json& frames = top.get("frames");
+  if (!frames.is_array()) top.fail("frames", "expected an array");
+  std::set<std::string> names;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const std::string path = "frames[" + std::to_string(i) + "]";
+    const JsonFields entry(frames[i], manifest_json, path);
+    Frame frame;
+    const std::string image = entry.string("image");
+    frame.name = entry.has("name") ? entry.string("name") : image;
+    frame.image_path = (folder / image).lexically_normal();
+    if (!names.insert(frame.name).second) entry.fail("image", "duplicate frame '" + frame.name + "'");
+
+    const json& camera_id = entry.get("camera");
+    const std::string id = camera_id.is_string() ? camera_id.get<std::string>() : camera_id.dump();
+    const auto camera = cameras.find(id);
+    if (camera == cameras.end()) entry.fail("camera", "unknown camera id '" + id + "'");
+    frame.intrinsics = camera->second;
+
+    const Eigen::Matrix4d T = entry.matrix4("camera_to_world");
+    // Checked like every other reader's poses, but stored unprojected so files round-trip.
+    const std::string problem = poseMatrixProblem(T);
+    if (!problem.empty()) entry.fail("camera_to_world", problem);
+    frame.camera_to_world = Pose::fromMatrix(T);
+
+    if (entry.has("depth")) {
+      DepthSource depth;
+      depth.path = (folder / entry.string("depth")).lexically_normal();
+      if (entry.has("depth_scale")) depth.scale = entry.number("depth_scale");
+      if (!(depth.scale > 0) || !std::isfinite(depth.scale)) entry.fail("depth_scale", "must be positive");
+      if (entry.has("depth_invalid")) depth.invalid_values = entry.numbers("depth_invalid");
+      frame.depth = depth;
+    }
+    frame.split = parseSplit(entry);
+    scene.frames.push_back(std::move(frame));
+  }
+  return scene;
+}
+
+void writeManifest(const Scene& scene, const std::filesystem::path& manifest_json) {
+  const auto folder = std::filesystem::absolute(manifest_json).lexically_normal().parent_path();
+  std::vector<Intrinsics> cameras;
+  json frames = json::array();
+  for (const Frame& frame : scene.frames) {
+    size_t camera = 0;
+    while (camera < cameras.size() && !sameIntrinsics(cameras[camera], frame.intrinsics)) ++camera;
+    if (camera == cameras.size()) cameras.push_back(frame.intrinsics);
+
+    json entry;
+    entry["image"] = relativeTo(frame.image_path, folder);
+    if (entry["image"].get<std::string>() != frame.name) entry["name"] = frame.name;
+    entry["camera"] = std::to_string(camera);
+    entry["camera_to_world"] = matrixJson(frame.camera_to_world.matrix());
+    if (frame.depth) {
+      entry["depth"] = relativeTo(frame.depth->path, folder);
+      entry["depth_scale"] = frame.depth->scale;
+      entry["depth_invalid"] = frame.depth->invalid_values;
+    }
+    entry["split"] = toString(frame.split);
+    frames.push_back(std::move(entry));
+  }
+
+  json camera_list = json::object();
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    const Intrinsics& c = cameras[i];
+    json camera = {{"width", c.width}, {"height", c.height}, {"fx", c.fx}, {"fy", c.fy}, {"cx", c.cx}, {"cy", c.cy}};
+    if (!c.distortion.empty()) camera["distortion"] = c.distortion;
+    camera_list[std::to_string(i)] = std::move(camera);
+  }
+
+  json root;
+  root["format"] = kManifestFormat;
+  root["version"] = kManifestVersion;
+  root["name"] = scene.name;
+  root["metric"] = scene.metric;
+  root["cameras"] = std::move(camera_list);
+  root["frames"] = std::move(frames);
+
+  std::filesystem::create_directories(folder);
+  const auto temporary = folder / ("." + manifest_json.filename().string() + ".tmp-" + std::to_string(getpid()));
+  {
+    std::ofstream out(temporary, std::ios::trunc);
+    if (!out) throwInputError(temporary.string(), 0, "cannot create file");
+    // nlohmann::json prints doubles in the shortest form that parses back to the same value.
+    out << root.dump(1) << '\n';
+    if (!out) throwInputError(temporary.string(), 0, "write failed");
+  }
+  std::error_code error;
+  std::filesystem::rename(temporary, manifest_json, error);
+  if (error) {
+    std::filesystem::remove(temporary);
+    throwInputError(manifest_json.string(), 0, "cannot replace file: " + error.message());
+  }
+}
+
+bool isManifestFile(const std::filesystem::path& file) {
+  if (!std::filesystem::is_regular_file(file)) return false;
+  std::ifstream in(file);
+  const json root = json::parse(in, nullptr, false);
+  return root.is_object() && root.contains("format") && root["format"] == kManifestFormat;
+}
+
+}  // namespace ffloc

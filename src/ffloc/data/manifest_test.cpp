@@ -1,0 +1,153 @@
+#include "ffloc/data/manifest.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/scene_test_util.h"
+
+namespace ffloc {
+namespace {
+
+using testing::expectInputError;
+using testing::writeTextFile;
+
+Scene makeScene(const std::filesystem::path& root) {
+  Scene scene;
+  scene.name = "tiny";
+  scene.root = root;
+  scene.metric = false;
+  Intrinsics a;
+  a.width = 64;
+  a.height = 48;
+  a.fx = 50.123456789012345;
+  a.fy = 51.0 / 3.0;
+  a.cx = 31.5;
+  a.cy = 23.5;
+  Intrinsics b = a;
+  b.distortion = {0.1, -0.01, 1e-4, -2e-4, 1.0 / 7.0};
+  for (int i = 0; i < 4; ++i) {
+    Frame frame;
+    frame.name = "images/" + std::to_string(i) + ".png";
+    frame.image_path = root / frame.name;
+    frame.intrinsics = i == 3 ? b : a;
+    frame.camera_to_world.R = Eigen::AngleAxisd(0.3 * i + 0.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    frame.camera_to_world.t = Eigen::Vector3d(M_PI * i, -1.0 / 3.0, 1e-12);
+    if (i != 2) {
+      DepthSource depth;
+      depth.path = root / ("depth/" + std::to_string(i) + ".tiff");
+      depth.scale = 1.0;
+      depth.invalid_values = {};
+      frame.depth = depth;
+    }
+    frame.split = i < 2 ? Split::kMapping : (i == 2 ? Split::kQuery : Split::kUnassigned);
+    scene.frames.push_back(frame);
+  }
+  return scene;
+}
+
+TEST(Manifest, RoundTripsExactly) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  const Scene scene = makeScene(dir);
+  writeManifest(scene, dir / kManifestFileName);
+  EXPECT_TRUE(isManifestFile(dir / kManifestFileName));
+  const Scene back = readManifest(dir / kManifestFileName);
+  EXPECT_EQ(back.name, "tiny");
+  EXPECT_EQ(back.format, "manifest");
+  EXPECT_FALSE(back.metric);
+  EXPECT_EQ(back.root, dir);
+  ASSERT_EQ(back.frames.size(), scene.frames.size());
+  for (size_t i = 0; i < scene.frames.size(); ++i) testing::expectSameFrame(back.frames[i], scene.frames[i]);
+  // No stray temporary file is left beside it.
+  int files = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir)) ++files;
+  EXPECT_EQ(files, 1);
+}
+
+TEST(Manifest, SharesIdenticalCamerasAndWritesRelativePaths) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeManifest(makeScene(dir), dir / "sub" / kManifestFileName);
+  std::ifstream in(dir / "sub" / kManifestFileName);
+  const auto root = nlohmann::json::parse(in);
+  EXPECT_EQ(root["cameras"].size(), 2u);
+  EXPECT_EQ(root["frames"][0]["camera"], root["frames"][1]["camera"]);
+  EXPECT_NE(root["frames"][0]["camera"], root["frames"][3]["camera"]);
+  EXPECT_EQ(root["frames"][0]["image"], "../images/0.png");
+  EXPECT_EQ(root["frames"][0]["depth"], "../depth/0.tiff");
+  EXPECT_EQ(root["frames"][0]["name"], "images/0.png");  // differs from the relative path
+  const Scene back = readManifest(dir / "sub" / kManifestFileName);
+  EXPECT_EQ(back.frames[0].name, "images/0.png");
+  EXPECT_EQ(back.frames[0].image_path, dir / "images/0.png");
+}
+
+TEST(Manifest, ReadsDefaults) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
+    "cameras": {"cam": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": [{"image": "a.png", "camera": "cam", "depth": "a_depth.png",
+                "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  const Scene scene = readManifest(dir / "manifest.json");
+  ASSERT_EQ(scene.frames.size(), 1u);
+  const Frame& frame = scene.frames[0];
+  EXPECT_EQ(frame.split, Split::kUnassigned);
+  EXPECT_TRUE(scene.metric);
+  ASSERT_TRUE(frame.depth.has_value());
+  EXPECT_EQ(frame.depth->scale, 0.001);
+  EXPECT_EQ(frame.depth->invalid_values, (std::vector<double>{0.0, 65535.0}));
+  EXPECT_EQ(frame.depth->path, dir / "a_depth.png");
+  EXPECT_EQ(frame.camera_to_world.t, Eigen::Vector3d(1, 2, 3));
+  EXPECT_TRUE(frame.intrinsics.distortion.empty());
+}
+
+struct BadManifest {
+  std::string edit_from, edit_to, expected;
+};
+
+TEST(Manifest, RejectsBadFieldsNamingThem) {
+  const std::string good = R"({"format": "ffloc-manifest", "version": 1, "name": "x", "metric": true,
+    "cameras": {"0": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": [{"image": "a.png", "camera": "0", "split": "query",
+                "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})";
+  const std::vector<BadManifest> cases = {
+      {"\"version\": 1", "\"version\": 7", "field 'version'"},
+      {"\"format\": \"ffloc-manifest\"", "\"format\": \"other\"", "field 'format'"},
+      {"\"camera\": \"0\"", "\"camera\": \"9\"", "frames[0].camera"},
+      {"\"split\": \"query\"", "\"split\": \"train\"", "frames[0].split"},
+      {"\"fx\": 2", "\"fx\": -2", "cameras.0"},
+      {"\"width\": 4", "\"width\": 4.5", "cameras.0.width"},
+      {"[0,0,0,1]]", "[0,0,1,1]]", "frames[0].camera_to_world"},
+      {"[1,0,0,1],", "[1,0,0],", "frames[0].camera_to_world"},
+      {"[1,0,0,1],", "[2,0,0,1],", "not orthonormal"},
+      {"\"image\": \"a.png\",", "", "frames[0].image"},
+      {"\"metric\": true", "\"metric\": true,", "invalid JSON"},
+  };
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  ASSERT_NO_THROW(readManifest((writeTextFile(dir / "manifest.json", good), dir / "manifest.json")));
+  for (const auto& bad : cases) {
+    SCOPED_TRACE(bad.edit_to);
+    std::string text = good;
+    const size_t at = text.find(bad.edit_from);
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, bad.edit_from.size(), bad.edit_to);
+    writeTextFile(dir / "manifest.json", text);
+    expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", bad.expected});
+  }
+  expectInputError([&] { readManifest(dir / "missing.json"); }, {"missing.json", "not found"});
+}
+
+TEST(Manifest, OverflowingNumberIsRejected) {
+  // JSON has no NaN or inf literal; an out-of-range exponent is the nearest a file can get.
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
+    "cameras": {"0": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": [{"image": "a.png", "camera": "0",
+                "camera_to_world": [[1,0,0,1e999],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "invalid JSON", "1e999"});
+}
+
+}  // namespace
+}  // namespace ffloc

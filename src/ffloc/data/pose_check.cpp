@@ -1,0 +1,46 @@
+#include "ffloc/data/pose_check.h"
+
+#include <sstream>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+std::string rotationProblem(const Eigen::Matrix3d& R) {
+  if (!R.allFinite()) return "rotation has a non-finite value (NaN or inf)";
+  Eigen::Matrix3d projected = R;
+  if (projectToRotation(projected)) return "";
+  std::ostringstream what;
+  what << "rotation is not orthonormal (det " << R.determinant() << ", max |R^T R - I| "
+       << (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() << ")";
+  return what.str();
+}
+
+std::string poseMatrixProblem(const Eigen::Matrix4d& T) {
+  if (!T.allFinite()) return "pose has a non-finite value (NaN or inf)";
+  const Eigen::RowVector4d last = T.row(3);
+  if ((last - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6) {
+    std::ostringstream what;
+    what << "pose's last row is (" << last << "), expected (0 0 0 1)";
+    return what.str();
+  }
+  return rotationProblem(T.topLeftCorner<3, 3>());
+}
+
+Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, int line) {
+  const std::string problem = poseMatrixProblem(T);
+  if (!problem.empty()) throwInputError(file.string(), line, problem);
+  Pose pose = Pose::fromMatrix(T);
+  projectToRotation(pose.R);
+  return pose;
+}
+
+Eigen::Matrix3d validatedRotation(const Eigen::Matrix3d& R, const std::filesystem::path& file, int line) {
+  const std::string problem = rotationProblem(R);
+  if (!problem.empty()) throwInputError(file.string(), line, problem);
+  Eigen::Matrix3d projected = R;
+  projectToRotation(projected);
+  return projected;
+}
+
+}  // namespace ffloc

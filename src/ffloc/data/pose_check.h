@@ -1,0 +1,22 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+
+#include "ffloc/geometry/pose.h"
+
+// The checks every reader applies to a pose it parses.
+namespace ffloc {
+
+// What is wrong with a 4x4 camera-to-world matrix (non-finite, last row not 0 0 0 1, rotation
+// not orthonormal within 1e-2), or an empty string when nothing is.
+std::string poseMatrixProblem(const Eigen::Matrix4d& T);
+std::string rotationProblem(const Eigen::Matrix3d& R);
+
+// The checked matrix as a Pose, its rotation re-orthonormalised (parsed text loses digits).
+// Throws InputError "<file>:<line>: <problem>".
+Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, int line);
+Eigen::Matrix3d validatedRotation(const Eigen::Matrix3d& R, const std::filesystem::path& file, int line);
+
+}  // namespace ffloc

@@ -1,0 +1,41 @@
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include "ffloc/data/scene.h"
+
+// One reader per dataset format. Each fills a Scene in the project conventions (camera-to-world,
+// OpenCV axes and pixel convention) and throws InputError naming file and line or field on bad
+// input. loadDataset (dataset.h) picks one and then applies split_mapping.txt / split_query.txt.
+namespace ffloc {
+
+// Microsoft 7-Scenes: flat frame-XXXXXX.{color.png|color.jpg,depth.png,pose.txt} (optionally in
+// rgbd-frames/), or the original seq-XX/ folders with TrainSplit.txt / TestSplit.txt.
+bool looksLikeSevenScenes(const std::filesystem::path& dir);
+Scene readSevenScenes(const std::filesystem::path& dir);
+
+// NeRF / instant-ngp / nerfstudio transforms.json (or transforms_{train,val,test}.json).
+bool looksLikeNerf(const std::filesystem::path& dir);
+Scene readNerf(const std::filesystem::path& dir);
+
+// COLMAP text model: cameras.txt, images.txt, points3D.txt in dir, dir/sparse/0, dir/sparse,
+// dir/reconstruction or dir/model; images in dir/images or beside the model.
+bool looksLikeColmap(const std::filesystem::path& dir);
+Scene readColmap(const std::filesystem::path& dir);
+
+// Strecha multi-view benchmark: images/NNNN.jpg + gt_dense_cameras/NNNN.jpg.camera.
+bool looksLikeStrecha(const std::filesystem::path& dir);
+Scene readStrecha(const std::filesystem::path& dir);
+
+// Cambridge Landmarks (PoseNet): dataset_train.txt / dataset_test.txt.
+bool looksLikeCambridge(const std::filesystem::path& dir);
+Scene readCambridge(const std::filesystem::path& dir);
+
+// Frame::name for an image: its path relative to the scene root, with forward slashes.
+std::string frameName(const std::filesystem::path& image_path, const std::filesystem::path& root);
+
+// A scene with no frames yet: root = dir, name = dir's last component.
+Scene emptyScene(const std::filesystem::path& dir, const std::string& format, bool metric);
+
+}  // namespace ffloc

@@ -1,0 +1,51 @@
+#include "ffloc/data/splits.h"
+
+#include <unordered_map>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/text_file.h"
+
+namespace ffloc {
+
+bool applySplitFiles(Scene& scene) {
+  const auto mapping_file = scene.root / kMappingSplitFile;
+  const auto query_file = scene.root / kQuerySplitFile;
+  if (!std::filesystem::exists(mapping_file) && !std::filesystem::exists(query_file)) return false;
+
+  std::unordered_map<std::string, size_t> index_of;
+  for (size_t i = 0; i < scene.frames.size(); ++i) index_of[scene.frames[i].name] = i;
+  // Names are compared normalised, so "./images/a.jpg" matches "images/a.jpg".
+  auto normalised = [](const std::string& name) {
+    return std::filesystem::path(name).lexically_normal().generic_string();
+  };
+  for (auto& [name, index] : std::unordered_map<std::string, size_t>(index_of)) index_of[normalised(name)] = index;
+
+  std::vector<Split> splits(scene.frames.size(), Split::kUnassigned);
+  std::vector<std::string> listed_in(scene.frames.size());
+  for (const auto& [file, split] : {std::pair{mapping_file, Split::kMapping}, {query_file, Split::kQuery}}) {
+    if (!std::filesystem::exists(file)) continue;
+    for (const auto& line : contentLines(readTextLines(file), true)) {
+      // A whole line is one path (names may contain spaces); only the ends are trimmed.
+      const size_t first = line.text.find_first_not_of(" \t");
+      const std::string name = line.text.substr(first, line.text.find_last_not_of(" \t") + 1 - first);
+      const auto found = index_of.find(normalised(name));
+      if (found == index_of.end())
+        throwInputError(file.string(), line.number, "'" + name + "' is not a frame of this dataset");
+      if (!listed_in[found->second].empty())
+        throwInputError(file.string(), line.number,
+                        "'" + name + "' is already listed in " + listed_in[found->second]);
+      listed_in[found->second] = file.filename().string() + ":" + std::to_string(line.number);
+      splits[found->second] = split;
+    }
+  }
+  for (size_t i = 0; i < scene.frames.size(); ++i) scene.frames[i].split = splits[i];
+  return true;
+}
+
+void requireSplits(const Scene& scene) {
+  for (Split split : {Split::kMapping, Split::kQuery})
+    if (scene.indices(split).empty())
+      throwInputError(scene.root.string(), 0, std::string("split '") + toString(split) + "' is empty");
+}
+
+}  // namespace ffloc

@@ -1,1 +1,0 @@
-#include "ffloc/data/synthetic/synthetic.h"

@@ -1,0 +1,101 @@
+#include "ffloc/data/text_file.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+std::vector<TextLine> readTextLines(const std::filesystem::path& file) {
+  if (!std::filesystem::exists(file)) throwInputError(file.string(), 0, "file not found");
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throwInputError(file.string(), 0, "cannot open file");
+  std::vector<TextLine> lines;
+  std::string text;
+  int number = 0;
+  while (std::getline(in, text)) {
+    if (!text.empty() && text.back() == '\r') text.pop_back();
+    lines.push_back({++number, text});
+  }
+  if (in.bad()) throwInputError(file.string(), number, "read error");
+  return lines;
+}
+
+std::vector<TextLine> contentLines(const std::vector<TextLine>& lines, bool skip_comments) {
+  std::vector<TextLine> out;
+  for (const auto& line : lines) {
+    const size_t first = line.text.find_first_not_of(" \t\r");
+    if (first == std::string::npos) continue;
+    if (skip_comments && line.text[first] == '#') continue;
+    out.push_back(line);
+  }
+  return out;
+}
+
+std::vector<std::string> splitWhitespace(const std::string& text) {
+  std::vector<std::string> tokens;
+  size_t i = 0;
+  while (i < text.size()) {
+    const size_t start = text.find_first_not_of(" \t\r\n", i);
+    if (start == std::string::npos) break;
+    const size_t end = text.find_first_of(" \t\r\n", start);
+    tokens.push_back(text.substr(start, end == std::string::npos ? std::string::npos : end - start));
+    i = end == std::string::npos ? text.size() : end;
+  }
+  return tokens;
+}
+
+double parseDouble(const std::string& token, const std::filesystem::path& file, int line,
+                   const std::string& field) {
+  errno = 0;
+  char* end = nullptr;
+  const double value = std::strtod(token.c_str(), &end);
+  // ERANGE on underflow (denormals) is harmless; only reject what did not parse.
+  if (token.empty() || end != token.c_str() + token.size())
+    throwInputError(file.string(), line, "expected a number for " + field + ", got '" + token + "'");
+  return value;
+}
+
+long parseInteger(const std::string& token, const std::filesystem::path& file, int line,
+                  const std::string& field) {
+  errno = 0;
+  char* end = nullptr;
+  const long value = std::strtol(token.c_str(), &end, 10);
+  if (token.empty() || end != token.c_str() + token.size() || errno == ERANGE)
+    throwInputError(file.string(), line, "expected an integer for " + field + ", got '" + token + "'");
+  return value;
+}
+
+std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::path& file) {
+  std::vector<double> values;
+  for (const auto& token : splitWhitespace(line.text))
+    values.push_back(parseDouble(token, file, line.number, "value " + std::to_string(values.size() + 1)));
+  return values;
+}
+
+MatrixFile readMatrixFile(const std::filesystem::path& file, int rows, int cols) {
+  const auto lines = contentLines(readTextLines(file), false);
+  if (static_cast<int>(lines.size()) != rows)
+    throwInputError(file.string(), lines.empty() ? 0 : lines.back().number,
+                    "expected a " + std::to_string(rows) + "x" + std::to_string(cols) + " matrix, found " +
+                        std::to_string(lines.size()) + " non-empty lines");
+  MatrixFile matrix{Eigen::MatrixXd(rows, cols), {}};
+  for (int r = 0; r < rows; ++r) {
+    const auto values = parseNumbers(lines[r], file);
+    if (static_cast<int>(values.size()) != cols)
+      throwInputError(file.string(), lines[r].number,
+                      "expected " + std::to_string(cols) + " numbers in matrix row " + std::to_string(r + 1) +
+                          ", found " + std::to_string(values.size()));
+    for (int c = 0; c < cols; ++c) {
+      if (!std::isfinite(values[c])) throwInputError(file.string(), lines[r].number, "non-finite value (NaN or inf)");
+      matrix.values(r, c) = values[c];
+    }
+    matrix.row_lines.push_back(lines[r].number);
+  }
+  return matrix;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,42 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+// Helpers the text-format readers share. Every failure is an InputError naming file and line.
+namespace ffloc {
+
+struct TextLine {
+  int number = 0;    // 1-based line number in the file
+  std::string text;  // without the line end (LF or CRLF)
+};
+
+// All lines of a text file. Throws InputError when the file is missing or unreadable.
+std::vector<TextLine> readTextLines(const std::filesystem::path& file);
+
+// Lines that hold something other than whitespace, minus `#` comment lines when asked.
+std::vector<TextLine> contentLines(const std::vector<TextLine>& lines, bool skip_comments);
+
+// Whitespace-separated tokens (spaces, tabs, CR).
+std::vector<std::string> splitWhitespace(const std::string& text);
+
+// A decimal number (with `e-001`-style exponents); the whole token must be consumed.
+double parseDouble(const std::string& token, const std::filesystem::path& file, int line,
+                   const std::string& field);
+long parseInteger(const std::string& token, const std::filesystem::path& file, int line,
+                  const std::string& field);
+
+// Every token of the line as a number.
+std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::path& file);
+
+// A rows x cols matrix of finite numbers written one row per non-empty line (7-Scenes pose and
+// intrinsics files), with the line number of each row for later messages.
+struct MatrixFile {
+  Eigen::MatrixXd values;
+  std::vector<int> row_lines;
+};
+MatrixFile readMatrixFile(const std::filesystem::path& file, int rows, int cols);
+
+}  // namespace ffloc

@@ -1,1 +1,0 @@
-#include "ffloc/eval/coordinate_source.h"

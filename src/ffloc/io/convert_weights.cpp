@@ -1,0 +1,77 @@
+#include "ffloc/io/convert_weights.h"
+
+#include <algorithm>
+#include <deque>
+#include <map>
+#include <tuple>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
+#include "ffloc/io/half.h"
+
+namespace ffloc {
+
+DType parseFloatDType(const std::string& text, const std::string& field) {
+  std::string upper = text;
+  std::transform(upper.begin(), upper.end(), upper.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+  const std::optional<DType> dtype = dtypeFromString(upper);
+  if (!dtype || !isFloatingPoint(*dtype)) {
+    throw InputError(field + ": unknown floating-point dtype '" + text + "' (f32, f16, bf16, f64)");
+  }
+  return *dtype;
+}
+
+ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
+                                     const std::filesystem::path& output,
+                                     const ConvertWeightsOptions& options) {
+  if (options.float_dtype && !isFloatingPoint(*options.float_dtype)) {
+    throw InputError(std::string("convert: target dtype ") + toString(*options.float_dtype) +
+                     " is not a floating-point type");
+  }
+  const std::unique_ptr<TensorArchive> archive = openTensorArchive(input);
+  ConvertWeightsSummary summary;
+  summary.tensors_read = archive->names().size();
+
+  // Exact aliases are the same bytes seen under several names; what differs only in part (two
+  // views of one storage) is written as separate copies.
+  std::vector<std::string> names = archive->names();
+  std::sort(names.begin(), names.end());
+  using Identity = std::tuple<const uint8_t*, size_t, DType, std::vector<int64_t>>;
+  std::map<Identity, std::string> kept;
+  std::vector<TensorView> views;
+  for (const std::string& name : names) {
+    const TensorView& view = archive->at(name);
+    const auto [slot, inserted] = kept.emplace(Identity{view.data, view.nbytes, view.dtype, view.shape}, name);
+    // Empty tensors have no bytes to share, so each keeps its name.
+    if (!inserted && view.nbytes > 0) {
+      ++summary.aliases_dropped;
+      continue;
+    }
+    views.push_back(view);
+  }
+
+  std::deque<std::vector<uint8_t>> casts;
+  if (options.float_dtype) {
+    for (TensorView& view : views) {
+      if (!isFloatingPoint(view.dtype) || view.dtype == *options.float_dtype) continue;
+      const std::vector<uint8_t>& bytes = casts.emplace_back(castFloatTensor(view, *options.float_dtype));
+      view.dtype = *options.float_dtype;
+      view.data = bytes.data();
+      view.nbytes = bytes.size();
+    }
+  }
+
+  std::map<std::string, std::string> metadata = archive->metadata();
+  metadata.emplace("format", "pt");
+  metadata["source"] = input.filename().string();
+
+  ProgressBar progress("convert " + input.filename().string(), views.size(), options.quiet);
+  writeSafetensors(output, views, metadata, [&](size_t written) { progress.update(written); });
+  progress.finish();
+  summary.tensors_written = views.size();
+  for (const TensorView& view : views) summary.bytes_written += view.nbytes;
+  return summary;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,334 @@
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cstring>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "ffloc/core/error.h"
+#include "ffloc/io/mapped_file.h"
+#include "ffloc/io/tensor_archive.h"
+
+namespace ffloc {
+namespace {
+
+// Not ordered_json: its linear key lookup makes parsing quadratic in the number of tensors, and
+// it deep-copies values when growing. File order comes from data_offsets anyway.
+using Json = nlohmann::json;
+
+// A safetensors header is {name: {dtype, shape: [..], data_offsets: [..]}}: depth 3. Refusing
+// deeper nesting bounds every recursive walk of the parsed value.
+constexpr int kMaxHeaderDepth = 8;
+
+// The reference implementation refuses headers above 100 MB; the official 2.2 GB DUSt3R
+// checkpoint needs ~100 KB.
+constexpr uint64_t kMaxHeaderBytes = 100ull << 20;
+
+class SafetensorsArchive : public TensorArchive {
+ public:
+  explicit SafetensorsArchive(const std::filesystem::path& path);
+
+ private:
+  [[noreturn]] void fail(const std::string& what) const {
+    throwInputError(path_.string(), 0, what);
+  }
+  [[noreturn]] void failTensor(const std::string& name, const std::string& what) const {
+    fail("tensor '" + name + "': " + what);
+  }
+  Json parseHeader(const char* text, size_t size) const;
+  void readMetadata(const Json& value);
+  // Byte range [begin, end) of the tensor relative to the data section.
+  TensorView readTensor(const std::string& name, const Json& entry, uint64_t data_size,
+                        const uint8_t* data_section, std::pair<uint64_t, uint64_t>* range) const;
+
+  MappedFile file_;
+};
+
+uint64_t readLe64(const uint8_t* bytes) {
+  uint64_t value = 0;
+  for (int i = 7; i >= 0; --i) value = (value << 8) | bytes[i];
+  return value;
+}
+
+void writeLe64(uint64_t value, uint8_t* bytes) {
+  for (int i = 0; i < 8; ++i) bytes[i] = static_cast<uint8_t>(value >> (8 * i));
+}
+
+SafetensorsArchive::SafetensorsArchive(const std::filesystem::path& path) : file_(path) {
+  path_ = path;
+  const uint64_t file_size = file_.size();
+  if (file_size < 8) {
+    fail("file too short for a safetensors header (" + std::to_string(file_size) + " bytes)");
+  }
+  const uint64_t header_size = readLe64(file_.data());
+  if (header_size > file_size - 8) {
+    fail("header length " + std::to_string(header_size) + " exceeds the file size (" +
+         std::to_string(file_size) + " bytes); truncated or not a safetensors file");
+  }
+  if (header_size > kMaxHeaderBytes) {
+    fail("header length " + std::to_string(header_size) + " exceeds the 100 MB limit");
+  }
+  if (header_size < 2) fail("header too short (" + std::to_string(header_size) + " bytes)");
+
+  const Json header = parseHeader(reinterpret_cast<const char*>(file_.data() + 8), header_size);
+  const uint64_t data_size = file_size - 8 - header_size;
+  const uint8_t* data_section = file_.data() + 8 + header_size;
+
+  struct Placed {
+    uint64_t begin, end;
+    size_t header_index;
+  };
+  std::vector<Placed> placed;
+  std::vector<TensorView> views;
+  for (const auto& [key, value] : header.items()) {
+    if (key == "__metadata__") {
+      readMetadata(value);
+      continue;
+    }
+    std::pair<uint64_t, uint64_t> range;
+    views.push_back(readTensor(key, value, data_size, data_section, &range));
+    placed.push_back({range.first, range.second, views.size() - 1});
+  }
+
+  // File order is data order; ties (empty tensors) go by name.
+  std::stable_sort(placed.begin(), placed.end(),
+                   [](const Placed& a, const Placed& b) { return a.begin < b.begin; });
+  uint64_t previous_end = 0;
+  const std::string* previous_name = nullptr;
+  for (const Placed& item : placed) {
+    const std::string& name = views[item.header_index].name;
+    if (item.begin == item.end) continue;
+    if (item.begin < previous_end) {
+      failTensor(name, "data_offsets [" + std::to_string(item.begin) + ", " +
+                           std::to_string(item.end) + ") overlap tensor '" + *previous_name + "'");
+    }
+    previous_end = item.end;
+    previous_name = &name;
+  }
+  for (const Placed& item : placed) {
+    TensorView& view = views[item.header_index];
+    names_.push_back(view.name);
+    tensors_.emplace(view.name, std::move(view));
+  }
+}
+
+Json SafetensorsArchive::parseHeader(const char* text, size_t size) const {
+  // nlohmann keeps the last of duplicated keys silently; a duplicated tensor name would hide a
+  // tensor, so it is caught while parsing.
+  std::set<std::string> seen;
+  std::string duplicate;
+  const Json::parser_callback_t catch_duplicates = [&](int depth, Json::parse_event_t event,
+                                                       Json& parsed) {
+    if (depth > kMaxHeaderDepth) {
+      fail("header: JSON nested deeper than " + std::to_string(kMaxHeaderDepth) + " levels");
+    }
+    if (event == Json::parse_event_t::key && depth == 1 && parsed.is_string()) {
+      if (!seen.insert(parsed.get<std::string>()).second && duplicate.empty()) {
+        duplicate = parsed.get<std::string>();
+      }
+    }
+    return true;
+  };
+  Json header;
+  try {
+    header = Json::parse(text, text + size, catch_duplicates);
+  } catch (const Json::exception& error) {
+    fail(std::string("malformed JSON header: ") + error.what());
+  }
+  if (!duplicate.empty()) fail("header: duplicated key '" + duplicate + "'");
+  if (!header.is_object()) fail("header: expected a JSON object");
+  return header;
+}
+
+void SafetensorsArchive::readMetadata(const Json& value) {
+  if (!value.is_object()) fail("__metadata__: expected an object of strings");
+  for (const auto& [key, entry] : value.items()) {
+    if (!entry.is_string()) fail("__metadata__: value of '" + key + "' is not a string");
+    metadata_[key] = entry.get<std::string>();
+  }
+}
+
+TensorView SafetensorsArchive::readTensor(const std::string& name, const Json& entry,
+                                          uint64_t data_size, const uint8_t* data_section,
+                                          std::pair<uint64_t, uint64_t>* range) const {
+  if (!entry.is_object()) failTensor(name, "expected an object with dtype, shape, data_offsets");
+  TensorView view;
+  view.name = name;
+
+  const auto dtype_field = entry.find("dtype");
+  if (dtype_field == entry.end() || !dtype_field->is_string()) {
+    failTensor(name, "missing or non-string 'dtype'");
+  }
+  const std::optional<DType> dtype = dtypeFromString(dtype_field->get<std::string>());
+  if (!dtype) {
+    failTensor(name, "unknown dtype '" + dtype_field->get<std::string>() +
+                         "' (supported: F32, F16, BF16, F64, I64, I32, I16, I8, U8, BOOL)");
+  }
+  view.dtype = *dtype;
+
+  const auto shape_field = entry.find("shape");
+  if (shape_field == entry.end() || !shape_field->is_array()) {
+    failTensor(name, "missing or non-array 'shape'");
+  }
+  // Every entry is checked before the field is printed, so messages stay short.
+  for (const Json& dim : *shape_field) {
+    if (!dim.is_number_unsigned()) {
+      failTensor(name, "shape entry " + (dim.is_number() ? dim.dump() : std::string(dim.type_name())) +
+                           " is not a non-negative integer");
+    }
+  }
+  uint64_t numel = 1;
+  for (const Json& dim : *shape_field) {
+    const uint64_t extent = dim.get<uint64_t>();
+    if (extent > static_cast<uint64_t>(std::numeric_limits<int64_t>::max()) ||
+        __builtin_mul_overflow(numel, extent, &numel)) {
+      failTensor(name, "shape " + shape_field->dump() + " overflows the element count");
+    }
+    view.shape.push_back(static_cast<int64_t>(extent));
+  }
+  uint64_t nbytes = 0;
+  if (__builtin_mul_overflow(numel, static_cast<uint64_t>(elementSize(view.dtype)), &nbytes)) {
+    failTensor(name, "shape " + shape_field->dump() + " overflows the byte size");
+  }
+
+  const auto offsets_field = entry.find("data_offsets");
+  if (offsets_field == entry.end() || !offsets_field->is_array() || offsets_field->size() != 2 ||
+      !(*offsets_field)[0].is_number_unsigned() || !(*offsets_field)[1].is_number_unsigned()) {
+    failTensor(name, "'data_offsets' must be two non-negative integers");
+  }
+  const uint64_t begin = (*offsets_field)[0].get<uint64_t>();
+  const uint64_t end = (*offsets_field)[1].get<uint64_t>();
+  if (end < begin) failTensor(name, "data_offsets " + offsets_field->dump() + " end before begin");
+  if (end > data_size) {
+    failTensor(name, "data_offsets " + offsets_field->dump() + " run past the data section (" +
+                         std::to_string(data_size) + " bytes); file truncated?");
+  }
+  if (end - begin != nbytes) {
+    failTensor(name, "data_offsets " + offsets_field->dump() + " span " +
+                         std::to_string(end - begin) + " bytes but " + toString(view.dtype) +
+                         " shape " + shape_field->dump() + " needs " + std::to_string(nbytes));
+  }
+  view.data = data_section + begin;
+  view.nbytes = static_cast<size_t>(nbytes);
+  *range = {begin, end};
+  return view;
+}
+
+// Creates a fresh file beside `target` (same directory, so rename() is atomic); the kernel
+// applies the umask to the 0666 mode.
+int createTemporaryBeside(const std::filesystem::path& target, std::filesystem::path* temporary) {
+  static std::atomic<unsigned> counter{0};
+  const std::filesystem::path directory =
+      target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    *temporary = directory / ("." + target.filename().string() + "." +
+                              std::to_string(::getpid()) + "." + std::to_string(counter++) +
+                              ".tmp");
+    const int fd = ::open(temporary->c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd >= 0) return fd;
+    if (errno != EEXIST) break;
+  }
+  throwInputError(target.string(), 0,
+                  std::string("cannot create a temporary file beside it: ") + std::strerror(errno));
+}
+
+void writeAll(int fd, const uint8_t* bytes, size_t size, const std::filesystem::path& target) {
+  while (size > 0) {
+    const ssize_t written = ::write(fd, bytes, std::min<size_t>(size, 1u << 30));
+    if (written < 0) {
+      if (errno == EINTR) continue;
+      throwInputError(target.string(), 0, std::string("write failed: ") + std::strerror(errno));
+    }
+    bytes += written;
+    size -= static_cast<size_t>(written);
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<TensorArchive> openSafetensors(const std::filesystem::path& path) {
+  return std::make_unique<SafetensorsArchive>(path);
+}
+
+void writeSafetensors(const std::filesystem::path& path, const std::vector<TensorView>& tensors,
+                      const std::map<std::string, std::string>& metadata,
+                      const WriteProgress& progress) {
+  const std::string file = path.string();
+  Json header = Json::object();
+  if (!metadata.empty()) {
+    Json meta = Json::object();
+    for (const auto& [key, value] : metadata) meta[key] = value;
+    header["__metadata__"] = meta;
+  }
+  uint64_t offset = 0;
+  std::set<std::string> names;
+  for (const TensorView& view : tensors) {
+    if (view.name.empty() || view.name == "__metadata__") {
+      throwInputError(file, 0, "tensor name '" + view.name + "' is not allowed");
+    }
+    if (!names.insert(view.name).second) {
+      throwInputError(file, 0, "tensor '" + view.name + "': duplicated name");
+    }
+    uint64_t numel = 1;
+    for (int64_t dim : view.shape) {
+      if (dim < 0 || __builtin_mul_overflow(numel, static_cast<uint64_t>(dim), &numel)) {
+        throwInputError(file, 0, "tensor '" + view.name + "': invalid shape " + view.shapeString());
+      }
+    }
+    uint64_t nbytes = 0;
+    if (__builtin_mul_overflow(numel, static_cast<uint64_t>(elementSize(view.dtype)), &nbytes) ||
+        nbytes != view.nbytes || (view.nbytes > 0 && !view.data)) {
+      throwInputError(file, 0, "tensor '" + view.name + "': " + std::to_string(view.nbytes) +
+                                   " bytes do not match " + toString(view.dtype) + " shape " +
+                                   view.shapeString());
+    }
+    header[view.name] = {{"dtype", toString(view.dtype)},
+                         {"shape", view.shape},
+                         {"data_offsets", {offset, offset + view.nbytes}}};
+    offset += view.nbytes;
+  }
+  std::string text;
+  try {
+    text = header.dump();
+  } catch (const Json::exception& error) {
+    throwInputError(file, 0, std::string("cannot encode the header: ") + error.what());
+  }
+  text.append((8 - text.size() % 8) % 8, ' ');
+  uint8_t length[8];
+  writeLe64(text.size(), length);
+
+  std::filesystem::path temporary;
+  const int fd = createTemporaryBeside(path, &temporary);
+  bool closed = false;
+  try {
+    writeAll(fd, length, sizeof(length), path);
+    writeAll(fd, reinterpret_cast<const uint8_t*>(text.data()), text.size(), path);
+    for (size_t i = 0; i < tensors.size(); ++i) {
+      writeAll(fd, tensors[i].data, tensors[i].nbytes, path);
+      if (progress) progress(i + 1);
+    }
+    if (::fsync(fd) != 0) {
+      throwInputError(file, 0, std::string("fsync failed: ") + std::strerror(errno));
+    }
+    closed = true;
+    if (::close(fd) != 0) {
+      throwInputError(file, 0, std::string("close failed: ") + std::strerror(errno));
+    }
+  } catch (...) {
+    if (!closed) ::close(fd);
+    ::unlink(temporary.c_str());
+    throw;
+  }
+  if (::rename(temporary.c_str(), path.c_str()) != 0) {
+    const int error = errno;
+    ::unlink(temporary.c_str());
+    throwInputError(file, 0, std::string("cannot rename the temporary file into place: ") +
+                                 std::strerror(error));
+  }
+}
+
+}  // namespace ffloc

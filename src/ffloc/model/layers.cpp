@@ -1,0 +1,127 @@
+#include "ffloc/model/layers.h"
+
+#include <ATen/TensorOperators.h>
+#include <ATen/ops/conv2d.h>
+#include <ATen/ops/conv_transpose2d.h>
+#include <ATen/ops/gelu.h>
+#include <ATen/ops/layer_norm.h>
+#include <ATen/ops/linear.h>
+
+#include "ffloc/model/torch_compat.h"
+
+namespace ffloc::nn {
+
+void Linear::registerIn(ParameterTable& table, const std::string& prefix) {
+  table.add(prefix + ".weight", {out, in}, &weight);
+  table.add(prefix + ".bias", {out}, &bias);
+}
+
+at::Tensor Linear::forward(const at::Tensor& x) const { return at::linear(x, weight, bias); }
+
+void LayerNorm::registerIn(ParameterTable& table, const std::string& prefix) {
+  table.add(prefix + ".weight", {dim}, &weight);
+  table.add(prefix + ".bias", {dim}, &bias);
+}
+
+at::Tensor LayerNorm::forward(const at::Tensor& x) const {
+  return at::layer_norm(x, {dim}, weight, bias, eps);
+}
+
+void Conv2d::registerIn(ParameterTable& table, const std::string& prefix) {
+  // ConvTranspose2d stores its weight as (in, out, k, k).
+  if (transposed) {
+    table.add(prefix + ".weight", {in, out, kernel, kernel}, &weight);
+  } else {
+    table.add(prefix + ".weight", {out, in, kernel, kernel}, &weight);
+  }
+  if (has_bias) table.add(prefix + ".bias", {out}, &bias);
+}
+
+at::Tensor Conv2d::forward(const at::Tensor& x) const {
+  if (transposed) return at::conv_transpose2d(x, weight, bias, {stride, stride}, {padding, padding});
+  return at::conv2d(x, weight, bias, {stride, stride}, {padding, padding});
+}
+
+void Mlp::registerIn(ParameterTable& table, const std::string& prefix) {
+  fc1.registerIn(table, prefix + ".fc1");
+  fc2.registerIn(table, prefix + ".fc2");
+}
+
+at::Tensor Mlp::forward(const at::Tensor& x) const { return fc2.forward(at::gelu(fc1.forward(x))); }
+
+namespace {
+
+// (B, N, C) -> (B, heads, N, C / heads).
+at::Tensor splitHeads(const at::Tensor& x, int64_t num_heads) {
+  return x.reshape({x.size(0), x.size(1), num_heads, x.size(2) / num_heads}).permute({0, 2, 1, 3});
+}
+
+// (B, heads, N, hd) -> (B, N, heads * hd).
+at::Tensor mergeHeads(const at::Tensor& x) {
+  return x.transpose(1, 2).reshape({x.size(0), x.size(2), x.size(1) * x.size(3)});
+}
+
+}  // namespace
+
+void Attention::registerIn(ParameterTable& table, const std::string& prefix) {
+  qkv.registerIn(table, prefix + ".qkv");
+  proj.registerIn(table, prefix + ".proj");
+}
+
+at::Tensor Attention::forward(const at::Tensor& x, const RopeFactors& rope) const {
+  const int64_t batch = x.size(0), tokens = x.size(1), dim = x.size(2);
+  // (B, N, 3 * C) -> (3, B, heads, N, hd): the output channels are [q | k | v].
+  const at::Tensor parts =
+      qkv.forward(x).reshape({batch, tokens, 3, num_heads, dim / num_heads}).permute({2, 0, 3, 1, 4});
+  const at::Tensor q = applyRope(parts[0], rope);
+  const at::Tensor k = applyRope(parts[1], rope);
+  return proj.forward(mergeHeads(torch_compat::attention(q, k, parts[2])));
+}
+
+void CrossAttention::registerIn(ParameterTable& table, const std::string& prefix) {
+  projq.registerIn(table, prefix + ".projq");
+  projk.registerIn(table, prefix + ".projk");
+  projv.registerIn(table, prefix + ".projv");
+  proj.registerIn(table, prefix + ".proj");
+}
+
+at::Tensor CrossAttention::forward(const at::Tensor& query, const at::Tensor& key_value,
+                                   const RopeFactors& query_rope, const RopeFactors& key_rope) const {
+  const at::Tensor q = applyRope(splitHeads(projq.forward(query), num_heads), query_rope);
+  const at::Tensor k = applyRope(splitHeads(projk.forward(key_value), num_heads), key_rope);
+  const at::Tensor v = splitHeads(projv.forward(key_value), num_heads);
+  return proj.forward(mergeHeads(torch_compat::attention(q, k, v)));
+}
+
+void EncoderBlock::registerIn(ParameterTable& table, const std::string& prefix) {
+  norm1.registerIn(table, prefix + ".norm1");
+  attn.registerIn(table, prefix + ".attn");
+  norm2.registerIn(table, prefix + ".norm2");
+  mlp.registerIn(table, prefix + ".mlp");
+}
+
+at::Tensor EncoderBlock::forward(const at::Tensor& x, const RopeFactors& rope) const {
+  const at::Tensor h = x + attn.forward(norm1.forward(x), rope);
+  return h + mlp.forward(norm2.forward(h));
+}
+
+void DecoderBlock::registerIn(ParameterTable& table, const std::string& prefix) {
+  // state_dict order of the reference module.
+  norm1.registerIn(table, prefix + ".norm1");
+  attn.registerIn(table, prefix + ".attn");
+  cross_attn.registerIn(table, prefix + ".cross_attn");
+  norm2.registerIn(table, prefix + ".norm2");
+  norm3.registerIn(table, prefix + ".norm3");
+  mlp.registerIn(table, prefix + ".mlp");
+  norm_y.registerIn(table, prefix + ".norm_y");
+}
+
+at::Tensor DecoderBlock::forward(const at::Tensor& x, const at::Tensor& y, const RopeFactors& x_rope,
+                                 const RopeFactors& y_rope) const {
+  const at::Tensor h1 = x + attn.forward(norm1.forward(x), x_rope);
+  const at::Tensor y_normed = norm_y.forward(y);
+  const at::Tensor h2 = h1 + cross_attn.forward(norm2.forward(h1), y_normed, x_rope, y_rope);
+  return h2 + mlp.forward(norm3.forward(h2));
+}
+
+}  // namespace ffloc::nn

@@ -1,0 +1,18 @@
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include "ffloc/io/tensor_archive.h"
+
+namespace ffloc {
+
+// The torch element type of a stored dtype. InputError naming `what` (typically
+// "<file>: tensor '<name>'") for dtypes libtorch 1.13 cannot hold losslessly (none today; kept
+// as one switch so new archive dtypes fail loudly).
+at::ScalarType torchScalarType(DType dtype, const std::string& what);
+
+// A CPU tensor owning a copy of the view's bytes (so it outlives the archive), with the view's
+// dtype and shape. Handles F32, F16, BF16, F64, I64, I32, I16, I8, U8 and BOOL.
+at::Tensor toTorch(const TensorView& view);
+
+}  // namespace ffloc

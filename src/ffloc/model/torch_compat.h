@@ -1,0 +1,51 @@
+#pragma once
+
+// The few libtorch calls whose spelling differs between Debian's libtorch 1.13 (CPU) and the
+// libtorch of PyTorch 2.x (CUDA builds). Everything else in the model module uses API that is
+// identical in both.
+
+#include <ATen/TensorOperators.h>
+#include <ATen/core/Tensor.h>
+#include <ATen/ops/matmul.h>
+#include <ATen/ops/softmax.h>
+#include <ATen/ops/upsample_bilinear2d.h>
+#include <torch/version.h>
+
+#include <cmath>
+#include <vector>
+
+#if TORCH_VERSION_MAJOR > 2 || (TORCH_VERSION_MAJOR == 2 && TORCH_VERSION_MINOR >= 1)
+#include <ATen/ops/scaled_dot_product_attention.h>
+#define FFLOC_TORCH_HAS_SDPA 1
+#else
+#define FFLOC_TORCH_HAS_SDPA 0
+#endif
+
+namespace ffloc::torch_compat {
+
+// Bilinear resize to exactly `height` x `width` with align_corners=True. With align_corners the
+// scale factors play no part in the sampling positions, so leaving them unset is exact. Both
+// optional scales are passed explicitly: in 2.x a shorter call is ambiguous with the vec
+// overload.
+inline at::Tensor resizeBilinearAlignCorners(const at::Tensor& input, int64_t height, int64_t width) {
+  const std::vector<int64_t> size = {height, width};
+  return at::upsample_bilinear2d(input, at::IntArrayRef(size), /*align_corners=*/true, c10::nullopt,
+                                 c10::nullopt);
+}
+
+// softmax(q k^T * head_dim^-0.5) v for (B, heads, N, head_dim) tensors. On CPU this is the
+// reference's exact op sequence (scores scaled after the product), which the fixtures check.
+// On CUDA with PyTorch >= 2.1 the fused kernel is used; it scales differently in the last bits.
+inline at::Tensor attention(const at::Tensor& q, const at::Tensor& k, const at::Tensor& v) {
+  const double scale = std::pow(static_cast<double>(q.size(-1)), -0.5);
+#if FFLOC_TORCH_HAS_SDPA
+  if (q.is_cuda()) {
+    return at::scaled_dot_product_attention(q, k, v, /*attn_mask=*/{}, /*dropout_p=*/0.0,
+                                            /*is_causal=*/false, scale);
+  }
+#endif
+  const at::Tensor scores = at::matmul(q, k.transpose(-2, -1)) * scale;
+  return at::matmul(at::softmax(scores, -1), v);
+}
+
+}  // namespace ffloc::torch_compat

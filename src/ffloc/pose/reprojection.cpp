@@ -1,0 +1,27 @@
+#include "ffloc/pose/reprojection.h"
+
+#include <limits>
+
+namespace ffloc {
+
+double squaredReprojectionError(const Intrinsics& camera, const Pose& world_to_camera,
+                                const Eigen::Vector2d& pixel, const Eigen::Vector3d& point) {
+  const Eigen::Vector3d p = world_to_camera.R * point + world_to_camera.t;
+  if (!(p.z() > 0)) return std::numeric_limits<double>::infinity();
+  const double du = camera.fx * p.x() / p.z() + camera.cx - pixel.x();
+  const double dv = camera.fy * p.y() / p.z() + camera.cy - pixel.y();
+  return du * du + dv * dv;
+}
+
+std::vector<int> findInliers(const std::vector<Eigen::Vector2d>& pixels,
+                             const std::vector<Eigen::Vector3d>& points, const Intrinsics& camera,
+                             const Pose& world_to_camera, double threshold_px) {
+  const double threshold_squared = threshold_px * threshold_px;
+  std::vector<int> inliers;
+  for (size_t i = 0; i < pixels.size(); ++i)
+    if (squaredReprojectionError(camera, world_to_camera, pixels[i], points[i]) < threshold_squared)
+      inliers.push_back(static_cast<int>(i));
+  return inliers;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,21 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "ffloc/geometry/camera.h"
+#include "ffloc/geometry/pose.h"
+
+namespace ffloc {
+
+// Squared pixel distance between `pixel` and the pinhole projection of the world `point`;
+// +inf when the point is not in front of the camera, so no threshold accepts it.
+double squaredReprojectionError(const Intrinsics& camera, const Pose& world_to_camera,
+                                const Eigen::Vector2d& pixel, const Eigen::Vector3d& point);
+
+// Indices of the pairs whose reprojection error is below `threshold_px` (positive depth only).
+std::vector<int> findInliers(const std::vector<Eigen::Vector2d>& pixels,
+                             const std::vector<Eigen::Vector3d>& points, const Intrinsics& camera,
+                             const Pose& world_to_camera, double threshold_px);
+
+}  // namespace ffloc
