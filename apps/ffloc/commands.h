@@ -9,6 +9,9 @@ namespace ffloc::cli {
 void registerEvalCommand(CLI::App& app);
 void registerSynthCommand(CLI::App& app);
 void registerConvertCommand(CLI::App& app);
+#ifdef FFLOC_WITH_TORCH
+void registerBenchCommand(CLI::App& app);  // needs the network module
+#endif
 
 int& exitCode();
 

@@ -21,6 +21,7 @@ struct EvalArguments {
   std::string solver = "lo-ransac";
   double outliers = 0.0;
   double noise_px = 0.0;
+  double point_noise = 0.0;
   int stride = 4;
   size_t max_queries = 0;
   uint64_t seed = 0;
@@ -44,6 +45,7 @@ std::unique_ptr<CoordinateSource> makeSource(const std::string& method, const Ev
     OracleDepthOptions options;
     options.outlier_fraction = args.outliers;
     options.pixel_noise_px = args.noise_px;
+    options.point_noise = args.point_noise;
     options.stride = args.stride;
     options.seed = args.seed;
     return std::make_unique<OracleDepthSource>(options);
@@ -128,6 +130,9 @@ void registerEvalCommand(CLI::App& app) {
   cmd->add_option("--outliers", args->outliers, "oracle-depth: fraction of 3D points replaced at random")
       ->capture_default_str();
   cmd->add_option("--noise-px", args->noise_px, "oracle-depth: Gaussian pixel noise (sigma, px)")->capture_default_str();
+  cmd->add_option("--point-noise", args->point_noise,
+                  "oracle-depth: Gaussian noise on the 3D points (sigma, dataset units)")
+      ->capture_default_str();
   cmd->add_option("--stride", args->stride, "oracle-depth: use every n-th pixel of the depth map")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);

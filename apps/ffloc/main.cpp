@@ -21,6 +21,9 @@ int main(int argc, char** argv) {
   ffloc::cli::registerEvalCommand(app);
   ffloc::cli::registerSynthCommand(app);
   ffloc::cli::registerConvertCommand(app);
+#ifdef FFLOC_WITH_TORCH
+  ffloc::cli::registerBenchCommand(app);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -7,38 +7,28 @@
 namespace ffloc {
 namespace {
 
-void writeWorldToCamera(std::ostream& out, const Pose& camera_to_world) {
-  const Pose world_to_camera = camera_to_world.inverse();
-  const Eigen::Quaterniond q = world_to_camera.quaternion();
-  out << q.w() << " " << q.x() << " " << q.y() << " " << q.z() << " " << world_to_camera.t.x() << " "
-      << world_to_camera.t.y() << " " << world_to_camera.t.z();
-}
-
-}  // namespace
-
-std::string hlocPoseList(const std::vector<FrameResult>& frames) {
+// One line per succeeded frame: `name qw qx qy qz tx ty tz` (world-to-camera), then the inlier
+// count when asked for.
+std::string worldToCameraLines(const std::vector<FrameResult>& frames, bool with_inliers) {
   std::ostringstream out;
   out.precision(12);
   for (const FrameResult& f : frames) {
     if (!f.succeeded()) continue;
-    out << f.frame << " ";
-    writeWorldToCamera(out, f.estimate);
+    const Pose world_to_camera = f.estimate.inverse();
+    const Eigen::Quaterniond q = world_to_camera.quaternion();
+    out << f.frame << " " << q.w() << " " << q.x() << " " << q.y() << " " << q.z() << " " << world_to_camera.t.x()
+        << " " << world_to_camera.t.y() << " " << world_to_camera.t.z();
+    if (with_inliers) out << " " << f.inliers;
     out << "\n";
   }
   return out.str();
 }
 
-std::string mapFreeSubmission(const std::vector<FrameResult>& frames) {
-  std::ostringstream out;
-  out.precision(12);
-  for (const FrameResult& f : frames) {
-    if (!f.succeeded()) continue;
-    out << f.frame << " ";
-    writeWorldToCamera(out, f.estimate);
-    out << " " << f.inliers << "\n";
-  }
-  return out.str();
-}
+}  // namespace
+
+std::string hlocPoseList(const std::vector<FrameResult>& frames) { return worldToCameraLines(frames, false); }
+
+std::string mapFreeSubmission(const std::vector<FrameResult>& frames) { return worldToCameraLines(frames, true); }
 
 void PlyWriter::addPoint(const Eigen::Vector3d& point, Colour colour) { vertices_.push_back({point, colour}); }
 

@@ -33,7 +33,8 @@ Correspondences OracleDepthSource::correspondences(const Scene& scene, size_t qu
 
   // One generator per query, so results do not depend on the order frames are visited in.
   std::mt19937_64 rng(options_.seed * 1000003ULL + query_index);
-  std::normal_distribution<double> noise(0.0, options_.pixel_noise_px);
+  // Standard normals, scaled where used: a normal_distribution of sigma 0 is not allowed.
+  std::normal_distribution<double> gaussian(0.0, 1.0);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
 
   Correspondences out;
@@ -45,14 +46,15 @@ Correspondences OracleDepthSource::correspondences(const Scene& scene, size_t qu
     low = low.cwiseMin(world);
     high = high.cwiseMax(world);
     Eigen::Vector2d pixel = ideal[i];
-    if (options_.pixel_noise_px > 0) pixel += Eigen::Vector2d(noise(rng), noise(rng));
+    if (options_.pixel_noise_px > 0) pixel += options_.pixel_noise_px * Eigen::Vector2d(gaussian(rng), gaussian(rng));
     out.add(pixel, world, std::numeric_limits<float>::infinity());
   }
-  if (options_.outlier_fraction > 0) {
-    for (size_t i = 0; i < out.size(); ++i) {
-      if (unit(rng) >= options_.outlier_fraction) continue;
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (options_.outlier_fraction > 0 && unit(rng) < options_.outlier_fraction) {
       const Eigen::Vector3d r(unit(rng), unit(rng), unit(rng));
       out.points[i] = low + r.cwiseProduct(high - low);
+    } else if (options_.point_noise > 0) {
+      out.points[i] += options_.point_noise * Eigen::Vector3d(gaussian(rng), gaussian(rng), gaussian(rng));
     }
   }
   return out;

@@ -12,6 +12,7 @@ struct OracleDepthOptions {
   int stride = 4;                 // use every stride-th pixel in x and y
   double pixel_noise_px = 0.0;    // Gaussian noise added to the 2D side
   double outlier_fraction = 0.0;  // fraction of pairs whose 3D point is replaced at random
+  double point_noise = 0.0;       // Gaussian noise on the other 3D points (scene units), like a regressor's error
   uint64_t seed = 0;
 };
 

@@ -145,6 +145,16 @@ Dust3rEncoding Dust3rModel::encode(const at::Tensor& images, TensorTrace* trace,
 std::array<std::vector<at::Tensor>, 2> Dust3rModel::decode(const Dust3rEncoding& view1, const Dust3rEncoding& view2,
                                                            TensorTrace* trace) const {
   c10::InferenceMode inference;
+  for (const Dust3rEncoding* view : {&view1, &view2}) {
+    if (!view->tokens.defined() || view->tokens.dim() != 3 || view->tokens.size(2) != config_.enc_dim ||
+        !view->positions.defined() || view->positions.sizes() != at::IntArrayRef({view->tokens.size(0), view->tokens.size(1), 2})) {
+      throwInputError("decoder input", 0, "expected (B, N, " + std::to_string(config_.enc_dim) +
+                                              ") tokens with (B, N, 2) positions");
+    }
+  }
+  if (view1.tokens.size(0) != view2.tokens.size(0)) {
+    throwInputError("decoder input", 0, "the two streams have different batch sizes");
+  }
   const int64_t head_dim = config_.dec_dim / config_.dec_heads;
   const RopeFactors rope1 = ropeFactors(view1.positions, head_dim, backbone_dtype_, config_.rope_base);
   const RopeFactors rope2 = ropeFactors(view2.positions, head_dim, backbone_dtype_, config_.rope_base);

@@ -5,6 +5,7 @@
 
 #include <map>
 #include <set>
+#include <stdexcept>
 
 #include "ffloc/core/error.h"
 #include "ffloc/model/tensor_conversion.h"

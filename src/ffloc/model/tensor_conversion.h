@@ -6,9 +6,8 @@
 
 namespace ffloc {
 
-// The torch element type of a stored dtype. InputError naming `what` (typically
-// "<file>: tensor '<name>'") for dtypes libtorch 1.13 cannot hold losslessly (none today; kept
-// as one switch so new archive dtypes fail loudly).
+// The torch element type of a stored dtype; InputError naming `what` for a dtype value outside
+// the enum (a corrupt view).
 at::ScalarType torchScalarType(DType dtype, const std::string& what);
 
 // A CPU tensor owning a copy of the view's bytes (so it outlives the archive), with the view's

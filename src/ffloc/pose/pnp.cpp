@@ -1,6 +1,7 @@
 #include "ffloc/pose/pnp.h"
 
 #include <Eigen/Eigenvalues>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <optional>
@@ -46,6 +47,17 @@ bool collinear(const std::vector<Eigen::Vector3d>& points, const std::vector<int
   const Eigen::Vector3d spread = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter, Eigen::EigenvaluesOnly)
                                      .eigenvalues();  // ascending
   return !(spread(1) > 1e-10 * spread(2));
+}
+
+// The inliers a wrong pose collects by chance: a pixel unrelated to its point lands within the
+// threshold of the projection with probability about pi t^2 / (W H). RANSAC keeps the best of
+// thousands of hypotheses, so a success must clear the expected count by a wide margin; otherwise
+// pure noise with many pairs comes back as a confident wrong pose.
+int chanceInlierBound(size_t used, const Intrinsics& camera, double threshold_px) {
+  const double area = static_cast<double>(camera.width) * camera.height;
+  const double probability = std::min(1.0, M_PI * threshold_px * threshold_px / area);
+  const double expected = static_cast<double>(used) * probability;
+  return static_cast<int>(std::ceil(expected + 8.0 * std::sqrt(expected) + 6.0));
 }
 
 }  // namespace
@@ -112,7 +124,9 @@ PnpResult estimatePose(const Correspondences& correspondences, const Intrinsics&
   result.camera_to_world = world_to_camera->inverse();
   const std::vector<int> inliers = findInliers(pixels, points, camera, *world_to_camera, options.inlier_threshold_px);
   result.inliers = static_cast<int>(inliers.size());
-  if (result.inliers < options.min_inliers || result.inliers < 4) return finish(PnpStatus::kTooFewInliers);
+  const int required = std::max({options.min_inliers, 4,
+                                 chanceInlierBound(selected.size(), camera, options.inlier_threshold_px)});
+  if (result.inliers < required) return finish(PnpStatus::kTooFewInliers);
   if (collinear(points, inliers)) return finish(PnpStatus::kNoModel);
   return finish(PnpStatus::kSuccess);
 }

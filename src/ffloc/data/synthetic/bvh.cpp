@@ -146,14 +146,23 @@ bool Bvh::closestHit(const std::vector<Shape>& shapes, const Ray& ray, double t_
                      double t_max, Hit& hit) const {
   if (nodes_.empty()) return false;
   const RayBoxTest test(ray);
-  int stack[kMaxDepth + 2];
+  // Each pending node carries its entry distance, so a node is box-tested once, when its
+  // parent is visited, and dropped on the pop if a nearer hit has been found since.
+  struct Pending {
+    int node;
+    double enter;
+  };
+  Pending stack[kMaxDepth + 2];
   int top = 0;
-  stack[top++] = 0;
+  const double root_enter = test.enter(nodes_[0].box, t_min, t_max);
+  if (root_enter > t_max) return false;
+  stack[top++] = {0, root_enter};
   bool found = false;
   double best = t_max;
   while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
-    if (test.enter(node.box, t_min, best) > best) continue;
+    const Pending pending = stack[--top];
+    if (pending.enter > best) continue;
+    const Node& node = nodes_[pending.node];
     if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
         const int s = order_[i];
@@ -171,15 +180,15 @@ bool Bvh::closestHit(const std::vector<Shape>& shapes, const Ray& ray, double t_
       continue;
     }
     // Visit the nearer child first so the far one is often culled by the shrunken bound.
-    const int left = static_cast<int>(&node - nodes_.data()) + 1, right = node.first;
+    const int left = pending.node + 1, right = node.first;
     const double tl = test.enter(nodes_[left].box, t_min, best);
     const double tr = test.enter(nodes_[right].box, t_min, best);
     if (tl <= tr) {
-      if (tr <= best) stack[top++] = right;
-      if (tl <= best) stack[top++] = left;
+      if (tr <= best) stack[top++] = {right, tr};
+      if (tl <= best) stack[top++] = {left, tl};
     } else {
-      if (tl <= best) stack[top++] = left;
-      if (tr <= best) stack[top++] = right;
+      if (tl <= best) stack[top++] = {left, tl};
+      if (tr <= best) stack[top++] = {right, tr};
     }
   }
   return found;

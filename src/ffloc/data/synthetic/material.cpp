@@ -51,7 +51,7 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
   faceCoordinates(p, n, s, t);
   const double P = m.period;
   // A low-frequency stain shared by every pattern, so no surface is a flat colour.
-  const double stain = fractalNoise(p * (1.0 / (3.0 * P)), 3, footprint / (3.0 * P), m.seed);
+  const double stain = fractalNoise(p * (1.0 / (3.0 * P)), 2, footprint / (3.0 * P), m.seed);
   const double grain = fractalNoise(p * (8.0 / P), 2, footprint * 8.0 / P, m.seed + 7);
   const double shade = 1.0 + m.roughness * ((stain - 0.5) * 1.2 + (grain - 0.5) * 0.5);
   Vec3 colour;
@@ -66,12 +66,15 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
       const double u = s / P, w = t / P;
       const double cs = std::floor(u), ct = std::floor(w);
       const double jitter = cellValue(cs, ct, m.seed);
-      const Vec3 tile = lerp(m.base, m.accent, (static_cast<int64_t>(cs + ct) & 1) ? 0.85 : 0.15 * jitter);
+      const bool odd = (static_cast<int64_t>(cs + ct) & 1) != 0;
+      const Vec3 tile = lerp(m.base, m.accent, odd ? 0.85 : 0.15 * jitter) * (0.9 + 0.2 * jitter);
       const double gap = std::fmin(lineDistance(u), lineDistance(w)) * P;
-      const double grout = 1.0 - smoothEdge(0.004, 0.008, gap);
-      const double keep = resolvable(P * 0.05, footprint);
-      const Vec3 mean = lerp(lerp(m.base, m.accent, 0.5), m.detail, 0.1);
-      colour = lerp(mean, lerp(tile * (0.9 + 0.2 * jitter), m.detail, grout), keep);
+      // Tiles stay visible until they shrink to a pixel; the grout lines go much sooner and
+      // then only darken the average.
+      const double grout_keep = resolvable(P * 0.05, footprint);
+      const double grout = (1.0 - smoothEdge(0.004, 0.008, gap)) * grout_keep + 0.03 * (1.0 - grout_keep);
+      const Vec3 mean = lerp(m.base, m.accent, 0.5);
+      colour = lerp(lerp(mean, tile, resolvable(P, footprint)), m.detail, grout);
       break;
     }
     case Pattern::kBricks: {
@@ -81,10 +84,11 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
       const double jitter = cellValue(std::floor(u), row, m.seed);
       const Vec3 brick = lerp(m.base, m.accent, jitter);
       const double gap = std::fmin(lineDistance(u) * 2.0 * P, lineDistance(row_f) * P);
-      const double mortar = 1.0 - smoothEdge(P * 0.04, P * 0.08, gap);
-      const double keep = resolvable(P * 0.15, footprint);
-      const Vec3 mean = lerp(lerp(m.base, m.accent, 0.5), m.detail, 0.15);
-      colour = lerp(mean, lerp(brick, m.detail, mortar), keep);
+      const double mortar_keep = resolvable(P * 0.15, footprint);
+      const double mortar =
+          (1.0 - smoothEdge(P * 0.04, P * 0.08, gap)) * mortar_keep + 0.15 * (1.0 - mortar_keep);
+      const Vec3 mean = lerp(m.base, m.accent, 0.5);
+      colour = lerp(lerp(mean, brick, resolvable(P, footprint)), m.detail, mortar);
       break;
     }
     case Pattern::kWood: {
@@ -111,20 +115,21 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
       const double u = s / cell_w, w = t / cell_h;
       const double cs = std::floor(u), ct = std::floor(w);
       const double fu = u - cs, fw = w - ct;
-      const double inside = (fu > 0.22 && fu < 0.78 && fw > 0.25 && fw < 0.82) ? 1.0 : 0.0;
-      const double frame = (fu > 0.19 && fu < 0.81 && fw > 0.21 && fw < 0.86) ? 1.0 : 0.0;
+      const bool glass_here = fu > 0.22 && fu < 0.78 && fw > 0.25 && fw < 0.82;
+      const bool frame_here = fu > 0.19 && fu < 0.81 && fw > 0.21 && fw < 0.86;
       const double lit = cellValue(cs, ct, m.seed);
       Vec3 glass = m.detail * (0.6 + 0.8 * fw);
       if (lit > 0.85) glass = Vec3{0.9, 0.75, 0.45};
       else if (lit < 0.2) glass = lerp(glass, m.accent, 0.5 * (1.0 - fw));  // drawn blinds
-      const Vec3 ledge = lerp(m.base, m.accent, 0.6);
-      Vec3 c = m.base;
-      if (fw < 0.06) c = ledge;
-      if (frame > 0.0) c = Vec3{0.85, 0.85, 0.82};
-      if (inside > 0.0) c = glass;
-      const double keep = resolvable(P * 0.12, footprint);
+      const Vec3 frame{0.85, 0.85, 0.82};
+      // Window openings last until they shrink to a pixel or two; frames and ledges go first,
+      // blending into the colour around them.
+      const double fine = resolvable(P * 0.04, footprint);
+      Vec3 c = fw < 0.06 ? lerp(m.base, lerp(m.base, m.accent, 0.6), fine) : m.base;
+      if (frame_here) c = lerp(lerp(m.base, glass, 0.7), frame, fine);
+      if (glass_here) c = glass;
       const Vec3 mean = lerp(m.base, m.detail, 0.3);
-      colour = lerp(mean, c, keep);
+      colour = lerp(mean, c, resolvable(P * 0.4, footprint));
       break;
     }
     case Pattern::kMarble: {

@@ -1,0 +1,39 @@
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "ffloc/data/scene.h"
+#include "ffloc/io/map_file.h"
+#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/retrieval/global_descriptor.h"
+
+namespace ffloc {
+
+// Mapping (ffloc map): every mapping image is encoded once and its tokens stored (fp16) with its
+// pose, the intrinsics of the preprocessed image, the preprocessing geometry and a global
+// descriptor pooled from the same tokens. Queries never run the encoder on mapping images again.
+struct MappingOptions {
+  GlobalDescriptorOptions descriptor;
+  bool quiet = false;  // no progress bar
+};
+
+struct MappingReport {
+  size_t added = 0;
+  size_t skipped_duplicates = 0;  // names already in the map
+  double seconds = 0;             // reading, preprocessing and encoding the added images
+};
+
+// Encodes one posed image.
+MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const GlobalDescriptorOptions& options = {});
+
+// An empty map for `model`.
+MapFile emptyMap(const LoadedModel& model, bool metric);
+
+// Adds `frames` (indices into scene.frames) to `map`, keeping the images already there untouched
+// and skipping frames whose name the map already holds. InputError when the map was built by
+// another model, with another token width, or in other units (metric vs not).
+MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scene, const std::vector<size_t>& frames,
+                       const MappingOptions& options = {});
+
+}  // namespace ffloc

@@ -1,0 +1,180 @@
+#include "ffloc/pipeline/model_loader.h"
+
+#include <ATen/core/Tensor.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+
+#include "ffloc/core/error.h"
+#include "ffloc/io/map_file.h"
+#include "ffloc/model/parameter_table.h"
+
+namespace ffloc {
+namespace {
+
+// splitmix64: tiny, fast and identical everywhere, which std distributions are not.
+struct SplitMix64 {
+  uint64_t state;
+  uint64_t next() {
+    uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  }
+  // Uniform in [-1, 1).
+  float symmetric() { return static_cast<float>(static_cast<double>(next() >> 11) * 0x1.0p-52 - 1.0); }
+};
+
+uint64_t hashString(const std::string& text, uint64_t seed = 0xcbf29ce484222325ULL) {
+  return fnv1a64(reinterpret_cast<const uint8_t*>(text.data()), text.size(), seed);
+}
+
+std::string hex64(uint64_t value) {
+  char buffer[17];
+  std::snprintf(buffer, sizeof(buffer), "%016llx", static_cast<unsigned long long>(value));
+  return buffer;
+}
+
+std::string sizesName(const Dust3rConfig& c) {
+  return "e" + std::to_string(c.enc_dim) + "x" + std::to_string(c.enc_depth) + "-d" + std::to_string(c.dec_dim) +
+         "x" + std::to_string(c.dec_depth);
+}
+
+bool sameSizes(const Dust3rConfig& a, const Dust3rConfig& b) {
+  return a.patch_size == b.patch_size && a.enc_dim == b.enc_dim && a.enc_depth == b.enc_depth &&
+         a.dec_dim == b.dec_dim && a.dec_depth == b.dec_depth && a.mlp_ratio == b.mlp_ratio &&
+         a.head.layer_dims == b.head.layer_dims && a.head.feature_dim == b.head.feature_dim &&
+         a.head.last_dim == b.head.last_dim;
+}
+
+// Head counts are invisible in tensor shapes. A checkpoint with the sizes of a known preset gets
+// that preset's heads (the tiny fixture's head dims are 16 and 12); anything else gets DUSt3R's
+// head dim of 64.
+Dust3rConfig configFromArchive(const TensorArchive& archive) {
+  for (const char* name : {"large", "tiny"}) {
+    const Dust3rConfig preset = Dust3rConfig::preset(name);
+    Dust3rConfigInference heads;
+    heads.enc_head_dim = preset.enc_dim / preset.enc_heads;
+    heads.dec_head_dim = preset.dec_dim / preset.dec_heads;
+    try {
+      const Dust3rConfig inferred = inferDust3rConfig(archive, heads);
+      if (sameSizes(inferred, preset)) return inferred;
+    } catch (const InputError&) {
+      // Not this preset; the generic inference below reports what is wrong.
+    }
+  }
+  return inferDust3rConfig(archive);
+}
+
+LoadedModel randomModel(const std::string& spec) {
+  // "random:<preset>[:<seed>]"
+  const std::string rest = spec.substr(std::strlen("random:"));
+  const size_t colon = rest.find(':');
+  const std::string preset = rest.substr(0, colon);
+  uint64_t seed = 0;
+  if (colon != std::string::npos) {
+    const std::string text = rest.substr(colon + 1);
+    char* end = nullptr;
+    seed = std::strtoull(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0') throwInputError("--model", 0, "'" + spec + "': seed must be an integer");
+  }
+  FastForwardConfig config;
+  try {
+    config.dust3r = Dust3rConfig::preset(preset);
+  } catch (const InputError&) {
+    throwInputError("--model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny or large)");
+  }
+  LoadedModel loaded;
+  loaded.model = std::make_unique<FastForwardModel>(config);
+  randomizeParameters(*loaded.model, seed);
+  loaded.id = "random-" + preset + "/" + sizesName(config.dust3r) + "/" + hex64(parameterFingerprint(*loaded.model));
+  loaded.description = "random " + preset + " FastForward (seed " + std::to_string(seed) + ", untrained)";
+  return loaded;
+}
+
+}  // namespace
+
+void randomizeParameters(FastForwardModel& model, uint64_t seed) {
+  const ParameterTable table = model.parameterTable();
+  allocateParameters(table, at::TensorOptions().dtype(at::kFloat));
+  for (const ParameterTable::Entry& entry : table.entries()) {
+    at::Tensor& tensor = *entry.tensor;
+    // Seeded per name, so a tensor's values do not depend on the registration order.
+    SplitMix64 rng{hashString(entry.name, seed ^ 0x5eedULL)};
+    float* data = tensor.data_ptr<float>();
+    const int64_t count = tensor.numel();
+    const bool is_bias = entry.name.size() >= 5 && entry.name.compare(entry.name.size() - 5, 5, ".bias") == 0;
+    if (is_bias) {
+      for (int64_t i = 0; i < count; ++i) data[i] = 0.02f * rng.symmetric();
+    } else if (entry.shape.size() == 1) {
+      for (int64_t i = 0; i < count; ++i) data[i] = 1.0f + 0.1f * rng.symmetric();  // LayerNorm gain
+    } else {
+      const int64_t fan_in = entry.shape.empty() || entry.shape[0] == 0 ? 1 : std::max<int64_t>(1, count / entry.shape[0]);
+      const float bound = static_cast<float>(std::sqrt(3.0 / static_cast<double>(fan_in)));
+      for (int64_t i = 0; i < count; ++i) data[i] = bound * rng.symmetric();
+    }
+  }
+  model.to(at::kCPU, at::kFloat);
+}
+
+uint64_t parameterFingerprint(FastForwardModel& model) {
+  uint64_t hash = 0xcbf29ce484222325ULL;
+  const ParameterTable table = model.parameterTable();
+  for (const ParameterTable::Entry& entry : table.entries()) {
+    hash = hashString(entry.name, hash);
+    const at::Tensor values = entry.tensor->to(at::kFloat).contiguous();
+    // FNV-1a over 64-bit words: the large model has 2.3 GB of parameters, and byte-wise FNV
+    // would take seconds on every load.
+    const auto* bytes = static_cast<const uint8_t*>(values.data_ptr());
+    const size_t size = static_cast<size_t>(values.numel()) * sizeof(float);
+    const size_t words = size / 8;
+    for (size_t i = 0; i < words; ++i) {
+      uint64_t word;
+      std::memcpy(&word, bytes + 8 * i, 8);
+      hash = (hash ^ word) * 0x100000001b3ULL;
+      hash ^= hash >> 32;
+    }
+    hash = fnv1a64(bytes + 8 * words, size - 8 * words, hash);
+  }
+  return hash;
+}
+
+LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options) {
+  if (options.backbone_dtype != at::kFloat && options.backbone_dtype != at::kBFloat16)
+    throwInputError("--model", 0, "backbone dtype must be float32 or bfloat16");
+  LoadedModel loaded;
+  if (spec.rfind("random:", 0) == 0) {
+    loaded = randomModel(spec);
+  } else {
+    if (!std::filesystem::is_regular_file(spec)) throwInputError(spec, 0, "model weights: file not found");
+    const auto archive = openTensorArchive(spec);
+    FastForwardConfig config;
+    config.dust3r = configFromArchive(*archive);
+    const std::string sizes = sizesName(config.dust3r);
+    if (archive->contains("map_head.weight")) {
+      const TensorView& fc1 = archive->at("ray_embed.fc1.weight");
+      if (fc1.shape.size() != 2) throwInputError(spec, 0, "tensor 'ray_embed.fc1.weight': expected 2 dimensions");
+      if (fc1.shape[0] != config.dust3r.enc_dim) config.rays.hidden_dim = fc1.shape[0];
+      loaded.model = std::make_unique<FastForwardModel>(config);
+      loaded.model->loadWeights(*archive);
+      loaded.id = "fastforward/" + sizes + "/" + hex64(parameterFingerprint(*loaded.model));
+      loaded.description = "FastForward checkpoint " + spec;
+    } else if (archive->contains("downstream_head1.dpt.head.4.weight")) {
+      loaded.model = std::make_unique<FastForwardModel>(config);
+      loaded.model->initializeFromDust3r(*archive, options.init_seed);
+      loaded.id = "dust3r-init/" + sizes + "/" + hex64(parameterFingerprint(*loaded.model));
+      loaded.description = "FastForward initialised from DUSt3R checkpoint " + spec +
+                           " (ray MLP and map head untrained)";
+    } else {
+      throwInputError(spec, 0,
+                      "model weights: neither a FastForward checkpoint (no 'map_head.weight') nor a DUSt3R "
+                      "checkpoint (no 'downstream_head1.dpt.head.4.weight')");
+    }
+  }
+  loaded.model->to(at::kCPU, options.backbone_dtype);
+  return loaded;
+}
+
+}  // namespace ffloc

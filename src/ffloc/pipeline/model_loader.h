@@ -1,0 +1,43 @@
+#pragma once
+
+#include <c10/core/ScalarType.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "ffloc/model/fastforward_model.h"
+
+namespace ffloc {
+
+// Where a FastForward model comes from, as the CLI's --model names it:
+// - a FastForward checkpoint (safetensors or .pth holding map_head.* and ray_embed.*);
+// - a DUSt3R checkpoint (.pth or safetensors): FastForward is initialised from it
+//   (FastForwardModel::initializeFromDust3r), so its ray MLP and map head are untrained;
+// - "random:<preset>[:<seed>]" (preset "tiny" or "large"): every parameter drawn from a seeded
+//   generator, for tests and timing. Its predictions are meaningless.
+struct ModelLoadOptions {
+  at::ScalarType backbone_dtype = at::kFloat;  // kFloat or kBFloat16
+  uint64_t init_seed = 0;                      // the untrained layers of a DUSt3R initialisation
+};
+
+struct LoadedModel {
+  std::unique_ptr<FastForwardModel> model;
+  // Identity of the weights, stored in every map so a map is only used with the model that
+  // encoded it: "<origin>/<sizes>/<fingerprint of the float32 parameters>". The fingerprint is of
+  // values, not files, so a .pth and its safetensors conversion give the same id.
+  std::string id;
+  std::string description;  // one line for logs
+};
+
+// InputError naming the file (or the spec) when it cannot be read or is neither kind of checkpoint.
+LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options = {});
+
+// Fills every parameter of `model` from `seed`: LayerNorm weights near 1, biases near 0, other
+// weights uniform with variance 1/fan_in, so activations stay O(1) through the network.
+void randomizeParameters(FastForwardModel& model, uint64_t seed);
+
+// 64-bit fingerprint of every parameter (name and float32 values, in state_dict order).
+uint64_t parameterFingerprint(FastForwardModel& model);
+
+}  // namespace ffloc

@@ -1,0 +1,260 @@
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <random>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/io/image.h"
+#include "ffloc/model/torch_threads.h"
+#include "ffloc/pipeline/fastforward_source.h"
+#include "ffloc/pipeline/localizer.h"
+#include "ffloc/pipeline/mapper.h"
+#include "ffloc/pipeline/model_loader.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A small posed scene whose images are smooth random textures: enough for the network to run,
+// no shared data needed.
+Scene syntheticScene(const fs::path& dir, int mapping, int queries) {
+  Scene scene;
+  scene.name = "synthetic";
+  scene.root = dir;
+  scene.format = "test";
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> jitter(-0.3, 0.3);
+  for (int i = 0; i < mapping + queries; ++i) {
+    cv::Mat noise(60, 80, CV_8UC3);
+    cv::randu(noise, cv::Scalar::all(0), cv::Scalar::all(255));
+    cv::Mat image;
+    cv::resize(noise, image, cv::Size(160, 120), 0, 0, cv::INTER_CUBIC);
+    Frame frame;
+    frame.name = "frame" + std::to_string(i) + ".png";
+    frame.image_path = dir / frame.name;
+    cv::imwrite(frame.image_path.string(), image);
+    frame.intrinsics.fx = frame.intrinsics.fy = 150;
+    frame.intrinsics.cx = 79.5;
+    frame.intrinsics.cy = 59.5;
+    frame.intrinsics.width = 160;
+    frame.intrinsics.height = 120;
+    const double angle = 0.4 * i;
+    frame.camera_to_world.R = Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    frame.camera_to_world.t = Eigen::Vector3d(std::cos(angle) + jitter(rng), jitter(rng), std::sin(angle) + jitter(rng));
+    frame.split = i < mapping ? Split::kMapping : Split::kQuery;
+    scene.frames.push_back(frame);
+  }
+  return scene;
+}
+
+std::vector<size_t> range(size_t begin, size_t end) {
+  std::vector<size_t> out;
+  for (size_t i = begin; i < end; ++i) out.push_back(i);
+  return out;
+}
+
+const LoadedModel& tinyRandomModel() {
+  static const LoadedModel model = [] {
+    setTorchThreadCount(2);
+    return loadModel("random:tiny:3");
+  }();
+  return model;
+}
+
+template <typename F>
+std::string inputErrorOf(F&& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Map build, file round trip, append, model identity and bad inputs with a random tiny model.
+TEST(Pipeline, MapRoundTripAppendAndRefusals) {
+  const fs::path dir = testing::makeTempDir("ffloc_pipeline_map");
+  const Scene scene = syntheticScene(dir, 5, 1);
+  const LoadedModel& model = tinyRandomModel();
+  MappingOptions quiet;
+  quiet.quiet = true;
+
+  MapFile map = emptyMap(model, scene.metric);
+  const MappingReport first = addToMap(map, model, scene, range(0, 3), quiet);
+  EXPECT_EQ(first.added, 3u);
+  ASSERT_EQ(map.images.size(), 3u);
+  EXPECT_EQ(map.token_dim, 64);
+  EXPECT_EQ(map.images[0].grid_rows * map.images[0].grid_cols, 32 * 24);  // 160x120 -> 512x384
+  EXPECT_EQ(map.images[0].intrinsics.width, 512);
+  EXPECT_NEAR(map.images[0].intrinsics.fx, 150 * 3.2, 1e-9);
+  const fs::path path = dir / "scene.ffmap";
+  writeMapFile(map, path);
+
+  const MapFile read = readMapFile(path, model.id);
+  ASSERT_EQ(read.images.size(), 3u);
+  for (size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(read.images[i].name, map.images[i].name);
+    EXPECT_EQ(read.images[i].tokens, map.images[i].tokens);
+    EXPECT_EQ(read.images[i].descriptor, map.images[i].descriptor);
+    EXPECT_LT((read.images[i].camera_to_world.matrix() - map.images[i].camera_to_world.matrix()).norm(), 1e-12);
+  }
+
+  // Append: one duplicate skipped, earlier images bit-identical.
+  MapFile appended = readMapFile(path, model.id);
+  const MappingReport second = addToMap(appended, model, scene, range(2, 5), quiet);
+  EXPECT_EQ(second.added, 2u);
+  EXPECT_EQ(second.skipped_duplicates, 1u);
+  writeMapFile(appended, path);
+  const MapFile reread = readMapFile(path, model.id);
+  ASSERT_EQ(reread.images.size(), 5u);
+  for (size_t i = 0; i < 3; ++i) EXPECT_EQ(reread.images[i].tokens, map.images[i].tokens) << i;
+  EXPECT_EQ(reread.images[4].name, "frame4.png");
+
+  // Another model is refused by the reader and by the mapper.
+  const LoadedModel other = loadModel("random:tiny:4");
+  EXPECT_NE(other.id, model.id);
+  EXPECT_NE(inputErrorOf([&] { readMapFile(path, other.id); }).find("built with model"), std::string::npos);
+  MapFile copy = reread;
+  EXPECT_NE(inputErrorOf([&] { addToMap(copy, other, scene, range(5, 6), quiet); }).find("built with model"),
+            std::string::npos);
+  // Same spec, same id: the id is a function of the weights.
+  EXPECT_EQ(loadModel("random:tiny:3").id, model.id);
+
+  // Truncated and corrupted files.
+  const auto size = fs::file_size(path);
+  const fs::path truncated = dir / "truncated.ffmap";
+  fs::copy_file(path, truncated);
+  fs::resize_file(truncated, size / 2);
+  EXPECT_FALSE(inputErrorOf([&] { readMapFile(truncated); }).empty());
+  const fs::path corrupted = dir / "corrupted.ffmap";
+  fs::copy_file(path, corrupted);
+  {
+    std::fstream file(corrupted, std::ios::in | std::ios::out | std::ios::binary);
+    file.seekp(static_cast<std::streamoff>(size - 1000));
+    file.put('\x5a');
+  }
+  EXPECT_FALSE(inputErrorOf([&] { readMapFile(corrupted); }).empty());
+
+  // A map with no images, a bad query.
+  EXPECT_NE(inputErrorOf([&] { Localizer(*model.model, emptyMap(model, true)); }).find("no images"), std::string::npos);
+  const Localizer localizer(*model.model, reread);
+  const cv::Mat rgb = readImageRgb(scene.frames[5].image_path);
+  Intrinsics no_focal = scene.frames[5].intrinsics;
+  no_focal.fx = 0;
+  EXPECT_NE(inputErrorOf([&] { localizer.predict(rgb, no_focal, "q", {}); }).find("intrinsics"), std::string::npos);
+  Intrinsics wrong_size = scene.frames[5].intrinsics;
+  wrong_size.width = 640;
+  EXPECT_NE(inputErrorOf([&] { localizer.predict(rgb, wrong_size, "q", {}); }).find("640"), std::string::npos);
+  EXPECT_NE(inputErrorOf([&] { readImageRgb(dir / "missing.png"); }).find("missing.png"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+// The acceptance test of scene and scale normalisation: moving the world by a similarity moves
+// the predicted world coordinates by the same similarity, with random weights and a fixed seed.
+// It also runs the whole localisation (PnP included) and checks its outputs are filled.
+TEST(Pipeline, PredictionsAreSimilarityEquivariantAndLocalizeRuns) {
+  const fs::path dir = testing::makeTempDir("ffloc_pipeline_equivariance");
+  const Scene scene = syntheticScene(dir, 6, 1);
+  const LoadedModel& model = tinyRandomModel();
+  MappingOptions quiet;
+  quiet.quiet = true;
+  MapFile map = emptyMap(model, true);
+  addToMap(map, model, scene, range(0, 6), quiet);
+
+  const double c = 3.7;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(1.1, Eigen::Vector3d(0.3, -0.5, 0.8).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t(12.0, -4.5, 250.0);
+  MapFile moved = map;
+  for (MapImage& image : moved.images) {
+    image.camera_to_world.R = R * image.camera_to_world.R;
+    image.camera_to_world.t = c * R * image.camera_to_world.t + t;
+  }
+
+  LocalizeOptions options;
+  options.top_k = 4;
+  options.num_features = 500;
+  options.seed = 11;
+  const Frame& query = scene.frames[6];
+  const cv::Mat rgb = readImageRgb(query.image_path);
+  const Localizer original(*model.model, map);
+  const Localizer transformed(*model.model, moved);
+  const QueryPrediction a = original.predict(rgb, query.intrinsics, query.name, options);
+  const QueryPrediction b = transformed.predict(rgb, query.intrinsics, query.name, options);
+
+  ASSERT_EQ(a.selected, b.selected);
+  EXPECT_EQ(a.selected.size(), 4u);
+  EXPECT_NEAR(b.normalization.scale, c * a.normalization.scale, 1e-9 * b.normalization.scale);
+  ASSERT_EQ(a.correspondences.size(), b.correspondences.size());
+  ASSERT_GT(a.correspondences.size(), 512u * 384u / 2);
+  double extent = 0, worst = 0;
+  for (size_t i = 0; i < a.correspondences.size(); ++i) {
+    ASSERT_EQ(a.correspondences.pixels[i], b.correspondences.pixels[i]);
+    const Eigen::Vector3d expected = c * R * a.correspondences.points[i] + t;
+    extent = std::max(extent, c * (a.correspondences.points[i] - a.normalization.reference.t).norm());
+    worst = std::max(worst, (b.correspondences.points[i] - expected).norm());
+  }
+  ASSERT_GT(extent, 0);
+  EXPECT_LT(worst / extent, 1e-4) << "worst " << worst << ", extent " << extent;
+  // Pixels lie in the original 160x120 grid.
+  for (const Eigen::Vector2d& pixel : a.correspondences.pixels) {
+    ASSERT_GT(pixel.x(), -0.5);
+    ASSERT_LT(pixel.x(), 159.5);
+  }
+
+  // The full localisation: random weights give a meaningless pose, but every stage runs.
+  const LocalizationResult result = original.localize(rgb, query.intrinsics, query.name, options);
+  EXPECT_GT(result.prediction.timings.encoding, 0);
+  EXPECT_GT(result.prediction.timings.decoding, 0);
+  EXPECT_GT(result.prediction.timings.retrieval, 0);
+  EXPECT_GT(result.prediction.timings.pnp, 0);
+  EXPECT_GT(result.pnp.used_correspondences, 0);
+  EXPECT_GE(result.confidence(), 0);
+  EXPECT_LE(result.confidence(), 1);
+  fs::remove_all(dir);
+}
+
+// The tiny DUSt3R fixture through the evaluation seam on a few 7-Scenes frames, and the model
+// id's independence of the checkpoint format.
+TEST(Pipeline, FixtureModelOnRedkitchen) {
+  FFLOC_REQUIRE_SHARED(weights_dir, "fixtures/dust3r");
+  FFLOC_REQUIRE_SHARED(dataset, "data/7scenes_redkitchen");
+  setTorchThreadCount(2);
+  const LoadedModel model = loadModel((weights_dir / "tiny_model.safetensors").string());
+  EXPECT_EQ(model.id.rfind("dust3r-init/e64x3-d48x10/", 0), 0u) << model.id;
+  EXPECT_EQ(loadModel((weights_dir / "tiny_model.pth").string()).id, model.id);
+
+  Scene scene = loadDataset(dataset);
+  // A few mapping frames and two queries keep the test short.
+  const std::vector<size_t> mapping = scene.mappingIndices(), queries = scene.queryIndices();
+  ASSERT_GE(mapping.size(), 30u);
+  ASSERT_GE(queries.size(), 2u);
+  for (size_t i = 0; i < mapping.size(); ++i)
+    if (i % 10 != 0) scene.frames[mapping[i]].split = Split::kUnassigned;
+
+  FastForwardSourceOptions options;
+  options.mapping.quiet = true;
+  options.localize.top_k = 3;
+  FastForwardSource source(model, options);
+  source.prepare(scene);
+  EXPECT_EQ(source.localizer().map().images.size(), (mapping.size() + 9) / 10);
+  const Frame& query = scene.frames[queries[0]];
+  const Correspondences pairs = source.correspondences(scene, queries[0]);
+  EXPECT_EQ(pairs.size(), 512u * 384u);
+  EXPECT_EQ(source.lastPrediction().selected.size(), 3u);
+  const PnpResult pose = estimatePose(pairs, query.intrinsics.undistorted());
+  EXPECT_GT(pose.used_correspondences, 0);
+  EXPECT_EQ(pose.status == PnpStatus::kSuccess, pose.ok());
+
+  EXPECT_NE(inputErrorOf([&] { loadModel((dataset / "camera-intrinsics.txt").string()); }).find("camera-intrinsics"),
+            std::string::npos);
+}
+
+}  // namespace
+}  // namespace ffloc

@@ -1,0 +1,39 @@
+#include "ffloc/pipeline/prepared_image.h"
+
+#include "ffloc/core/error.h"
+#include "ffloc/model/image_tensor.h"
+
+namespace ffloc {
+
+PreparedImage prepareImage(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+                           const PreprocessOptions& options) {
+  if (rgb.empty()) throwInputError(name, 0, "image is empty");
+  if ((intrinsics.width > 0 && intrinsics.width != rgb.cols) ||
+      (intrinsics.height > 0 && intrinsics.height != rgb.rows)) {
+    throwInputError(name, 0,
+                    "image is " + std::to_string(rgb.cols) + "x" + std::to_string(rgb.rows) + " but its intrinsics are for " +
+                        std::to_string(intrinsics.width) + "x" + std::to_string(intrinsics.height));
+  }
+  Intrinsics sized = intrinsics;
+  sized.width = rgb.cols;
+  sized.height = rgb.rows;
+  if (!sized.isValid())
+    throwInputError(name, 0, "intrinsics: invalid (need fx, fy > 0 and finite cx, cy)");
+  PreparedImage out;
+  out.camera = sized.undistorted();
+  const cv::Mat undistorted = sized.hasDistortion() ? undistortImage(rgb, sized) : rgb;
+  out.preprocessed = preprocessImage(undistorted, out.camera, options);
+  return out;
+}
+
+Dust3rEncoding encodeImage(const FastForwardModel& model, const PreparedImage& image) {
+  return model.encode(normalizedImageTensor(image.preprocessed.rgb));
+}
+
+PreprocessOptions preprocessOptionsFor(const FastForwardModel& model) {
+  PreprocessOptions options;
+  options.patch_size = static_cast<int>(model.config().dust3r.patch_size);
+  return options;
+}
+
+}  // namespace ffloc
