@@ -242,15 +242,16 @@ std::string loadAverage() {
 }
 
 // fp32 matmuls go to the system BLAS, which keeps its own thread pool: on Debian that is
-// OpenBLAS, reached here through the symbols libtorch already links. Returns its build string.
+// OpenBLAS, reached here through the symbols libtorch already links. Returns what it is and the
+// kernel family it picked for this CPU.
 std::string setBlasThreads(int threads) {
   using SetThreads = void (*)(int);
-  using GetConfig = char* (*)();
+  using GetString = char* (*)();
   const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-  const auto config = reinterpret_cast<GetConfig>(dlsym(RTLD_DEFAULT, "openblas_get_config"));
-  if (!set) return "BLAS other than OpenBLAS (thread count not set)";
+  const auto core = reinterpret_cast<GetString>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
+  if (!set) return "not OpenBLAS (thread count left as is)";
   set(threads);
-  return std::string(config ? config() : "OpenBLAS") + ", " + std::to_string(threads) + " threads";
+  return std::string("OpenBLAS, core ") + (core ? core() : "unknown") + ", " + std::to_string(threads) + " threads";
 }
 
 bool cpuHasFlag(const std::string& flag) {
@@ -402,7 +403,12 @@ void validate(const BenchModelArguments& args) {
   for (const int64_t count : args.map_tokens) {
     if (count < 1) throw InputError("--features: map token counts must be positive, got " + std::to_string(count));
   }
-  const Dust3rConfig config = Dust3rConfig::preset(args.config);
+  Dust3rConfig config;
+  try {
+    config = Dust3rConfig::preset(args.config);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--config: ") + e.what());
+  }
   if (args.width <= 0 || args.height <= 0 || args.width % config.patch_size != 0 ||
       args.height % config.patch_size != 0) {
     throw InputError("--width/--height: " + std::to_string(args.width) + "x" + std::to_string(args.height) +

@@ -9,8 +9,11 @@ namespace ffloc::cli {
 void registerEvalCommand(CLI::App& app);
 void registerSynthCommand(CLI::App& app);
 void registerConvertCommand(CLI::App& app);
-#ifdef FFLOC_WITH_TORCH
-void registerBenchCommand(CLI::App& app);  // needs the network module
+#ifdef FFLOC_WITH_TORCH  // these need the network module
+void registerBenchCommand(CLI::App& app);
+void registerMapCommand(CLI::App& app);
+void registerLocalizeCommand(CLI::App& app);
+void registerTrainCommand(CLI::App& app);
 #endif
 
 int& exitCode();

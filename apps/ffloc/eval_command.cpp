@@ -6,9 +6,16 @@
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/eval/evaluator.h"
+#include "ffloc/eval/exports.h"
 #include "ffloc/eval/oracle_depth_source.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/eval/sift_baseline_source.h"
+#ifdef FFLOC_WITH_TORCH
+#include "ffloc/model/torch_threads.h"
+#include "ffloc/pipeline/fastforward_source.h"
+#include "ffloc/pipeline/model_options.h"
+#include "ffloc/pipeline/scene_ply.h"
+#endif
 
 namespace ffloc::cli {
 namespace {
@@ -28,6 +35,11 @@ struct EvalArguments {
   double inlier_threshold_px = PnpOptions().inlier_threshold_px;
   float confidence_threshold = PnpOptions().confidence_threshold;
   size_t max_correspondences = PnpOptions().max_correspondences;
+  std::string model, map_path, dtype = "f32";
+  std::string selection = "retrieval";
+  size_t top_k = 10;        // the paper's indoor setting
+  int64_t features = 1500;
+  std::string poses_path, ply_path;
   bool quiet = false;
 };
 
@@ -39,6 +51,21 @@ std::vector<std::string> splitList(const std::string& text) {
     if (!item.empty()) items.push_back(item);
   return items;
 }
+
+#ifdef FFLOC_WITH_TORCH
+// Loaded once and shared by the sources of every dataset.
+std::shared_ptr<const LoadedModel> sharedModel(const EvalArguments& args) {
+  static std::shared_ptr<const LoadedModel> model;
+  if (!model) {
+    if (args.model.empty()) throw InputError("--model: required by the fastforward method");
+    setTorchThreadCount(0);
+    ModelLoadOptions options;
+    options.backbone_dtype = parseBackboneDtype(args.dtype);
+    model = std::make_shared<const LoadedModel>(loadModel(args.model, options));
+  }
+  return model;
+}
+#endif
 
 std::unique_ptr<CoordinateSource> makeSource(const std::string& method, const EvalArguments& args) {
   if (method == "oracle-depth") {
@@ -55,13 +82,28 @@ std::unique_ptr<CoordinateSource> makeSource(const std::string& method, const Ev
     options.seed = args.seed;
     return std::make_unique<SiftBaselineSource>(options);
   }
-  throw InputError("--methods: unknown method '" + method + "' (known: oracle-depth, sift-baseline)");
+#ifdef FFLOC_WITH_TORCH
+  if (method == "fastforward") {
+    FastForwardSourceOptions options;
+    options.localize.top_k = args.top_k;
+    options.localize.num_features = args.features;
+    options.localize.seed = args.seed;
+    options.localize.selection = parseImageSelection(args.selection);
+    options.map_path = args.map_path;
+    options.mapping.quiet = args.quiet;
+    return std::make_unique<FastForwardSource>(sharedModel(args), options);
+  }
+#endif
+  throw InputError("--methods: unknown method '" + method + "' (known: oracle-depth, sift-baseline, fastforward)");
 }
 
 void runEval(const EvalArguments& args) {
   std::vector<std::string> methods = splitList(args.methods);
   if (methods.empty()) throw InputError("--methods: empty list");
   if (args.outliers < 0 || args.outliers > 1) throw InputError("--outliers: must be in [0, 1]");
+  if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
+  if ((!args.poses_path.empty() || !args.ply_path.empty()) && (methods.size() != 1 || args.datasets.size() != 1))
+    throw InputError("--poses / --ply: need exactly one dataset and one method");
 
   EvaluationOptions options;
   options.pnp.solver = parsePnpSolver(args.solver);
@@ -83,6 +125,16 @@ void runEval(const EvalArguments& args) {
       const std::vector<FrameResult> frames = evaluate(scene, *source, options);
       summaries.push_back(summarize(frames));
       all_frames.insert(all_frames.end(), frames.begin(), frames.end());
+#ifdef FFLOC_WITH_TORCH
+      if (!args.ply_path.empty()) {
+        // FastForward adds the predicted points of the last query.
+        const auto* fastforward = dynamic_cast<const FastForwardSource*>(source.get());
+        evaluationPly(scene, frames, fastforward ? &fastforward->lastPrediction().correspondences : nullptr,
+                      options.pnp.confidence_threshold)
+            .write(args.ply_path);
+        std::cerr << "wrote " << args.ply_path << "\n";
+      }
+#endif
     }
   }
 
@@ -104,6 +156,10 @@ void runEval(const EvalArguments& args) {
     writeTextFile(markdown_path, table);
     std::cerr << "wrote " << markdown_path << "\n";
   }
+  if (!args.poses_path.empty()) {
+    writeTextFile(args.poses_path, hlocPoseList(all_frames));
+    std::cerr << "wrote " << args.poses_path << "\n";
+  }
 }
 
 }  // namespace
@@ -121,7 +177,7 @@ void registerEvalCommand(CLI::App& app) {
         for (const auto& f : datasetFormats()) s += (s.empty() ? "" : ", ") + f;
         return s;
       }())->capture_default_str();
-  cmd->add_option("--methods", args->methods, "Comma-separated coordinate sources: oracle-depth, sift-baseline")->capture_default_str();
+  cmd->add_option("--methods", args->methods, "Comma-separated coordinate sources: oracle-depth, sift-baseline, fastforward")->capture_default_str();
   cmd->add_option("--json", args->json_path,
                   "Write the summary JSON here; the per-frame CSV (<stem>.frames.csv) and the markdown table "
                   "(<stem>.md) go beside it unless --csv/--markdown say otherwise");
@@ -148,6 +204,18 @@ void registerEvalCommand(CLI::App& app) {
   cmd->add_option("--max-queries", args->max_queries, "Evaluate at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed for sampling, noise and RANSAC")->capture_default_str();
+  cmd->add_option("--poses", args->poses_path, "Write the estimated poses as an hloc pose list (one dataset and method)");
+#ifdef FFLOC_WITH_TORCH
+  cmd->add_option("--model", args->model, "fastforward: weights (see 'ffloc map --help')");
+  cmd->add_option("--map", args->map_path, "fastforward: a map from 'ffloc map' (default: map the mapping split in memory)");
+  cmd->add_option("--top-k", args->top_k, "fastforward: mapping images per query")->capture_default_str();
+  cmd->add_option("--features", args->features, "fastforward: map tokens per query")->capture_default_str();
+  cmd->add_option("--selection", args->selection, "fastforward: retrieval, uniform or random")->capture_default_str();
+  cmd->add_option("--dtype", args->dtype, "fastforward: backbone precision f32 or bf16")->capture_default_str();
+  cmd->add_option("--ply", args->ply_path,
+                  "Write a PLY (one dataset and method): mapping cameras grey, ground truth green, estimates blue, "
+                  "fastforward's predicted points of the last query red");
+#endif
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   cmd->callback([args] { runEval(*args); });
 }

@@ -23,6 +23,9 @@ int main(int argc, char** argv) {
   ffloc::cli::registerConvertCommand(app);
 #ifdef FFLOC_WITH_TORCH
   ffloc::cli::registerBenchCommand(app);
+  ffloc::cli::registerMapCommand(app);
+  ffloc::cli::registerLocalizeCommand(app);
+  ffloc::cli::registerTrainCommand(app);
 #endif
   try {
     app.parse(argc, argv);

@@ -36,7 +36,14 @@ void runSynth(const SynthArguments& args) {
   SyntheticOptions options = args.options;
   parseSize(args.size, options.width, options.height);
   const bool mixed = args.kind == "mixed";
-  if (!mixed) options.kind = parseSceneKind(args.kind, "--kind");
+  if (!mixed) {
+    try {
+      options.kind = parseSceneKind(args.kind, "--kind");
+    } catch (const InputError&) {
+      throw InputError("--kind: unknown scene kind '" + args.kind +
+                       "' (expected indoor, outdoor, object or mixed)");
+    }
+  }
   validate(options);
   const auto kinds = allSceneKinds();
   for (int i = 0; i < args.scenes; ++i) {

@@ -276,9 +276,12 @@ Correspondences SiftBaselineSource::correspondences(const Scene& scene, size_t q
     track = direct[q];
     for (const auto& [m, k] : direct[q])
       track.insert(track.end(), mapping_[m].links[k].begin(), mapping_[m].links[k].end());
+    // One keypoint per mapping frame: a second one in the same frame is a SIFT duplicate or a
+    // contradiction, and either way would only make the robust triangulation slower.
     std::vector<std::pair<uint32_t, uint32_t>> unique;
     for (const auto& view : track)
-      if (std::find(unique.begin(), unique.end(), view) == unique.end()) unique.push_back(view);
+      if (std::none_of(unique.begin(), unique.end(), [&](const auto& kept) { return kept.first == view.first; }))
+        unique.push_back(view);
     if (unique.size() > options_.max_track_views) unique.resize(options_.max_track_views);
     if (unique.size() < 2) continue;
 

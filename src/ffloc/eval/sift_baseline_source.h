@@ -31,7 +31,7 @@ struct SiftBaselineOptions {
   // when the scene has no more than this.
   int retrieval_top_k = 10;
   // Mapping frames each mapping frame is matched with in prepare(), the most similar first.
-  int map_neighbours = 8;
+  int map_neighbours = 6;
   int vocabulary_size = 64;  // VLAD visual words, k-means on mapping descriptors
   int vocabulary_training_descriptors = 40000;
   float ratio = 0.8f;  // Lowe's ratio test on RootSIFT distances
@@ -39,9 +39,9 @@ struct SiftBaselineOptions {
   int flann_checks = 64;
   // Triangulation checks; the reprojection threshold is in working-resolution pixels, so it
   // means the same at any image size.
-  double max_reprojection_error_px = 2.0;
+  double max_reprojection_error_px = 4.0;
   double min_triangulation_angle_deg = 1.5;
-  size_t max_track_views = 32;  // longer tracks are cut, direct query matches kept first
+  size_t max_track_views = 16;  // longer tracks are cut, direct query matches kept first
   uint64_t seed = 0;
 };
 

@@ -7,7 +7,6 @@
 #include <ATen/ops/expm1.h>
 #include <ATen/ops/linalg_vector_norm.h>
 #include <ATen/ops/stack.h>
-#include <c10/core/InferenceMode.h>
 
 #include "ffloc/core/error.h"
 #include "ffloc/model/rope2d.h"
@@ -117,7 +116,6 @@ void Dust3rModel::to(at::Device device, at::ScalarType backbone_dtype) {
 }
 
 Dust3rEncoding Dust3rModel::encode(const at::Tensor& images, TensorTrace* trace, const std::string& view) const {
-  c10::InferenceMode inference;
   if (!patch_embed_.weight.defined()) throw std::logic_error("Dust3rModel: weights are not loaded");
   checkImages(images, config_.patch_size, view + " image");
   const int64_t batch = images.size(0);
@@ -144,7 +142,6 @@ Dust3rEncoding Dust3rModel::encode(const at::Tensor& images, TensorTrace* trace,
 
 std::array<std::vector<at::Tensor>, 2> Dust3rModel::decode(const Dust3rEncoding& view1, const Dust3rEncoding& view2,
                                                            TensorTrace* trace) const {
-  c10::InferenceMode inference;
   for (const Dust3rEncoding* view : {&view1, &view2}) {
     if (!view->tokens.defined() || view->tokens.dim() != 3 || view->tokens.size(2) != config_.enc_dim ||
         !view->positions.defined() || view->positions.sizes() != at::IntArrayRef({view->tokens.size(0), view->tokens.size(1), 2})) {
@@ -187,7 +184,6 @@ std::array<std::vector<at::Tensor>, 2> Dust3rModel::decode(const Dust3rEncoding&
 
 at::Tensor Dust3rModel::headForward(size_t index, const std::vector<at::Tensor>& decoded, int64_t height,
                                     int64_t width, TensorTrace* trace, const std::string& view) const {
-  c10::InferenceMode inference;
   const std::array<int64_t, 4> hooks = config_.dptHooks();
   std::array<at::Tensor, 4> tokens;
   // The heads run in float32 whatever the backbone precision, like the reference.
@@ -197,7 +193,6 @@ at::Tensor Dust3rModel::headForward(size_t index, const std::vector<at::Tensor>&
 
 Dust3rPairPrediction Dust3rModel::forward(const at::Tensor& images1, const at::Tensor& images2,
                                           TensorTrace* trace) const {
-  c10::InferenceMode inference;
   checkImages(images1, config_.patch_size, "view1 image");
   checkImages(images2, config_.patch_size, "view2 image");
   if (images1.size(0) != images2.size(0)) {

@@ -4,7 +4,6 @@
 #include <ATen/ops/cat.h>
 #include <ATen/ops/empty.h>
 #include <ATen/ops/zeros.h>
-#include <c10/core/InferenceMode.h>
 
 #include <algorithm>
 #include <cmath>
@@ -154,7 +153,6 @@ void FastForwardModel::to(at::Device device, at::ScalarType backbone_dtype) {
 
 FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, const MapTokens& map,
                                                 TensorTrace* trace) const {
-  c10::InferenceMode inference;
   if (!map.features.defined() || map.features.dim() != 3 || map.features.size(1) == 0) {
     throwInputError("map tokens", 0, "the map is empty");
   }

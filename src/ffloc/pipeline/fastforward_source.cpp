@@ -1,22 +1,26 @@
 #include "ffloc/pipeline/fastforward_source.h"
 
+#include <stdexcept>
+
 #include "ffloc/core/error.h"
 #include "ffloc/io/image.h"
 
 namespace ffloc {
 
-FastForwardSource::FastForwardSource(const LoadedModel& model, FastForwardSourceOptions options)
-    : model_(model), options_(std::move(options)) {}
+FastForwardSource::FastForwardSource(std::shared_ptr<const LoadedModel> model, FastForwardSourceOptions options)
+    : model_(std::move(model)), options_(std::move(options)) {
+  if (!model_ || !model_->model) throw std::invalid_argument("FastForwardSource: no model");
+}
 
 void FastForwardSource::prepare(const Scene& scene) {
   MapFile map;
   if (!options_.map_path.empty()) {
-    map = readMapFile(options_.map_path, model_.id);
+    map = readMapFile(options_.map_path, model_->id);
   } else {
-    map = emptyMap(model_, scene.metric);
-    addToMap(map, model_, scene, scene.mappingIndices(), options_.mapping);
+    map = emptyMap(*model_, scene.metric);
+    addToMap(map, *model_, scene, scene.mappingIndices(), options_.mapping);
   }
-  localizer_ = std::make_unique<Localizer>(*model_.model, std::move(map));
+  localizer_ = std::make_unique<Localizer>(*model_->model, std::move(map));
 }
 
 const Localizer& FastForwardSource::localizer() const {

@@ -23,8 +23,7 @@ struct FastForwardSourceOptions {
 // FastForward as an evaluation method ("fastforward" in ffloc eval).
 class FastForwardSource : public CoordinateSource {
  public:
-  // `model` must outlive the source.
-  FastForwardSource(const LoadedModel& model, FastForwardSourceOptions options);
+  FastForwardSource(std::shared_ptr<const LoadedModel> model, FastForwardSourceOptions options);
 
   std::string name() const override { return "fastforward"; }
   void prepare(const Scene& scene) override;
@@ -35,7 +34,7 @@ class FastForwardSource : public CoordinateSource {
   const QueryPrediction& lastPrediction() const { return last_; }
 
  private:
-  const LoadedModel& model_;
+  std::shared_ptr<const LoadedModel> model_;
   FastForwardSourceOptions options_;
   std::unique_ptr<Localizer> localizer_;
   QueryPrediction last_;

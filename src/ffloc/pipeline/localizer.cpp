@@ -77,7 +77,7 @@ QueryPrediction Localizer::predict(const cv::Mat& rgb, const Intrinsics& intrins
   QueryPrediction out;
 
   auto start = Clock::now();
-  const PreparedImage query = prepareImage(rgb, intrinsics, name, preprocessOptionsFor(model_));
+  const PreparedImage query = prepareImage(rgb, intrinsics, name, preprocessOptionsFor(model_, options.long_side));
   out.camera = query.camera;
   out.timings.preprocessing = secondsSince(start);
 

@@ -12,9 +12,9 @@
 
 namespace ffloc {
 
-MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const GlobalDescriptorOptions& options) {
-  const PreparedImage prepared =
-      prepareImage(readImageRgb(frame.image_path), frame.intrinsics, frame.name, preprocessOptionsFor(model));
+MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingOptions& options) {
+  const PreparedImage prepared = prepareImage(readImageRgb(frame.image_path), frame.intrinsics, frame.name,
+                                              preprocessOptionsFor(model, options.long_side));
   const Dust3rEncoding encoding = encodeImage(model, prepared);
   const int64_t patch = model.config().dust3r.patch_size;
 
@@ -30,7 +30,7 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
   const at::Tensor half = tokens.to(at::kHalf).contiguous();
   image.tokens.resize(static_cast<size_t>(half.numel()));
   std::memcpy(image.tokens.data(), half.data_ptr(), image.tokens.size() * sizeof(uint16_t));
-  image.descriptor = globalDescriptor(tokens.data_ptr<float>(), tokens.size(0), tokens.size(1), options);
+  image.descriptor = globalDescriptor(tokens.data_ptr<float>(), tokens.size(0), tokens.size(1), options.descriptor);
   return image;
 }
 
@@ -67,7 +67,7 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
     if (!names.insert(frame.name).second) {
       ++report.skipped_duplicates;
     } else {
-      map.images.push_back(encodeMappingImage(*model.model, frame, options.descriptor));
+      map.images.push_back(encodeMappingImage(*model.model, frame, options));
       ++report.added;
     }
     progress.update(i + 1);

@@ -14,6 +14,8 @@ namespace ffloc {
 // pose, the intrinsics of the preprocessed image, the preprocessing geometry and a global
 // descriptor pooled from the same tokens. Queries never run the encoder on mapping images again.
 struct MappingOptions {
+  // Long side of the preprocessed image: 512 for the paper's model; tests use less for speed.
+  int long_side = 512;
   GlobalDescriptorOptions descriptor;
   bool quiet = false;  // no progress bar
 };
@@ -25,7 +27,7 @@ struct MappingReport {
 };
 
 // Encodes one posed image.
-MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const GlobalDescriptorOptions& options = {});
+MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingOptions& options = {});
 
 // An empty map for `model`.
 MapFile emptyMap(const LoadedModel& model, bool metric);

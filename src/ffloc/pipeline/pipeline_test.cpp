@@ -5,6 +5,7 @@
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <cstdio>
 #include <random>
 
 #include "ffloc/core/error.h"
@@ -24,6 +25,8 @@ namespace fs = std::filesystem;
 
 // A small posed scene whose images are smooth random textures: enough for the network to run,
 // no shared data needed.
+constexpr int kLongSide = 256;  // 256x192 network input: 4x fewer pixels than the paper's 512
+
 Scene syntheticScene(const fs::path& dir, int mapping, int queries) {
   Scene scene;
   scene.name = "synthetic";
@@ -62,7 +65,7 @@ std::vector<size_t> range(size_t begin, size_t end) {
 
 const LoadedModel& tinyRandomModel() {
   static const LoadedModel model = [] {
-    setTorchThreadCount(2);
+    setTorchThreadCount(1);  // tiny model: a second thread mostly waits
     return loadModel("random:tiny:3");
   }();
   return model;
@@ -165,6 +168,7 @@ TEST(Pipeline, PredictionsAreSimilarityEquivariantAndLocalizeRuns) {
   const LoadedModel& model = tinyRandomModel();
   MappingOptions quiet;
   quiet.quiet = true;
+  quiet.long_side = kLongSide;
   MapFile map = emptyMap(model, true);
   addToMap(map, model, scene, range(0, 6), quiet);
 
@@ -181,6 +185,7 @@ TEST(Pipeline, PredictionsAreSimilarityEquivariantAndLocalizeRuns) {
   options.top_k = 4;
   options.num_features = 500;
   options.seed = 11;
+  options.long_side = kLongSide;
   const Frame& query = scene.frames[6];
   const cv::Mat rgb = readImageRgb(query.image_path);
   const Localizer original(*model.model, map);
@@ -192,16 +197,21 @@ TEST(Pipeline, PredictionsAreSimilarityEquivariantAndLocalizeRuns) {
   EXPECT_EQ(a.selected.size(), 4u);
   EXPECT_NEAR(b.normalization.scale, c * a.normalization.scale, 1e-9 * b.normalization.scale);
   ASSERT_EQ(a.correspondences.size(), b.correspondences.size());
-  ASSERT_GT(a.correspondences.size(), 512u * 384u / 2);
-  double extent = 0, worst = 0;
+  ASSERT_GT(a.correspondences.size(), 256u * 192u / 2);
+  // Per point, relative to its distance from P_0 in the moved world (at least the moved scene
+  // scale), so that small predictions are held to the same standard as large ones.
+  double worst = 0;
   for (size_t i = 0; i < a.correspondences.size(); ++i) {
     ASSERT_EQ(a.correspondences.pixels[i], b.correspondences.pixels[i]);
     const Eigen::Vector3d expected = c * R * a.correspondences.points[i] + t;
-    extent = std::max(extent, c * (a.correspondences.points[i] - a.normalization.reference.t).norm());
-    worst = std::max(worst, (b.correspondences.points[i] - expected).norm());
+    const double reach = std::max(c * (a.correspondences.points[i] - a.normalization.reference.t).norm(),
+                                  b.normalization.scale);
+    worst = std::max(worst, (b.correspondences.points[i] - expected).norm() / reach);
   }
-  ASSERT_GT(extent, 0);
-  EXPECT_LT(worst / extent, 1e-4) << "worst " << worst << ", extent " << extent;
+  EXPECT_LT(worst, 1e-4);
+  char worst_text[32];
+  std::snprintf(worst_text, sizeof(worst_text), "%.3g", worst);
+  RecordProperty("worst_relative_error", worst_text);
   // Pixels lie in the original 160x120 grid.
   for (const Eigen::Vector2d& pixel : a.correspondences.pixels) {
     ASSERT_GT(pixel.x(), -0.5);
@@ -225,10 +235,10 @@ TEST(Pipeline, PredictionsAreSimilarityEquivariantAndLocalizeRuns) {
 TEST(Pipeline, FixtureModelOnRedkitchen) {
   FFLOC_REQUIRE_SHARED(weights_dir, "fixtures/dust3r");
   FFLOC_REQUIRE_SHARED(dataset, "data/7scenes_redkitchen");
-  setTorchThreadCount(2);
-  const LoadedModel model = loadModel((weights_dir / "tiny_model.safetensors").string());
-  EXPECT_EQ(model.id.rfind("dust3r-init/e64x3-d48x10/", 0), 0u) << model.id;
-  EXPECT_EQ(loadModel((weights_dir / "tiny_model.pth").string()).id, model.id);
+  setTorchThreadCount(1);  // tiny model: a second thread mostly waits
+  const auto model = std::make_shared<const LoadedModel>(loadModel((weights_dir / "tiny_model.safetensors").string()));
+  EXPECT_EQ(model->id.rfind("dust3r-init/e64x3-d48x10/", 0), 0u) << model->id;
+  EXPECT_EQ(loadModel((weights_dir / "tiny_model.pth").string()).id, model->id);
 
   Scene scene = loadDataset(dataset);
   // A few mapping frames and two queries keep the test short.
@@ -240,13 +250,15 @@ TEST(Pipeline, FixtureModelOnRedkitchen) {
 
   FastForwardSourceOptions options;
   options.mapping.quiet = true;
+  options.mapping.long_side = kLongSide;
   options.localize.top_k = 3;
+  options.localize.long_side = kLongSide;
   FastForwardSource source(model, options);
   source.prepare(scene);
   EXPECT_EQ(source.localizer().map().images.size(), (mapping.size() + 9) / 10);
   const Frame& query = scene.frames[queries[0]];
   const Correspondences pairs = source.correspondences(scene, queries[0]);
-  EXPECT_EQ(pairs.size(), 512u * 384u);
+  EXPECT_EQ(pairs.size(), 256u * 192u);
   EXPECT_EQ(source.lastPrediction().selected.size(), 3u);
   const PnpResult pose = estimatePose(pairs, query.intrinsics.undistorted());
   EXPECT_GT(pose.used_correspondences, 0);

@@ -1,5 +1,7 @@
 #include "ffloc/pipeline/prepared_image.h"
 
+#include <c10/core/InferenceMode.h>
+
 #include "ffloc/core/error.h"
 #include "ffloc/model/image_tensor.h"
 
@@ -27,11 +29,13 @@ PreparedImage prepareImage(const cv::Mat& rgb, const Intrinsics& intrinsics, con
 }
 
 Dust3rEncoding encodeImage(const FastForwardModel& model, const PreparedImage& image) {
+  c10::InferenceMode inference;
   return model.encode(normalizedImageTensor(image.preprocessed.rgb));
 }
 
-PreprocessOptions preprocessOptionsFor(const FastForwardModel& model) {
+PreprocessOptions preprocessOptionsFor(const FastForwardModel& model, int long_side) {
   PreprocessOptions options;
+  options.long_side = long_side;
   options.patch_size = static_cast<int>(model.config().dust3r.patch_size);
   return options;
 }

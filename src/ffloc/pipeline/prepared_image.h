@@ -25,7 +25,7 @@ PreparedImage prepareImage(const cv::Mat& rgb, const Intrinsics& intrinsics, con
 // The encoder's tokens of a prepared image (batch 1).
 Dust3rEncoding encodeImage(const FastForwardModel& model, const PreparedImage& image);
 
-// Preprocessing that matches the model's patch size.
-PreprocessOptions preprocessOptionsFor(const FastForwardModel& model);
+// Preprocessing that matches the model's patch size; the long side is DUSt3R's 512 unless told.
+PreprocessOptions preprocessOptionsFor(const FastForwardModel& model, int long_side = 512);
 
 }  // namespace ffloc

@@ -12,18 +12,19 @@ constexpr int kMaxDepth = 60;
 
 struct RayBoxTest {
   Vec3 origin, inverse;
+  bool negative[3];  // per axis: the ray meets the box's upper face first
 
   explicit RayBoxTest(const Ray& ray)
       : origin(ray.origin),
-        inverse(1.0 / ray.direction.x, 1.0 / ray.direction.y, 1.0 / ray.direction.z) {}
+        inverse(1.0 / ray.direction.x, 1.0 / ray.direction.y, 1.0 / ray.direction.z),
+        negative{inverse.x < 0.0, inverse.y < 0.0, inverse.z < 0.0} {}
 
-  // Entry distance into the box, or +inf when the ray misses it within (t_min, t_max).
+  // Entry distance into the box, or 1e300 when the ray misses it within (t_min, t_max).
   double enter(const Aabb& box, double t_min, double t_max) const {
     double lo = t_min, hi = t_max;
     for (int a = 0; a < 3; ++a) {
-      double t0 = (box.lo[a] - origin[a]) * inverse[a];
-      double t1 = (box.hi[a] - origin[a]) * inverse[a];
-      if (t0 > t1) std::swap(t0, t1);
+      const double t0 = ((negative[a] ? box.hi[a] : box.lo[a]) - origin[a]) * inverse[a];
+      const double t1 = ((negative[a] ? box.lo[a] : box.hi[a]) - origin[a]) * inverse[a];
       // NaN (0 * inf for a ray in a box face) compares false and leaves the bound untouched.
       if (t0 > lo) lo = t0;
       if (t1 < hi) hi = t1;
@@ -35,16 +36,6 @@ struct RayBoxTest {
 
 }  // namespace
 
-Bvh::Bvh(const std::vector<Shape>& shapes) {
-  std::vector<Aabb> boxes;
-  boxes.reserve(shapes.size());
-  for (const auto& s : shapes) boxes.push_back(bounds(s));
-  order_.resize(shapes.size());
-  for (size_t i = 0; i < shapes.size(); ++i) order_[i] = static_cast<int>(i);
-  nodes_.reserve(2 * shapes.size() + 1);
-  if (!shapes.empty()) build(order_, 0, static_cast<int>(order_.size()), boxes, 0);
-}
-
 namespace {
 
 double surfaceArea(const Aabb& box) {
@@ -54,6 +45,15 @@ double surfaceArea(const Aabb& box) {
 }
 
 }  // namespace
+
+Bvh::Bvh(const std::vector<Shape>& shapes) {
+  std::vector<Aabb> boxes;
+  boxes.reserve(shapes.size());
+  for (const auto& s : shapes) boxes.push_back(bounds(s));
+  for (size_t i = 0; i < shapes.size(); ++i) order_.push_back(static_cast<int>(i));
+  nodes_.reserve(2 * order_.size() + 1);
+  if (!order_.empty()) build(order_, 0, static_cast<int>(order_.size()), boxes, 0);
+}
 
 // Binned surface-area heuristic: rooms and streets mix a few huge shapes (floor, walls,
 // ground) with many small ones (books, clutter); a median split would scatter the huge boxes
@@ -145,6 +145,8 @@ int Bvh::build(std::vector<int>& items, int begin, int end, const std::vector<Aa
 bool Bvh::closestHit(const std::vector<Shape>& shapes, const Ray& ray, double t_min,
                      double t_max, Hit& hit) const {
   if (nodes_.empty()) return false;
+  bool found = false;
+  double best = t_max;
   const RayBoxTest test(ray);
   // Each pending node carries its entry distance, so a node is box-tested once, when its
   // parent is visited, and dropped on the pop if a nearer hit has been found since.
@@ -154,11 +156,9 @@ bool Bvh::closestHit(const std::vector<Shape>& shapes, const Ray& ray, double t_
   };
   Pending stack[kMaxDepth + 2];
   int top = 0;
-  const double root_enter = test.enter(nodes_[0].box, t_min, t_max);
-  if (root_enter > t_max) return false;
+  const double root_enter = test.enter(nodes_[0].box, t_min, best);
+  if (root_enter > best) return found;
   stack[top++] = {0, root_enter};
-  bool found = false;
-  double best = t_max;
   while (top > 0) {
     const Pending pending = stack[--top];
     if (pending.enter > best) continue;
@@ -197,6 +197,8 @@ bool Bvh::closestHit(const std::vector<Shape>& shapes, const Ray& ray, double t_
 bool Bvh::occluded(const std::vector<Shape>& shapes, const Ray& ray, double t_min,
                    double t_max) const {
   if (nodes_.empty()) return false;
+  double t;
+  Vec3 n;
   const RayBoxTest test(ray);
   int stack[kMaxDepth + 2];
   int top = 0;
@@ -206,8 +208,6 @@ bool Bvh::occluded(const std::vector<Shape>& shapes, const Ray& ray, double t_mi
     if (test.enter(node.box, t_min, t_max) > t_max) continue;
     if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
-        double t;
-        Vec3 n;
         if (intersect(shapes[order_[i]], ray, t_min, t_max, t, n)) return true;
       }
       continue;

@@ -36,7 +36,6 @@ Layout buildIndoorLayout(Rng& rng, const Intrinsics& camera, int mapping_frames,
   }
 
   FloorPlan plan;
-  plan.keep_clear = {};
   for (const auto& c : layout.mapping) plan.keep_clear.push_back(c.position);
   plan.keep_clear_radius = 0.55;
   furnishWalls(world, rng, plan, length, width, height, 60);

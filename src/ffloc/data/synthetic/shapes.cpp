@@ -191,11 +191,6 @@ bool intersectWedge(const Vec3& h, const Vec3& o, const Vec3& d, double t_min, d
 
 }  // namespace
 
-bool Aabb::contains(const Vec3& p, double margin) const {
-  return p.x >= lo.x - margin && p.x <= hi.x + margin && p.y >= lo.y - margin &&
-         p.y <= hi.y + margin && p.z >= lo.z - margin && p.z <= hi.z + margin;
-}
-
 Aabb bounds(const Shape& shape) {
   Aabb box;
   for (int i = 0; i < 8; ++i) {

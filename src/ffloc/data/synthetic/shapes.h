@@ -38,7 +38,6 @@ struct Aabb {
   void grow(const Vec3& p) { lo = min(lo, p); hi = max(hi, p); }
   void grow(const Aabb& b) { lo = min(lo, b.lo); hi = max(hi, b.hi); }
   Vec3 centre() const { return (lo + hi) * 0.5; }
-  bool contains(const Vec3& p, double margin) const;
 };
 
 Aabb bounds(const Shape& shape);

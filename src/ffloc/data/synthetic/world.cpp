@@ -12,10 +12,4 @@ int World::addShape(const Shape& shape) {
   return static_cast<int>(shapes.size()) - 1;
 }
 
-bool World::nearAnyShape(const Vec3& p, double margin) const {
-  for (const auto& s : shapes)
-    if (bounds(s).contains(p, margin)) return true;
-  return false;
-}
-
 }  // namespace ffloc::synthetic

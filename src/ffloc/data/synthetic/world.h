@@ -20,8 +20,6 @@ struct World {
   bool closestHit(const Ray& ray, double t_min, double t_max, Hit& hit) const {
     return bvh.closestHit(shapes, ray, t_min, t_max, hit);
   }
-  // Whether p is inside, or within `margin` of, any shape's bounding box.
-  bool nearAnyShape(const Vec3& p, double margin) const;
 };
 
 struct PointLight {

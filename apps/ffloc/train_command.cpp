@@ -1,0 +1,153 @@
+// `ffloc train`: FastForward training (paper Eq. 2, appendix) on posed RGB-D datasets.
+// Method, settings and file layout: docs/training.md.
+#ifdef FFLOC_WITH_TORCH
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "commands.h"
+#include "ffloc/core/error.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/train/trainer.h"
+#include "ffloc/train/training_checkpoint.h"
+
+namespace ffloc::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TrainArguments {
+  std::string config;
+  std::vector<std::string> data;
+  std::string out;
+  bool resume = false;
+  std::optional<int64_t> steps;
+  std::optional<double> learning_rate;
+  std::optional<uint64_t> seed;
+  std::optional<std::string> device;
+  std::optional<std::string> model;
+  std::optional<int> threads;
+  bool quiet = false;
+};
+
+const char* kCsvHeader =
+    "step,loss,query_loss,map_loss,query_error,map_error,learning_rate,grad_norm,samples_per_s,"
+    "val_loss,val_query_error,val_map_error\n";
+
+void runTrain(const TrainArguments& args) {
+  TrainingConfig config = args.config.empty() ? TrainingConfig{} : readTrainingConfig(args.config);
+  if (args.steps) config.steps = *args.steps;
+  if (args.learning_rate) config.learning_rate = *args.learning_rate;
+  if (args.seed) config.seed = *args.seed;
+  if (args.device) config.device = *args.device;
+  if (args.model) config.model = *args.model;
+  if (args.threads) config.threads = *args.threads;
+  config.validate("command line");
+
+  std::vector<Scene> scenes;
+  for (const std::string& dir : args.data) scenes.push_back(loadDataset(dir));
+  const fs::path run_dir = args.out;
+  if (!args.resume && latestTrainingCheckpoint(run_dir)) {
+    throwInputError(run_dir.string(), 0, "already holds a training run; pass --resume to continue it");
+  }
+  fs::create_directories(run_dir);
+  Trainer trainer(config, std::move(scenes), run_dir, args.resume);
+  {
+    std::ofstream(run_dir / "config.json") << toJson(config).dump(2) << "\n";
+  }
+  const fs::path log_path = run_dir / "log.csv";
+  const bool new_log = !fs::exists(log_path) || !args.resume;
+  std::ofstream log(log_path, new_log ? std::ios::trunc : std::ios::app);
+  if (!log) throwInputError(log_path.string(), 0, "cannot write the training log");
+  if (new_log) log << kCsvHeader;
+  if (!args.quiet) {
+    std::cerr << "model: " << trainer.modelDescription() << "; " << trainer.trainableParameterCount()
+              << " trainable parameters" << (config.train_encoder ? "" : " (encoder frozen)") << "\n"
+              << "steps " << trainer.stepsDone() << " -> " << config.steps << ", run folder " << run_dir.string()
+              << "\n";
+  }
+
+  using Clock = std::chrono::steady_clock;
+  Clock::time_point window_start = Clock::now();
+  int64_t window_steps = 0;
+  double window_loss = 0;
+  while (trainer.stepsDone() < config.steps) {
+    const TrainingStepStats stats = trainer.step();
+    ++window_steps;
+    window_loss += stats.loss;
+    const bool log_now = stats.step % config.log_every == 0 || stats.step == config.steps;
+    const bool validate_now = config.validation_every > 0 && stats.step % config.validation_every == 0;
+    if (!log_now && !validate_now) continue;
+    const double seconds = std::chrono::duration<double>(Clock::now() - window_start).count();
+    const double rate = seconds > 0 ? static_cast<double>(window_steps) / seconds : 0.0;
+    std::optional<ValidationStats> validation;
+    if (validate_now) validation = trainer.validate();
+    char row[512];
+    std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,", static_cast<long long>(stats.step),
+                  stats.loss, stats.query_loss, stats.map_loss, stats.query_error, stats.map_error,
+                  stats.learning_rate, stats.grad_norm, rate);
+    log << row;
+    if (validation) {
+      std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g", validation->loss, validation->query_error,
+                    validation->map_error);
+      log << row;
+    } else {
+      log << ",,";
+    }
+    log << "\n" << std::flush;
+    if (!args.quiet) {
+      const double eta = rate > 0 ? static_cast<double>(config.steps - stats.step) / rate : 0.0;
+      std::fprintf(stderr, "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  lr %.2e  |g| %.3g  %.2f it/s  eta %.0f s%s\n",
+                   static_cast<long long>(stats.step), static_cast<long long>(config.steps), stats.loss,
+                   window_loss / static_cast<double>(window_steps), stats.query_error, stats.map_error,
+                   stats.learning_rate, stats.grad_norm, rate, eta,
+                   validation ? ("  val loss " + std::to_string(validation->loss)).c_str() : "");
+    }
+    window_start = Clock::now();
+    window_steps = 0;
+    window_loss = 0;
+    if (stats.step % config.checkpoint_every == 0 && stats.step != config.steps) trainer.saveCheckpoint();
+  }
+  const fs::path folder = trainer.saveCheckpoint();
+  if (!args.quiet) std::cerr << "checkpoint: " << (folder / "model.safetensors").string() << "\n";
+}
+
+}  // namespace
+
+void registerTrainCommand(CLI::App& app) {
+  auto args = std::make_shared<TrainArguments>();
+  CLI::App* cmd = app.add_subcommand("train", "Train FastForward on posed RGB-D datasets (docs/training.md)");
+  cmd->add_option("--config", args->config, "Training settings (JSON; see docs/training.md)");
+  cmd->add_option("--data", args->data, "Dataset folders (any format ffloc reads, with depth)")
+      ->required()
+      ->delimiter(',');
+  cmd->add_option("--out", args->out, "Run folder: log.csv, config.json, checkpoints/")->required();
+  cmd->add_flag("--resume", args->resume, "Continue from the latest checkpoint in the run folder");
+  cmd->add_option("--steps", args->steps, "Total optimiser steps (overrides the config)");
+  cmd->add_option("--lr", args->learning_rate, "Peak learning rate (overrides the config)");
+  cmd->add_option("--seed", args->seed, "Run seed (overrides the config)");
+  cmd->add_option("--device", args->device, "cpu or cuda (overrides the config)");
+  cmd->add_option("--model", args->model, "Initial weights (overrides the config): checkpoint or random:<preset>");
+  cmd->add_option("--threads", args->threads, "libtorch threads, 0 = all cores (overrides the config)");
+  cmd->add_flag("--quiet", args->quiet, "No progress output");
+  cmd->callback([args]() {
+    try {
+      runTrain(*args);
+    } catch (const InputError& e) {
+      std::cerr << "error: " << e.what() << "\n";
+      exitCode() = 2;
+    }
+  });
+}
+
+}  // namespace ffloc::cli
+
+#endif  // FFLOC_WITH_TORCH

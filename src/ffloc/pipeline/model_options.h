@@ -1,0 +1,13 @@
+#pragma once
+
+#include <c10/core/ScalarType.h>
+
+#include <string>
+
+namespace ffloc {
+
+// "f32" / "float32" -> kFloat, "bf16" / "bfloat16" -> kBFloat16; InputError naming `field`
+// otherwise.
+at::ScalarType parseBackboneDtype(const std::string& name, const std::string& field = "--dtype");
+
+}  // namespace ffloc

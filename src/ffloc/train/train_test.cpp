@@ -1,0 +1,348 @@
+#include <ATen/TensorOperators.h>
+#include <ATen/ops/equal.h>
+#include <ATen/ops/rand.h>
+#include <ATen/ops/tensor.h>
+#include <ATen/ops/zeros.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <map>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/model/image_tensor.h"
+#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/train/adamw.h"
+#include "ffloc/train/confidence_loss.h"
+#include "ffloc/train/trainable_parameters.h"
+#include "ffloc/train/trainer.h"
+#include "ffloc/train/training_checkpoint.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+std::string errorOf(const std::function<void()>& run) {
+  try {
+    run();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// One small indoor scene shared by the tests of this binary (rendered once).
+const Scene& smallScene() {
+  static const Scene scene = [] {
+    SyntheticOptions options;
+    options.seed = 5;
+    options.width = 128;
+    options.height = 96;
+    options.mapping_frames = 12;
+    options.query_frames = 2;
+    return generateSyntheticScene(options, testing::makeTempDir("ffloc-train-scene"));
+  }();
+  return scene;
+}
+
+// A CPU-fast run: the tiny DUSt3R sizes, 128 x 96 images, K = 3.
+TrainingConfig smallConfig() {
+  TrainingConfig config;
+  config.model = "random:tiny:7";
+  config.mapping_frames = 3;
+  config.min_map_tokens = 40;
+  config.max_map_tokens = 120;
+  config.min_overlap = 0.1;
+  config.max_overlap = 0.95;
+  config.overlap_candidates = 16;
+  config.long_side = 128;
+  config.steps = 40;
+  config.warmup_steps = 4;
+  config.learning_rate = 1e-3;
+  config.min_learning_rate = 1e-5;
+  config.threads = 1;  // tiny tensors: more threads only add OpenMP spinning
+  return config;
+}
+
+TEST(TrainingConfig, ReadsJsonAndNamesBadFields) {
+  TrainingConfig config = trainingConfigFromJson({{"steps", 120}, {"alpha", 0.3}, {"train_encoder", true}}, "cfg.json");
+  EXPECT_EQ(config.steps, 120);
+  EXPECT_DOUBLE_EQ(config.alpha, 0.3);
+  EXPECT_TRUE(config.train_encoder);
+  EXPECT_EQ(config.mapping_frames, 5);
+  const TrainingConfig round_trip = trainingConfigFromJson(toJson(config), "round trip");
+  EXPECT_EQ(toJson(round_trip), toJson(config));
+
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"stepz", 1}}, "cfg.json"); }), "cfg.json: field 'stepz'"));
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"alpha", "x"}}, "cfg.json"); }), "field 'alpha'"));
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"alpha", -1}}, "cfg.json"); }), "field 'alpha'"));
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"max_overlap", 1.5}}, "cfg.json"); }), "max_overlap"));
+  EXPECT_TRUE(contains(errorOf([] { readTrainingConfig("/nonexistent/cfg.json"); }), "/nonexistent/cfg.json"));
+}
+
+TEST(ConfidenceLoss, MatchesEquationTwoOnValidElementsOnly) {
+  // Two valid elements with errors 1 and 2, one invalid element with a huge error.
+  const at::Tensor points = at::tensor({0.0f, 0.0f, 1.0f, 0.0f, 2.0f, 0.0f, 0.0f, 0.0f, 100.0f}).view({3, 3});
+  const at::Tensor truth = at::zeros({3, 3});
+  const at::Tensor confidence = at::tensor({1.5f, 3.0f, 2.0f});
+  const at::Tensor valid = at::tensor({1, 1, 0}).to(at::kBool);
+  const double alpha = 0.2;
+  const ConfidenceLossTerm term = confidenceLoss(points, confidence, truth, valid, alpha);
+  const double expected = ((1.5 * 1 - alpha * std::log(1.5)) + (3.0 * 2 - alpha * std::log(3.0))) / 2;
+  EXPECT_NEAR(term.loss.item<double>(), expected, 1e-6);
+  EXPECT_NEAR(term.error.item<double>(), 1.5, 1e-6);
+  EXPECT_EQ(term.valid, 2);
+
+  const ConfidenceLossTerm none = confidenceLoss(points, confidence, truth, at::zeros({3}, at::kBool), alpha);
+  EXPECT_EQ(none.loss.item<double>(), 0.0);
+  EXPECT_EQ(none.valid, 0);
+}
+
+TEST(Optimiser, AdamWStepMatchesTheFormula) {
+  // A matrix gets weight decay, a vector (bias, norm weight) does not.
+  at::Tensor p = at::tensor({1.0, -2.0}, at::kDouble).view({1, 2}).requires_grad_(true);
+  at::Tensor bias = at::tensor({1.0}, at::kDouble).requires_grad_(true);
+  AdamWOptions options;
+  options.weight_decay = 0.1;
+  AdamW adam({{"p", p}, {"bias", bias}}, options);
+  ((p * p).sum() + bias.sum()).backward();  // grad p = 2p = (2, -4), grad bias = 1
+  adam.step(0.01);
+  EXPECT_NEAR(bias.item<double>(), 1.0 - 0.01 / 0.1 * 0.1 / (std::sqrt(0.05) / std::sqrt(0.05) + 1e-8), 1e-12);
+  // Step 1: m = 0.1 g, v = 0.05 g^2; bias-corrected m/(sqrt(v)+eps) = sign(g) (eps aside).
+  const double decayed0 = 1.0 * (1 - 0.01 * 0.1), decayed1 = -2.0 * (1 - 0.01 * 0.1);
+  const double m0 = 0.1 * 2, v0 = 0.05 * 4, m1 = 0.1 * -4, v1 = 0.05 * 16;
+  const double expected0 = decayed0 - 0.01 / 0.1 * m0 / (std::sqrt(v0) / std::sqrt(0.05) + 1e-8);
+  const double expected1 = decayed1 - 0.01 / 0.1 * m1 / (std::sqrt(v1) / std::sqrt(0.05) + 1e-8);
+  EXPECT_NEAR(p[0][0].item<double>(), expected0, 1e-12);
+  EXPECT_NEAR(p[0][1].item<double>(), expected1, 1e-12);
+  EXPECT_EQ(adam.stepCount(), 1);
+  EXPECT_EQ(p.grad()[0][0].item<double>(), 0.0);  // cleared after the step
+}
+
+TEST(Optimiser, ClippingAndSchedule) {
+  at::Tensor a = at::zeros({2}).requires_grad_(true);
+  (a * at::tensor({3.0f, 4.0f})).sum().backward();
+  EXPECT_NEAR(clipGradientNorm({{"a", a}}, 1.0), 5.0, 1e-6);
+  EXPECT_NEAR(a.grad().norm().item<double>(), 1.0, 1e-5);
+
+  EXPECT_DOUBLE_EQ(cosineLearningRate(0, 100, 10, 1e-3, 1e-5), 1e-4);
+  EXPECT_DOUBLE_EQ(cosineLearningRate(9, 100, 10, 1e-3, 1e-5), 1e-3);
+  EXPECT_DOUBLE_EQ(cosineLearningRate(10, 100, 10, 1e-3, 1e-5), 1e-3);
+  EXPECT_NEAR(cosineLearningRate(55, 100, 10, 1e-3, 1e-5), (1e-3 + 1e-5) / 2, 1e-12);
+  EXPECT_NEAR(cosineLearningRate(100, 100, 10, 1e-3, 1e-5), 1e-5, 1e-15);
+  EXPECT_GT(cosineLearningRate(30, 100, 10, 1e-3, 1e-5), cosineLearningRate(31, 100, 10, 1e-3, 1e-5));
+}
+
+TEST(TrainableParameters, GradientsReachTheModelsOwnTensors) {
+  LoadedModel loaded = loadModel("random:tiny:3");
+  FastForwardModel& model = *loaded.model;
+  const at::Tensor query_image = at::rand({1, 3, 64, 96}) * 2 - 1;
+  const at::Tensor map_image = at::rand({1, 3, 48, 64}) * 2 - 1;
+  const std::vector<at::Tensor> rays = {at::rand({1, 12, 6})};
+  const at::Tensor indices = sampleMapTokenIndices({12}, 7, 1);
+  // Before any parameter requires a gradient the forward is plain inference; the same forward
+  // with gradients on must give the same numbers.
+  const FastForwardPrediction expected =
+      model.forward(model.encode(query_image), gatherMapTokens({model.encode(map_image)}, rays, indices));
+
+  const auto parameters = trainableParameters(model, /*include_encoder=*/true);
+  for (const auto& entry : parameters) entry.second.requires_grad_(true);
+  const FastForwardPrediction actual =
+      model.forward(model.encode(query_image), gatherMapTokens({model.encode(map_image)}, rays, indices));
+  EXPECT_TRUE(at::equal(actual.query.pts3d, expected.query.pts3d));
+  EXPECT_TRUE(at::equal(actual.query.conf, expected.query.conf));
+  EXPECT_TRUE(at::equal(actual.map.pts3d, expected.map.pts3d));
+  EXPECT_TRUE(at::equal(actual.map.conf, expected.map.conf));
+
+  (actual.query.pts3d.sum() + actual.map.conf.sum()).backward();
+  std::map<std::string, double> grad_norm;
+  for (const auto& [name, tensor] : parameters) {
+    grad_norm[name] = tensor.grad().defined() ? tensor.grad().norm().item<double>() : 0.0;
+  }
+  EXPECT_GT(grad_norm.at("patch_embed.proj.weight"), 0);
+  EXPECT_GT(grad_norm.at("dec_blocks.3.cross_attn.projk.weight"), 0);
+  EXPECT_GT(grad_norm.at("downstream_head1.dpt.head.4.weight"), 0);
+  EXPECT_GT(grad_norm.at("map_head.weight"), 0);
+  EXPECT_GT(grad_norm.at("ray_embed.fc1.weight"), 0);
+  // The gradient lands on the model's own tensors.
+  bool shared = false;
+  const ParameterTable table = model.parameterTable();
+  for (const auto& entry : table.entries()) {
+    if (entry.name == "map_head.weight") shared = entry.tensor->grad().defined();
+  }
+  EXPECT_TRUE(shared);
+  // Without the encoder: no patch embedding or encoder tensors, everything else.
+  const auto decoder_side = trainableParameters(model, false);
+  for (const auto& entry : decoder_side) EXPECT_FALSE(isEncoderParameter(entry.first)) << entry.first;
+  EXPECT_LT(decoder_side.size(), parameters.size());
+  EXPECT_EQ(parameters.size() + 1, table.entries().size());  // all but mask_token
+}
+
+TEST(TrainingSampler, BuildsConsistentSamplesFromASyntheticScene) {
+  const TrainingConfig config = smallConfig();
+  TrainingSampler sampler({smallScene()}, sampleOptions(config, 16));
+  const TrainingSample sample = sampler.sample(11);
+  ASSERT_EQ(sample.mapping.size(), 3u);
+  for (double overlap : sample.overlaps) {
+    EXPECT_GE(overlap, config.min_overlap);
+    EXPECT_LE(overlap, config.max_overlap);
+  }
+  EXPECT_EQ(sample.query_image.sizes(), at::IntArrayRef({1, 3, 96, 128}));
+  EXPECT_EQ(sample.query_points.sizes(), at::IntArrayRef({1, 96, 128, 3}));
+  const int64_t n = sample.map_indices.size(0);
+  EXPECT_GE(n, config.min_map_tokens);
+  EXPECT_LE(n, config.max_map_tokens);
+  EXPECT_EQ(sample.mapping_rays[0].sizes(), at::IntArrayRef({1, 48, 6}));
+  // Synthetic indoor scenes have depth almost everywhere.
+  EXPECT_GT(sample.query_valid.to(at::kFloat).mean().item<double>(), 0.9);
+  EXPECT_GT(sample.map_valid.to(at::kFloat).mean().item<double>(), 0.9);
+  // The first mapping camera is the origin and the largest normalised translation is 1.
+  EXPECT_GT(sample.normalization.scale, 0);
+  const at::Tensor first_ray_origins = sample.mapping_rays[0].select(2, 0);
+  EXPECT_NEAR(first_ray_origins.abs().max().item<double>(), 0.0, 1e-6);
+  double largest = 0;
+  for (const auto& rays : sample.mapping_rays) {
+    largest = std::max(largest, rays.narrow(2, 0, 3).abs().max().item<double>());
+  }
+  EXPECT_NEAR(largest, 1.0, 1e-5);
+  // Ground-truth query points lie along the query's pixel rays, at the depth of the pixel.
+  const Scene& scene = smallScene();
+  const Frame* query = nullptr;
+  for (const Frame& frame : scene.frames) {
+    if (frame.name == sample.query) query = &frame;
+  }
+  ASSERT_NE(query, nullptr);
+  const int y = 40, x = 70;
+  ASSERT_TRUE(sample.query_valid[0][y][x].item<bool>());
+  const Eigen::Vector3d normalized(sample.query_points[0][y][x][0].item<double>(),
+                                   sample.query_points[0][y][x][1].item<double>(),
+                                   sample.query_points[0][y][x][2].item<double>());
+  const Eigen::Vector3d camera = query->camera_to_world.inverse() * sample.normalization.toWorld(normalized);
+  // 128 x 96 needs no resize and no crop: preprocessed pixels are the original pixels.
+  const Eigen::Vector2d pixel = query->intrinsics.project(camera);
+  EXPECT_NEAR(pixel.x(), x, 1e-3);
+  EXPECT_NEAR(pixel.y(), y, 1e-3);
+
+  // Pure function of the seed.
+  const TrainingSample again = sampler.sample(11);
+  EXPECT_EQ(again.query, sample.query);
+  EXPECT_EQ(again.mapping, sample.mapping);
+  EXPECT_TRUE(at::equal(again.map_indices, sample.map_indices));
+  EXPECT_TRUE(at::equal(again.query_points, sample.query_points));
+  const TrainingSample other = sampler.sample(12);
+  EXPECT_FALSE(other.query == sample.query && other.mapping == sample.mapping &&
+               at::equal(other.map_indices.narrow(0, 0, std::min(n, other.map_indices.size(0))),
+                         sample.map_indices.narrow(0, 0, std::min(n, other.map_indices.size(0)))));
+}
+
+TEST(TrainingSampler, ReportsImpossibleOverlapRequests) {
+  TrainingConfig config = smallConfig();
+  config.min_overlap = 0.999;
+  config.max_overlap = 1.0;
+  TrainingSampler sampler({smallScene()}, sampleOptions(config, 16));
+  EXPECT_TRUE(contains(errorOf([&] { sampler.sample(1); }), "overlap in"));
+  EXPECT_TRUE(contains(errorOf([] { TrainingSampler({Scene{}}, SampleOptions{}); }), "no frame with depth"));
+}
+
+// The acceptance test of the training loop: a tiny randomly initialised network fits one
+// sample of a synthetic scene, its regression error falling more than tenfold.
+TEST(Trainer, OverfitsOneSample) {
+  TrainingConfig config = smallConfig();
+  config.steps = 200;
+  config.warmup_steps = 10;
+  config.learning_rate = 2e-3;
+  config.weight_decay = 0;
+  const fs::path run = testing::makeTempDir("ffloc-train-overfit");
+  Trainer trainer(config, {smallScene()}, run);
+  const TrainingSample sample = trainer.sampler().sample(3);
+  std::vector<TrainingStepStats> history;
+  for (int64_t i = 0; i < config.steps; ++i) history.push_back(trainer.step(sample));
+    const auto mean_of = [&](size_t begin, size_t end, const std::function<double(const TrainingStepStats&)>& value) {
+    double sum = 0;
+    for (size_t i = begin; i < end; ++i) sum += value(history[i]);
+    return sum / static_cast<double>(end - begin);
+  };
+  const auto error = [](const TrainingStepStats& s) { return s.query_error + s.map_error; };
+  const auto loss = [](const TrainingStepStats& s) { return s.loss; };
+  const size_t n = history.size();
+  const double first_error = mean_of(0, 5, error), last_error = mean_of(n - 5, n, error);
+  const double first_loss = mean_of(0, 5, loss), last_loss = mean_of(n - 5, n, loss);
+  // After the first few dozen steps the random network's scale is fixed; what follows is fitting.
+  const double early_error = mean_of(25, 30, error);
+  std::printf("overfit: error %.4f -> %.4f -> %.4f m, loss %.4f -> %.4f over %zu steps\n", first_error, early_error,
+              last_error, first_loss, last_loss, n);
+  EXPECT_LT(last_loss, first_loss / 10);
+  EXPECT_GT(last_loss, 0);  // so that the ratio above is a real drop, not a sign flip
+  EXPECT_LT(last_error, first_error / 10);
+  EXPECT_LT(last_error, early_error / 2);
+}
+
+std::vector<std::pair<std::string, at::Tensor>> parameterSnapshot(FastForwardModel& model) {
+  std::vector<std::pair<std::string, at::Tensor>> out;
+  const ParameterTable table = model.parameterTable();
+  for (const auto& entry : table.entries()) out.emplace_back(entry.name, entry.tensor->detach().clone());
+  return out;
+}
+
+TEST(Trainer, ResumesExactly) {
+  TrainingConfig config = smallConfig();
+  config.steps = 6;
+  config.keep_checkpoints = 1;
+  const fs::path straight_dir = testing::makeTempDir("ffloc-train-straight");
+  Trainer straight(config, {smallScene()}, straight_dir);
+  std::vector<double> straight_losses;
+  for (int i = 0; i < 6; ++i) straight_losses.push_back(straight.step().loss);
+
+  const fs::path resumed_dir = testing::makeTempDir("ffloc-train-resumed");
+  std::vector<double> resumed_losses;
+  {
+    Trainer first(config, {smallScene()}, resumed_dir);
+    for (int i = 0; i < 3; ++i) resumed_losses.push_back(first.step().loss);
+    first.saveCheckpoint();
+    first.step();  // progress after the checkpoint is lost, as in a crash
+  }
+  Trainer second(config, {smallScene()}, resumed_dir, /*resume=*/true);
+  EXPECT_EQ(second.stepsDone(), 3);
+  for (int i = 0; i < 3; ++i) resumed_losses.push_back(second.step().loss);
+  EXPECT_EQ(resumed_losses, straight_losses);
+
+  const auto a = parameterSnapshot(straight.model());
+  const auto b = parameterSnapshot(second.model());
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_TRUE(at::equal(a[i].second, b[i].second)) << a[i].first;
+  }
+  // The checkpoint's weights load as an ordinary FastForward model.
+  const std::string saved = second.saveCheckpoint().string();
+  EXPECT_TRUE(fs::exists(resumed_dir / "checkpoints" / "step_00000006" / "model.safetensors"));
+  EXPECT_FALSE(fs::exists(resumed_dir / "checkpoints" / "step_00000003"));  // keep_checkpoints = 1
+  LoadedModel reloaded = loadModel(saved + "/model.safetensors");
+  const auto c = parameterSnapshot(*reloaded.model);
+  for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(at::equal(a[i].second, c[i].second)) << a[i].first;
+}
+
+TEST(Trainer, RefusesAnIncompatibleResume) {
+  TrainingConfig config = smallConfig();
+  const fs::path run = testing::makeTempDir("ffloc-train-refuse");
+  {
+    Trainer trainer(config, {smallScene()}, run);
+    trainer.step();
+    trainer.saveCheckpoint();
+  }
+  config.alpha = 0.5;
+  EXPECT_TRUE(contains(errorOf([&] { Trainer(config, {smallScene()}, run, true); }), "field 'alpha'"));
+  const fs::path empty = testing::makeTempDir("ffloc-train-empty");
+  EXPECT_TRUE(contains(errorOf([&] { Trainer(smallConfig(), {smallScene()}, empty, true); }), "no checkpoint"));
+  std::ofstream(run / "checkpoints" / "latest") << "../etc\n";
+  EXPECT_TRUE(contains(errorOf([&] { Trainer(smallConfig(), {smallScene()}, run, true); }), "latest:1"));
+}
+
+}  // namespace
+}  // namespace ffloc

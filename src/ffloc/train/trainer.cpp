@@ -1,0 +1,179 @@
+#include "ffloc/train/trainer.h"
+
+#include <ATen/TensorOperators.h>
+#include <c10/core/GradMode.h>
+
+#include <set>
+
+#include "ffloc/core/error.h"
+#include "ffloc/model/torch_threads.h"
+#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/train/confidence_loss.h"
+#include "ffloc/train/training_checkpoint.h"
+
+namespace ffloc {
+
+namespace {
+
+uint64_t splitMix(uint64_t z) {
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// Settings that may change between a run and its resumption: they do not alter what the
+// optimiser sees (the step count changes the schedule's length, which is the user's call).
+const std::set<std::string>& resumableFields() {
+  static const std::set<std::string> fields = {"steps",           "log_every",        "checkpoint_every",
+                                               "keep_checkpoints", "validation_every", "validation_samples",
+                                               "threads",         "device"};
+  return fields;
+}
+
+void checkResumable(const TrainingConfig& stored, const TrainingConfig& requested, const std::string& origin) {
+  const nlohmann::json a = toJson(stored), b = toJson(requested);
+  for (const auto& [key, value] : a.items()) {
+    if (resumableFields().count(key) || b.at(key) == value) continue;
+    throwInputError(origin, 0, "field '" + key + "': the checkpoint was trained with " + value.dump() +
+                                   ", the resumed run asks for " + b.at(key).dump());
+  }
+}
+
+}  // namespace
+
+SampleOptions sampleOptions(const TrainingConfig& config, int patch_size) {
+  SampleOptions options;
+  options.mapping_frames = config.mapping_frames;
+  options.min_map_tokens = config.min_map_tokens;
+  options.max_map_tokens = config.max_map_tokens;
+  options.min_overlap = config.min_overlap;
+  options.max_overlap = config.max_overlap;
+  options.overlap_candidates = config.overlap_candidates;
+  options.overlap_stride = config.overlap_stride;
+  options.long_side = config.long_side;
+  options.patch_size = patch_size;
+  options.colour_jitter = config.colour_jitter;
+  return options;
+}
+
+uint64_t trainingSampleSeed(uint64_t run_seed, int64_t step) {
+  return splitMix(splitMix(run_seed ^ 0x747261696e000000ULL) + static_cast<uint64_t>(step));
+}
+
+uint64_t validationSampleSeed(uint64_t run_seed, int64_t index) {
+  return splitMix(splitMix(run_seed ^ 0x76616c6964000000ULL) + static_cast<uint64_t>(index));
+}
+
+struct Trainer::Losses {
+  at::Tensor total;
+  ConfidenceLossTerm query, map;
+  double scale = 1;
+  int64_t map_tokens = 0;
+};
+
+Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const std::filesystem::path& run_dir,
+                 bool resume)
+    : config_(config), run_dir_(run_dir) {
+  config_.validate();
+  setTorchThreadCount(config_.threads);
+  device_ = config_.device == "cuda" ? at::Device(at::kCUDA) : at::Device(at::kCPU);
+
+  std::optional<CheckpointInfo> checkpoint;
+  if (resume) {
+    checkpoint = latestTrainingCheckpoint(run_dir_);
+    if (!checkpoint) throwInputError((run_dir_ / "checkpoints" / "latest").string(), 0, "no checkpoint to resume from");
+    checkResumable(checkpoint->config, config_, (checkpoint->folder / "model.safetensors").string());
+  }
+  ModelLoadOptions load;
+  load.init_seed = config_.model_seed;
+  LoadedModel loaded = loadModel(checkpoint ? (checkpoint->folder / "model.safetensors").string() : config_.model, load);
+  model_ = std::move(loaded.model);
+  model_description_ = loaded.description;
+  model_->to(device_, at::kFloat);
+
+  auto trainable = trainableParameters(*model_, config_.train_encoder);
+  for (auto& entry : trainable) entry.second.requires_grad_(true);
+  AdamWOptions adam;
+  adam.beta1 = config_.beta1;
+  adam.beta2 = config_.beta2;
+  adam.epsilon = config_.adam_epsilon;
+  adam.weight_decay = config_.weight_decay;
+  optimizer_ = std::make_unique<AdamW>(std::move(trainable), adam);
+  if (checkpoint) loadOptimizerState(*checkpoint, *optimizer_);
+
+  sampler_ = std::make_unique<TrainingSampler>(std::move(scenes),
+                                               sampleOptions(config_, static_cast<int>(model_->config().dust3r.patch_size)));
+}
+
+int64_t Trainer::trainableParameterCount() const {
+  int64_t count = 0;
+  for (const auto& entry : optimizer_->parameters()) count += entry.second.numel();
+  return count;
+}
+
+Trainer::Losses Trainer::evaluate(const TrainingSample& sample) const {
+  // A frozen encoder records no graph: its tokens are constants for the decoder's backward.
+  const auto encode = [&](const at::Tensor& image) {
+    if (config_.train_encoder) return model_->encode(image);
+    at::NoGradGuard frozen;
+    return model_->encode(image);
+  };
+  const Dust3rEncoding query = encode(sample.query_image);
+  std::vector<Dust3rEncoding> mapping;
+  for (const at::Tensor& image : sample.mapping_images) mapping.push_back(encode(image));
+  const MapTokens map = gatherMapTokens(mapping, sample.mapping_rays, sample.map_indices);
+  const FastForwardPrediction prediction = model_->forward(query, map);
+  Losses losses;
+  losses.query = confidenceLoss(prediction.query.pts3d, prediction.query.conf, sample.query_points,
+                                sample.query_valid, config_.alpha);
+  losses.map = confidenceLoss(prediction.map.pts3d, prediction.map.conf, sample.map_points, sample.map_valid,
+                              config_.alpha);
+  losses.total = losses.query.loss + losses.map.loss;
+  losses.scale = sample.normalization.scale;
+  losses.map_tokens = sample.map_indices.size(0);
+  return losses;
+}
+
+TrainingStepStats Trainer::step() { return step(sampler_->sample(trainingSampleSeed(config_.seed, stepsDone()))); }
+
+TrainingStepStats Trainer::step(const TrainingSample& sample) {
+  const int64_t index = stepsDone();
+  const Losses losses = evaluate(sample);
+  losses.total.backward();
+  TrainingStepStats stats;
+  stats.grad_norm = clipGradientNorm(optimizer_->parameters(), config_.clip_grad_norm);
+  stats.learning_rate =
+      cosineLearningRate(index, config_.steps, config_.warmup_steps, config_.learning_rate, config_.min_learning_rate);
+  optimizer_->step(stats.learning_rate);
+  stats.step = stepsDone();
+  stats.loss = losses.total.item<double>();
+  stats.query_loss = losses.query.loss.item<double>();
+  stats.map_loss = losses.map.loss.item<double>();
+  stats.query_error = losses.query.error.item<double>() * losses.scale;
+  stats.map_error = losses.map.error.item<double>() * losses.scale;
+  stats.map_tokens = losses.map_tokens;
+  return stats;
+}
+
+ValidationStats Trainer::validate() {
+  at::NoGradGuard no_grad;
+  ValidationStats stats;
+  for (int i = 0; i < config_.validation_samples; ++i) {
+    const Losses losses = evaluate(sampler_->sample(validationSampleSeed(config_.seed, i)));
+    stats.loss += losses.total.item<double>();
+    stats.query_error += losses.query.error.item<double>() * losses.scale;
+    stats.map_error += losses.map.error.item<double>() * losses.scale;
+    ++stats.samples;
+  }
+  stats.loss /= stats.samples;
+  stats.query_error /= stats.samples;
+  stats.map_error /= stats.samples;
+  return stats;
+}
+
+std::filesystem::path Trainer::saveCheckpoint() {
+  return writeTrainingCheckpoint(run_dir_, *model_, *optimizer_, config_, config_.keep_checkpoints);
+}
+
+}  // namespace ffloc

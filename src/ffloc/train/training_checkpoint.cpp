@@ -1,0 +1,148 @@
+#include "ffloc/train/training_checkpoint.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <vector>
+
+#include "ffloc/core/error.h"
+#include "ffloc/model/tensor_conversion.h"
+
+namespace ffloc {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string folderName(int64_t step) {
+  char name[32];
+  std::snprintf(name, sizeof(name), "step_%08lld", static_cast<long long>(step));
+  return name;
+}
+
+// Float32 CPU copies kept alive while the views into them are written.
+void writeTensors(const fs::path& path, const std::vector<std::pair<std::string, at::Tensor>>& tensors,
+                  const std::map<std::string, std::string>& metadata) {
+  std::vector<at::Tensor> keep;
+  std::vector<TensorView> views;
+  keep.reserve(tensors.size());
+  for (const auto& [name, tensor] : tensors) {
+    keep.push_back(tensor.detach().to(at::kCPU, at::kFloat).contiguous());
+    const at::Tensor& t = keep.back();
+    TensorView view;
+    view.name = name;
+    view.dtype = DType::kF32;
+    view.shape = t.sizes().vec();
+    view.data = static_cast<const uint8_t*>(t.data_ptr());
+    view.nbytes = static_cast<size_t>(t.numel()) * sizeof(float);
+    views.push_back(view);
+  }
+  writeSafetensors(path, views, metadata);
+}
+
+void writeTextAtomically(const fs::path& path, const std::string& text) {
+  const fs::path temporary = path.string() + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::trunc);
+    out << text;
+    if (!out.flush()) throwInputError(temporary.string(), 0, "cannot write");
+  }
+  fs::rename(temporary, path);
+}
+
+const std::string& metadataField(const TensorArchive& archive, const std::string& key) {
+  const auto found = archive.metadata().find(key);
+  if (found == archive.metadata().end()) throwInputError(archive.path().string(), 0, "metadata '" + key + "': missing");
+  return found->second;
+}
+
+int64_t parseStep(const TensorArchive& archive) {
+  const std::string& text = metadataField(archive, "step");
+  try {
+    size_t used = 0;
+    const long long step = std::stoll(text, &used);
+    if (used != text.size() || step < 0) throw std::invalid_argument(text);
+    return step;
+  } catch (const std::exception&) {
+    throwInputError(archive.path().string(), 0, "metadata 'step': not a step count: '" + text + "'");
+  }
+}
+
+}  // namespace
+
+fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& model, const AdamW& optimizer,
+                                 const TrainingConfig& config, int keep_last) {
+  const fs::path root = run_dir / "checkpoints";
+  fs::create_directories(root);
+  const int64_t step = optimizer.stepCount();
+  const fs::path folder = root / folderName(step);
+  const fs::path partial = root / (folderName(step) + ".partial");
+  fs::remove_all(partial);
+  fs::create_directories(partial);
+  const std::string config_json = toJson(config).dump();
+
+  std::vector<std::pair<std::string, at::Tensor>> weights;
+  const ParameterTable table = model.parameterTable();
+  for (const auto& entry : table.entries()) weights.emplace_back(entry.name, *entry.tensor);
+  writeTensors(partial / "model.safetensors", weights,
+               {{"format", "ffloc-fastforward"}, {"step", std::to_string(step)}, {"training_config", config_json}});
+  writeTensors(partial / "optimizer.safetensors", optimizer.state(),
+               {{"format", "ffloc-train-state"}, {"step", std::to_string(step)}, {"training_config", config_json}});
+  fs::remove_all(folder);
+  fs::rename(partial, folder);
+  writeTextAtomically(root / "latest", folderName(step) + "\n");
+
+  std::vector<fs::path> existing;
+  for (const auto& entry : fs::directory_iterator(root)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.is_directory() && name.rfind("step_", 0) == 0 && name.find('.') == std::string::npos) {
+      existing.push_back(entry.path());
+    }
+  }
+  std::sort(existing.begin(), existing.end());
+  for (size_t i = 0; i + static_cast<size_t>(keep_last) < existing.size(); ++i) {
+    if (existing[i] != folder) fs::remove_all(existing[i]);
+  }
+  return folder;
+}
+
+std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) {
+  const fs::path latest = run_dir / "checkpoints" / "latest";
+  if (!fs::exists(latest)) return std::nullopt;
+  std::ifstream in(latest);
+  std::string name;
+  std::getline(in, name);
+  if (name.rfind("step_", 0) != 0 || name.find('/') != std::string::npos) {
+    throwInputError(latest.string(), 1, "expected the name of a step_<n> folder, got '" + name + "'");
+  }
+  CheckpointInfo info;
+  info.folder = run_dir / "checkpoints" / name;
+  const fs::path model_path = info.folder / "model.safetensors";
+  if (!fs::exists(model_path) || !fs::exists(info.folder / "optimizer.safetensors")) {
+    throwInputError(latest.string(), 1, "checkpoint folder '" + info.folder.string() + "' is incomplete");
+  }
+  const auto archive = openSafetensors(model_path);
+  info.step = parseStep(*archive);
+  try {
+    info.config = trainingConfigFromJson(nlohmann::json::parse(metadataField(*archive, "training_config")),
+                                         model_path.string() + " metadata 'training_config'");
+  } catch (const nlohmann::json::exception& e) {
+    throwInputError(model_path.string(), 0, std::string("metadata 'training_config': invalid JSON: ") + e.what());
+  }
+  return info;
+}
+
+void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer) {
+  const fs::path path = checkpoint.folder / "optimizer.safetensors";
+  const auto archive = openSafetensors(path);
+  const int64_t step = parseStep(*archive);
+  if (step != checkpoint.step) {
+    throwInputError(path.string(), 0, "metadata 'step' is " + std::to_string(step) + " but model.safetensors says " +
+                                          std::to_string(checkpoint.step));
+  }
+  std::vector<std::pair<std::string, at::Tensor>> state;
+  for (const std::string& name : archive->names()) state.emplace_back(name, toTorch(archive->at(name)));
+  optimizer.loadState(state, step, path.string());
+}
+
+}  // namespace ffloc

@@ -1,0 +1,41 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "ffloc/model/fastforward_model.h"
+#include "ffloc/train/adamw.h"
+#include "ffloc/train/training_config.h"
+
+namespace ffloc {
+
+// A training checkpoint is a folder <run_dir>/checkpoints/step_<8 digits>/ with
+// - model.safetensors: every FastForward parameter (float32), metadata format
+//   "ffloc-fastforward", the step and the training config as JSON. Any `--model` option reads it.
+// - optimizer.safetensors: AdamW's moments ("exp_avg.<name>", "exp_avg_sq.<name>"), metadata
+//   format "ffloc-train-state", the step and the config.
+// The folder is written under a temporary name and renamed, then <run_dir>/checkpoints/latest
+// (one line: the folder name) is replaced atomically, so a crash at any point leaves the
+// previous checkpoint intact and `latest` always names a complete one. Everything random in a
+// run derives from (seed, step), so the step is the whole RNG and data-position state.
+struct CheckpointInfo {
+  std::filesystem::path folder;
+  int64_t step = 0;
+  TrainingConfig config;
+};
+
+std::filesystem::path writeTrainingCheckpoint(const std::filesystem::path& run_dir, FastForwardModel& model,
+                                              const AdamW& optimizer, const TrainingConfig& config,
+                                              int keep_last);
+
+// The checkpoint `latest` names; nullopt when run_dir has none. InputError naming the file for a
+// broken `latest`, a missing folder or unreadable metadata.
+std::optional<CheckpointInfo> latestTrainingCheckpoint(const std::filesystem::path& run_dir);
+
+// Restores AdamW's moments and step from a checkpoint folder (after the model weights were
+// loaded from its model.safetensors).
+void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer);
+
+}  // namespace ffloc

@@ -1,0 +1,125 @@
+#include "ffloc/train/training_config.h"
+
+#include <functional>
+#include <map>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/json_fields.h"
+
+namespace ffloc {
+
+namespace {
+
+// One accessor per field, so reading, writing and the unknown-key check share one list.
+struct FieldBinding {
+  std::function<void(TrainingConfig&, const nlohmann::json&)> read;
+  std::function<nlohmann::json(const TrainingConfig&)> write;
+};
+
+template <typename T>
+FieldBinding bindField(T TrainingConfig::*member) {
+  return {[member](TrainingConfig& config, const nlohmann::json& value) { config.*member = value.get<T>(); },
+          [member](const TrainingConfig& config) { return nlohmann::json(config.*member); }};
+}
+
+const std::map<std::string, FieldBinding>& fieldBindings() {
+  static const std::map<std::string, FieldBinding> bindings = {
+      {"model", bindField(&TrainingConfig::model)},
+      {"model_seed", bindField(&TrainingConfig::model_seed)},
+      {"mapping_frames", bindField(&TrainingConfig::mapping_frames)},
+      {"min_map_tokens", bindField(&TrainingConfig::min_map_tokens)},
+      {"max_map_tokens", bindField(&TrainingConfig::max_map_tokens)},
+      {"min_overlap", bindField(&TrainingConfig::min_overlap)},
+      {"max_overlap", bindField(&TrainingConfig::max_overlap)},
+      {"overlap_candidates", bindField(&TrainingConfig::overlap_candidates)},
+      {"overlap_stride", bindField(&TrainingConfig::overlap_stride)},
+      {"long_side", bindField(&TrainingConfig::long_side)},
+      {"colour_jitter", bindField(&TrainingConfig::colour_jitter)},
+      {"alpha", bindField(&TrainingConfig::alpha)},
+      {"steps", bindField(&TrainingConfig::steps)},
+      {"warmup_steps", bindField(&TrainingConfig::warmup_steps)},
+      {"learning_rate", bindField(&TrainingConfig::learning_rate)},
+      {"min_learning_rate", bindField(&TrainingConfig::min_learning_rate)},
+      {"weight_decay", bindField(&TrainingConfig::weight_decay)},
+      {"beta1", bindField(&TrainingConfig::beta1)},
+      {"beta2", bindField(&TrainingConfig::beta2)},
+      {"adam_epsilon", bindField(&TrainingConfig::adam_epsilon)},
+      {"clip_grad_norm", bindField(&TrainingConfig::clip_grad_norm)},
+      {"train_encoder", bindField(&TrainingConfig::train_encoder)},
+      {"seed", bindField(&TrainingConfig::seed)},
+      {"threads", bindField(&TrainingConfig::threads)},
+      {"device", bindField(&TrainingConfig::device)},
+      {"log_every", bindField(&TrainingConfig::log_every)},
+      {"checkpoint_every", bindField(&TrainingConfig::checkpoint_every)},
+      {"keep_checkpoints", bindField(&TrainingConfig::keep_checkpoints)},
+      {"validation_every", bindField(&TrainingConfig::validation_every)},
+      {"validation_samples", bindField(&TrainingConfig::validation_samples)},
+  };
+  return bindings;
+}
+
+}  // namespace
+
+void TrainingConfig::validate(const std::string& origin) const {
+  const auto fail = [&](const std::string& field, const std::string& what) {
+    throwInputError(origin, 0, "field '" + field + "': " + what);
+  };
+  if (mapping_frames < 1) fail("mapping_frames", "must be at least 1");
+  if (min_map_tokens < 1 || max_map_tokens < min_map_tokens) {
+    fail("max_map_tokens", "need 1 <= min_map_tokens <= max_map_tokens");
+  }
+  if (!(min_overlap >= 0 && min_overlap <= max_overlap && max_overlap <= 1)) {
+    fail("max_overlap", "need 0 <= min_overlap <= max_overlap <= 1");
+  }
+  if (overlap_candidates < mapping_frames) fail("overlap_candidates", "must be at least mapping_frames");
+  if (overlap_stride < 1) fail("overlap_stride", "must be positive");
+  if (long_side < 16) fail("long_side", "must be at least 16");
+  if (!(colour_jitter >= 0 && colour_jitter < 1)) fail("colour_jitter", "must be in [0, 1)");
+  if (!(alpha > 0)) fail("alpha", "must be positive");
+  if (steps < 1) fail("steps", "must be positive");
+  if (warmup_steps < 0 || warmup_steps > steps) fail("warmup_steps", "must be in [0, steps]");
+  if (!(learning_rate > 0)) fail("learning_rate", "must be positive");
+  if (!(min_learning_rate >= 0 && min_learning_rate <= learning_rate)) {
+    fail("min_learning_rate", "must be in [0, learning_rate]");
+  }
+  if (!(weight_decay >= 0)) fail("weight_decay", "must be non-negative");
+  if (!(beta1 >= 0 && beta1 < 1)) fail("beta1", "must be in [0, 1)");
+  if (!(beta2 >= 0 && beta2 < 1)) fail("beta2", "must be in [0, 1)");
+  if (!(adam_epsilon > 0)) fail("adam_epsilon", "must be positive");
+  if (!(clip_grad_norm >= 0)) fail("clip_grad_norm", "must be non-negative (0: off)");
+  if (threads < 0) fail("threads", "must be non-negative");
+  if (device != "cpu" && device != "cuda") fail("device", "must be cpu or cuda");
+  if (log_every < 1) fail("log_every", "must be positive");
+  if (checkpoint_every < 1) fail("checkpoint_every", "must be positive");
+  if (keep_checkpoints < 1) fail("keep_checkpoints", "must be at least 1");
+  if (validation_every < 0) fail("validation_every", "must be non-negative (0: off)");
+  if (validation_samples < 1) fail("validation_samples", "must be positive");
+}
+
+TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::string& origin) {
+  if (!json.is_object()) throwInputError(origin, 0, "expected a JSON object of training settings");
+  TrainingConfig config;
+  for (const auto& [key, value] : json.items()) {
+    const auto binding = fieldBindings().find(key);
+    if (binding == fieldBindings().end()) throwInputError(origin, 0, "field '" + key + "': unknown setting");
+    try {
+      binding->second.read(config, value);
+    } catch (const nlohmann::json::exception&) {
+      throwInputError(origin, 0, "field '" + key + "': wrong type (" + value.dump() + ")");
+    }
+  }
+  config.validate(origin);
+  return config;
+}
+
+TrainingConfig readTrainingConfig(const std::filesystem::path& file) {
+  return trainingConfigFromJson(parseJsonFile(file), file.string());
+}
+
+nlohmann::json toJson(const TrainingConfig& config) {
+  nlohmann::json json = nlohmann::json::object();
+  for (const auto& [key, binding] : fieldBindings()) json[key] = binding.write(config);
+  return json;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,67 @@
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace ffloc {
+
+// Everything that defines a training run. Defaults follow the paper's appendix where it gives a
+// value (K = 5 mapping images, N in [250, 1000] map tokens, overlap in [0.2, 0.85], AdamW, cosine
+// schedule with a linear warm-up, peak learning rate 1e-4, frozen encoder) and DUSt3R's recipe
+// where it does not (alpha = 0.2, weight decay 0.05, betas (0.9, 0.95)).
+struct TrainingConfig {
+  // Initial weights, as `--model` elsewhere (pipeline/model_loader.h): a FastForward or DUSt3R
+  // checkpoint, or "random:<preset>[:<seed>]".
+  std::string model = "random:tiny";
+  uint64_t model_seed = 0;  // the untrained layers of a DUSt3R initialisation
+
+  // Samples (training_sample.h).
+  int mapping_frames = 5;
+  int min_map_tokens = 250;
+  int max_map_tokens = 1000;
+  double min_overlap = 0.2;
+  double max_overlap = 0.85;
+  int overlap_candidates = 64;  // frames whose overlap with a query is measured per draw
+  int overlap_stride = 4;       // pixel stride of the overlap measure
+  int long_side = 512;          // preprocessing, as at inference
+  double colour_jitter = 0.0;   // brightness/contrast/saturation factors in [1 - j, 1 + j]
+
+  // Loss (confidence_loss.h).
+  double alpha = 0.2;
+
+  // Optimiser and schedule.
+  int64_t steps = 1000;
+  int64_t warmup_steps = 50;
+  double learning_rate = 1e-4;
+  double min_learning_rate = 1e-6;
+  double weight_decay = 0.05;
+  double beta1 = 0.9;
+  double beta2 = 0.95;
+  double adam_epsilon = 1e-8;
+  double clip_grad_norm = 1.0;  // 0: no clipping
+  bool train_encoder = false;
+
+  uint64_t seed = 0;  // samples and augmentation; the only source of randomness in a run
+  int threads = 0;    // libtorch intra-op threads (0: all cores)
+  std::string device = "cpu";
+
+  int64_t log_every = 10;
+  int64_t checkpoint_every = 500;
+  int keep_checkpoints = 2;
+  int64_t validation_every = 0;  // 0: no validation
+  int validation_samples = 8;
+
+  // InputError naming the field for values that cannot make a run.
+  void validate(const std::string& origin = "training config") const;
+};
+
+// Reads a JSON object of the fields above (any subset; the rest keep their defaults). Unknown
+// keys and wrong types are InputErrors naming the file and the field.
+TrainingConfig readTrainingConfig(const std::filesystem::path& file);
+TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::string& origin);
+nlohmann::json toJson(const TrainingConfig& config);
+
+}  // namespace ffloc

@@ -1,0 +1,242 @@
+#include "ffloc/train/training_sample.h"
+
+#include <ATen/ops/from_blob.h>
+#include <ATen/ops/zeros.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/depth.h"
+#include "ffloc/data/overlap.h"
+#include "ffloc/geometry/rays.h"
+#include "ffloc/model/fastforward_model.h"
+#include "ffloc/model/image_tensor.h"
+#include "ffloc/model/ray_encoding.h"
+
+namespace ffloc {
+
+namespace {
+
+// Draws from raw 64-bit outputs only: std's distributions are implementation-defined, and a
+// run must replay identically wherever it resumes.
+class SampleRng {
+ public:
+  explicit SampleRng(uint64_t seed) : engine_(seed) {}
+  uint64_t next() { return engine_(); }
+  double uniform() { return static_cast<double>(engine_() >> 11) * (1.0 / 9007199254740992.0); }
+  size_t index(size_t n) { return static_cast<size_t>(engine_() % n); }
+  template <typename T>
+  void shuffle(std::vector<T>& items) {
+    for (size_t i = items.size(); i > 1; --i) std::swap(items[i - 1], items[index(i)]);
+  }
+
+ private:
+  std::mt19937_64 engine_;
+};
+
+// Brightness, contrast and saturation factors in [1 - strength, 1 + strength], in that order.
+cv::Mat jitterColour(const cv::Mat& rgb, double strength, SampleRng& rng) {
+  if (strength <= 0) return rgb;
+  const double brightness = 1 + strength * (2 * rng.uniform() - 1);
+  const double contrast = 1 + strength * (2 * rng.uniform() - 1);
+  const double saturation = 1 + strength * (2 * rng.uniform() - 1);
+  cv::Mat3f image;
+  rgb.convertTo(image, CV_32FC3, brightness);
+  const cv::Scalar mean = cv::mean(image);
+  const float grey_mean = static_cast<float>((mean[0] + mean[1] + mean[2]) / 3);
+  for (int y = 0; y < image.rows; ++y) {
+    for (int x = 0; x < image.cols; ++x) {
+      cv::Vec3f& p = image(y, x);
+      for (int c = 0; c < 3; ++c) p[c] = static_cast<float>((p[c] - grey_mean) * contrast + grey_mean);
+      const float grey = (p[0] + p[1] + p[2]) / 3;
+      for (int c = 0; c < 3; ++c) p[c] = static_cast<float>((p[c] - grey) * saturation + grey);
+    }
+  }
+  cv::Mat out;
+  image.convertTo(out, CV_8UC3);  // saturating
+  return out;
+}
+
+Eigen::Vector3d normalizedPoint(const Frame& frame, const SceneNormalization& normalization, double u, double v,
+                                double depth) {
+  return normalization.normalize(frame.camera_to_world * frame.intrinsics.backproject({u, v}, depth));
+}
+
+}  // namespace
+
+cv::Mat1f preprocessDepthNearest(const cv::Mat1f& depth, const PreprocessGeometry& geometry) {
+  cv::Mat1f out(geometry.height, geometry.width, 0.0f);
+  for (int y = 0; y < geometry.height; ++y) {
+    for (int x = 0; x < geometry.width; ++x) {
+      const Eigen::Vector2d original = geometry.toOriginal({x, y});
+      const long u = std::lround(original.x()), v = std::lround(original.y());
+      if (u < 0 || v < 0 || u >= depth.cols || v >= depth.rows) continue;
+      const float d = depth(static_cast<int>(v), static_cast<int>(u));
+      if (std::isfinite(d) && d > 0) out(y, x) = d;
+    }
+  }
+  return out;
+}
+
+TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options)
+    : scenes_(std::move(scenes)), options_(options) {
+  size_t total = 0;
+  for (const Scene& scene : scenes_) {
+    std::vector<size_t> with_depth;
+    for (size_t i = 0; i < scene.frames.size(); ++i) {
+      const Frame& frame = scene.frames[i];
+      if (!frame.depth) continue;
+      if (frame.intrinsics.hasDistortion()) {
+        throwInputError(scene.root.string(), 0, "frame '" + frame.name +
+                                                    "': training needs undistorted images and depth");
+      }
+      with_depth.push_back(i);
+    }
+    total += with_depth.size();
+    frames_with_depth_.push_back(std::move(with_depth));
+  }
+  if (total == 0) throwInputError("training data", 0, "no frame with depth in any training scene");
+}
+
+const TrainingSampler::PreparedFrame& TrainingSampler::prepared(size_t scene, size_t frame) {
+  auto& slot = prepared_[{scene, frame}];
+  if (!slot) {
+    const Frame& source = scenes_[scene].frames[frame];
+    PreprocessOptions preprocess;
+    preprocess.long_side = options_.long_side;
+    preprocess.patch_size = options_.patch_size;
+    PreprocessedImage image = preprocessImage(readImageRgb(source.image_path), source.intrinsics, preprocess);
+    const cv::Mat1f depth = readDepthMetres(source);
+    if (depth.cols != image.geometry.original_width || depth.rows != image.geometry.original_height) {
+      throwInputError(source.depth->path.string(), 0, "depth size differs from the image of '" + source.name + "'");
+    }
+    auto entry = std::make_unique<PreparedFrame>();
+    entry->rgb = image.rgb;
+    entry->frame = source;
+    entry->frame.intrinsics = image.intrinsics;
+    entry->depth = preprocessDepthNearest(depth, image.geometry);
+    slot = std::move(entry);
+  }
+  return *slot;
+}
+
+double TrainingSampler::overlap(size_t scene, size_t a, size_t b) {
+  const auto key = std::make_tuple(scene, std::min(a, b), std::max(a, b));
+  const auto found = overlaps_.find(key);
+  if (found != overlaps_.end()) return found->second;
+  const PreparedFrame& first = prepared(scene, std::get<1>(key));
+  const PreparedFrame& second = prepared(scene, std::get<2>(key));
+  OverlapOptions overlap_options;
+  overlap_options.stride = options_.overlap_stride;
+  const double value = pairOverlap(first.frame, first.depth, second.frame, second.depth, overlap_options);
+  overlaps_[key] = value;
+  return value;
+}
+
+TrainingSample TrainingSampler::sample(uint64_t seed) {
+  SampleRng rng(seed);
+  std::vector<size_t> usable_scenes;
+  for (size_t s = 0; s < scenes_.size(); ++s) {
+    if (frames_with_depth_[s].size() > static_cast<size_t>(options_.mapping_frames)) usable_scenes.push_back(s);
+  }
+  if (usable_scenes.empty()) {
+    throwInputError("training data", 0, "no scene has more than " + std::to_string(options_.mapping_frames) +
+                                            " frames with depth (query + mapping frames)");
+  }
+  for (int attempt = 0; attempt < options_.max_attempts; ++attempt) {
+    const size_t scene = usable_scenes[rng.index(usable_scenes.size())];
+    const std::vector<size_t>& frames = frames_with_depth_[scene];
+    const size_t query = frames[rng.index(frames.size())];
+    std::vector<size_t> candidates;
+    for (size_t f : frames) {
+      if (f != query) candidates.push_back(f);
+    }
+    rng.shuffle(candidates);
+    candidates.resize(std::min(candidates.size(), static_cast<size_t>(options_.overlap_candidates)));
+    std::vector<size_t> mapping;
+    std::vector<double> overlaps;
+    for (size_t f : candidates) {
+      const double value = overlap(scene, query, f);
+      if (value < options_.min_overlap || value > options_.max_overlap) continue;
+      mapping.push_back(f);
+      overlaps.push_back(value);
+      if (mapping.size() == static_cast<size_t>(options_.mapping_frames)) break;
+    }
+    if (mapping.size() < static_cast<size_t>(options_.mapping_frames)) continue;
+
+    TrainingSample out;
+    const Scene& source = scenes_[scene];
+    out.scene = source.name;
+    out.query = source.frames[query].name;
+    out.overlaps = overlaps;
+    std::vector<Pose> poses;
+    for (size_t f : mapping) {
+      poses.push_back(source.frames[f].camera_to_world);
+      out.mapping.push_back(source.frames[f].name);
+    }
+    out.normalization = SceneNormalization::fromMappingPoses(poses, 0, out.mapping);
+
+    // Query image and per-pixel ground truth.
+    const PreparedFrame& q = prepared(scene, query);
+    out.query_image = normalizedImageTensor(jitterColour(q.rgb, options_.colour_jitter, rng));
+    const int height = q.depth.rows, width = q.depth.cols;
+    out.query_points = at::zeros({1, height, width, 3}, at::kFloat);
+    out.query_valid = at::zeros({1, height, width}, at::kBool);
+    float* points = out.query_points.data_ptr<float>();
+    bool* valid = out.query_valid.data_ptr<bool>();
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        const float d = q.depth(y, x);
+        if (d <= 0) continue;
+        const Eigen::Vector3d p = normalizedPoint(q.frame, out.normalization, x, y, d);
+        const size_t i = static_cast<size_t>(y) * width + x;
+        for (int c = 0; c < 3; ++c) points[3 * i + c] = static_cast<float>(p[c]);
+        valid[i] = true;
+      }
+    }
+
+    // Mapping images, their rays in the normalised frame, and the sampled tokens.
+    const int patch = options_.patch_size;
+    std::vector<int64_t> tokens_per_image;
+    std::vector<const PreparedFrame*> mapping_frames;
+    for (size_t f : mapping) {
+      const PreparedFrame& m = prepared(scene, f);
+      mapping_frames.push_back(&m);
+      out.mapping_images.push_back(normalizedImageTensor(jitterColour(m.rgb, options_.colour_jitter, rng)));
+      out.mapping_rays.push_back(
+          rayTensor(patchRays(m.frame.intrinsics, out.normalization.normalize(m.frame.camera_to_world), patch)));
+      tokens_per_image.push_back(static_cast<int64_t>(m.depth.rows / patch) * (m.depth.cols / patch));
+    }
+    const int64_t span = options_.max_map_tokens - options_.min_map_tokens + 1;
+    const int64_t count = options_.min_map_tokens + static_cast<int64_t>(rng.index(static_cast<size_t>(span)));
+    out.map_indices = sampleMapTokenIndices(tokens_per_image, count, rng.next());
+    const int64_t n = out.map_indices.size(0);
+    out.map_points = at::zeros({1, n, 3}, at::kFloat);
+    out.map_valid = at::zeros({1, n}, at::kBool);
+    const int64_t* pairs = out.map_indices.data_ptr<int64_t>();
+    float* map_points = out.map_points.data_ptr<float>();
+    bool* map_valid = out.map_valid.data_ptr<bool>();
+    for (int64_t i = 0; i < n; ++i) {
+      const PreparedFrame& m = *mapping_frames[pairs[2 * i]];
+      const int64_t cols = m.depth.cols / patch;
+      const int64_t row = pairs[2 * i + 1] / cols, col = pairs[2 * i + 1] % cols;
+      // The patch centre, where the token's ray goes (rays.h), and the depth of the pixel there.
+      const double u = (col + 0.5) * patch - 0.5, v = (row + 0.5) * patch - 0.5;
+      const float d = m.depth(static_cast<int>(std::lround(v)), static_cast<int>(std::lround(u)));
+      if (d <= 0) continue;
+      const Eigen::Vector3d p = normalizedPoint(m.frame, out.normalization, u, v, d);
+      for (int c = 0; c < 3; ++c) map_points[3 * i + c] = static_cast<float>(p[c]);
+      map_valid[i] = true;
+    }
+    return out;
+  }
+  throwInputError("training data", 0, "no query with " + std::to_string(options_.mapping_frames) +
+                                          " mapping frames of overlap in [" + std::to_string(options_.min_overlap) +
+                                          ", " + std::to_string(options_.max_overlap) + "] after " +
+                                          std::to_string(options_.max_attempts) + " tries");
+}
+
+}  // namespace ffloc

@@ -1,0 +1,89 @@
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ffloc/data/scene.h"
+#include "ffloc/geometry/normalization.h"
+#include "ffloc/io/image.h"
+
+namespace ffloc {
+
+struct SampleOptions {
+  int mapping_frames = 5;  // K
+  int min_map_tokens = 250;
+  int max_map_tokens = 1000;
+  double min_overlap = 0.2;  // pairOverlap(query, mapping) range (paper appendix)
+  double max_overlap = 0.85;
+  int overlap_candidates = 64;
+  int overlap_stride = 4;
+  int long_side = 512;
+  int patch_size = 16;
+  double colour_jitter = 0.0;
+  int max_attempts = 32;  // queries tried before giving up on a draw
+};
+
+// One training example (paper, section 3 "Training" and appendix): a query with depth, K mapping
+// images that overlap it, the map tokens to sample from them, and ground truth in the scene
+// frame normalised by the mapping poses (first mapping image as P_0).
+struct TrainingSample {
+  at::Tensor query_image;                   // (1, 3, H, W) float32 in [-1, 1]
+  std::vector<at::Tensor> mapping_images;   // K x (1, 3, H_k, W_k)
+  std::vector<at::Tensor> mapping_rays;     // K x (1, T_k, 6) normalised rays of the patch centres
+  at::Tensor map_indices;                   // (N, 2) int64 (mapping image, token)
+  at::Tensor query_points;                  // (1, H, W, 3) float32, normalised frame; 0 where invalid
+  at::Tensor query_valid;                   // (1, H, W) bool, pixels with depth
+  at::Tensor map_points;                    // (1, N, 3) float32, the tokens' patch-centre points
+  at::Tensor map_valid;                     // (1, N) bool
+  SceneNormalization normalization;
+  std::string scene;
+  std::string query;
+  std::vector<std::string> mapping;
+  std::vector<double> overlaps;             // of each mapping image with the query
+};
+
+// Draws training samples from posed RGB-D scenes. A draw is a pure function of its seed (the
+// frame choice, token count and sample, augmentation), so a run can be replayed or resumed from
+// the step number alone. Preprocessed frames and pair overlaps are cached in memory as they are
+// first needed.
+class TrainingSampler {
+ public:
+  // InputError when no scene has a frame with depth, or a frame has lens distortion.
+  TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options);
+
+  // InputError naming the scene when no query with K overlapping mapping frames was found in
+  // options.max_attempts tries.
+  TrainingSample sample(uint64_t seed);
+
+  const std::vector<Scene>& scenes() const { return scenes_; }
+
+ private:
+  struct PreparedFrame {
+    cv::Mat rgb;          // preprocessed uint8 RGB
+    Frame frame;          // intrinsics of the preprocessed image
+    cv::Mat1f depth;      // at the preprocessed resolution (nearest), 0 = invalid
+  };
+  const PreparedFrame& prepared(size_t scene, size_t frame);
+  double overlap(size_t scene, size_t a, size_t b);
+
+  std::vector<Scene> scenes_;
+  SampleOptions options_;
+  std::vector<std::vector<size_t>> frames_with_depth_;
+  std::map<std::pair<size_t, size_t>, std::unique_ptr<PreparedFrame>> prepared_;
+  std::map<std::tuple<size_t, size_t, size_t>, double> overlaps_;
+};
+
+// Nearest-neighbour resampling of a depth map (in the original image grid) into the
+// preprocessed image grid; 0 stays invalid.
+cv::Mat1f preprocessDepthNearest(const cv::Mat1f& depth, const PreprocessGeometry& geometry);
+
+}  // namespace ffloc
