@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # `make bench`: the network timings (`ffloc bench model`, large config, fp32 and bf16) and the
-# Google Benchmark micro-benchmarks that were built, each saved under <build_dir>/bench/.
+# Google Benchmark micro-benchmarks that were built, each saved under <build_dir>/bench/results/.
 # Timings are only worth comparing on an otherwise idle machine: the load average is saved
 # beside them. Extra arguments go to `ffloc bench model` (e.g. --repeats 3 --dtype bf16).
 set -euo pipefail
@@ -8,7 +8,7 @@ build_dir=${1:-build}
 shared=${2:-../shared}
 shift $(( $# < 2 ? $# : 2 ))
 
-out="$build_dir/bench"
+out="$build_dir/bench/results"  # build_dir/bench itself is the CMake folder of bench/
 mkdir -p "$out"
 if [ -d "$shared" ]; then
   export FFLOC_SHARED_DIR

@@ -128,13 +128,12 @@ at::ScalarType parseDtype(const std::string& name) {
 // Timings do not depend on the weights' values as long as activations stay finite and of
 // ordinary size (denormals or overflow would change the speed): variance-preserving uniform
 // weights, unit norm scales, zero biases. Each tensor is cast as soon as it is drawn so that a
-// bf16 model never holds a float32 copy of itself. Returns the number of parameters.
-int64_t fillRandomParameters(const ParameterTable& table, at::ScalarType dtype) {
+// bf16 model never holds a float32 copy of itself.
+void fillRandomParameters(const ParameterTable& table, at::ScalarType dtype) {
   const at::TensorOptions f32 = at::TensorOptions().dtype(at::kFloat);
   const auto ends_with = [](const std::string& text, const std::string& suffix) {
     return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
   };
-  int64_t count = 0;
   for (const auto& entry : table.entries()) {
     at::Tensor value;
     if (entry.shape.size() == 1 && ends_with(entry.name, ".weight")) {
@@ -148,13 +147,11 @@ int64_t fillRandomParameters(const ParameterTable& table, at::ScalarType dtype) 
       value.uniform_(-bound, bound);
     }
     *entry.tensor = value.to(dtype);
-    count += value.numel();
   }
-  return count;
 }
 
-// N map tokens sampled with the production code path from `images` mapping images of random
-// encoder tokens and random rays.
+// `count` map tokens sampled with the production code path (sampleMapTokenIndices +
+// gatherMapTokens) from mapping images of random encoder tokens and random rays.
 MapTokens randomMapTokens(const Dust3rConfig& config, int64_t rows, int64_t cols, int64_t count,
                           at::ScalarType dtype, uint64_t seed) {
   const int64_t per_image = rows * cols;
