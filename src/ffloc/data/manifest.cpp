@@ -5,9 +5,9 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
-#include <unistd.h>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/json_fields.h"
 #include "ffloc/data/pose_check.h"
 
@@ -159,20 +159,8 @@ void writeManifest(const Scene& scene, const std::filesystem::path& manifest_jso
   root["frames"] = std::move(frames);
 
   std::filesystem::create_directories(folder);
-  const auto temporary = folder / ("." + manifest_json.filename().string() + ".tmp-" + std::to_string(getpid()));
-  {
-    std::ofstream out(temporary, std::ios::trunc);
-    if (!out) throwInputError(temporary.string(), 0, "cannot create file");
-    // nlohmann::json prints doubles in the shortest form that parses back to the same value.
-    out << root.dump(1) << '\n';
-    if (!out) throwInputError(temporary.string(), 0, "write failed");
-  }
-  std::error_code error;
-  std::filesystem::rename(temporary, manifest_json, error);
-  if (error) {
-    std::filesystem::remove(temporary);
-    throwInputError(manifest_json.string(), 0, "cannot replace file: " + error.message());
-  }
+  // nlohmann::json prints doubles in the shortest form that parses back to the same value.
+  writeTextFile(manifest_json, root.dump(1) + "\n");
 }
 
 bool isManifestFile(const std::filesystem::path& file) {

@@ -3,11 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
 #include <sstream>
-#include <unistd.h>
 
-#include "ffloc/core/error.h"
 
 namespace ffloc {
 namespace {
@@ -79,23 +76,6 @@ std::string perFrameCsv(const std::vector<FrameResult>& frames) {
     out << "\n";
   }
   return out.str();
-}
-
-void writeTextFile(const std::filesystem::path& path, const std::string& text) {
-  if (path.has_parent_path() && !std::filesystem::exists(path.parent_path()))
-    throwInputError(path.string(), 0, "output folder does not exist");
-  const std::filesystem::path temporary = path.string() + ".tmp" + std::to_string(getpid());
-  {
-    std::ofstream out(temporary, std::ios::binary);
-    out << text;
-    if (!out) throwInputError(path.string(), 0, "cannot write file");
-  }
-  std::error_code error;
-  std::filesystem::rename(temporary, path, error);
-  if (error) {
-    std::filesystem::remove(temporary);
-    throwInputError(path.string(), 0, "cannot write file: " + error.message());
-  }
 }
 
 }  // namespace ffloc

@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ffloc/core/text_file_writer.h"
 #include "ffloc/eval/metrics.h"
 
 namespace ffloc {
@@ -24,8 +25,5 @@ std::string markdownTable(const std::vector<MethodSummary>& summaries, const std
 
 // One row per (method, frame): errors, status, inliers, timings and the estimated pose.
 std::string perFrameCsv(const std::vector<FrameResult>& frames);
-
-// Writes text to a file atomically (temporary file, then rename). Throws InputError naming the file.
-void writeTextFile(const std::filesystem::path& path, const std::string& text);
 
 }  // namespace ffloc

@@ -1,0 +1,13 @@
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+namespace ffloc {
+
+// Writes text to a file atomically: a temporary file beside it, then a rename, so a reader never
+// sees half a file and an interrupted write leaves the old one intact. Throws InputError naming
+// the file when its folder does not exist or the write fails.
+void writeTextFile(const std::filesystem::path& path, const std::string& text);
+
+}  // namespace ffloc
