@@ -13,6 +13,7 @@ void registerConvertCommand(CLI::App& app);
 void registerBenchCommand(CLI::App& app);
 void registerMapCommand(CLI::App& app);
 void registerLocalizeCommand(CLI::App& app);
+void registerRetrievalCommand(CLI::App& app);
 void registerTrainCommand(CLI::App& app);
 #endif
 

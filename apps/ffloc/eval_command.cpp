@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -35,7 +36,8 @@ struct EvalArguments {
   double inlier_threshold_px = PnpOptions().inlier_threshold_px;
   float confidence_threshold = PnpOptions().confidence_threshold;
   size_t max_correspondences = PnpOptions().max_correspondences;
-  std::string model, map_path, dtype = "f32";
+  size_t min_correspondences = PnpOptions().min_correspondences;
+  std::string model = "default", map_path, dtype = "f32";
   std::string selection = "retrieval";
   size_t top_k = 10;        // the paper's indoor setting
   int64_t features = 1500;
@@ -57,7 +59,6 @@ std::vector<std::string> splitList(const std::string& text) {
 std::shared_ptr<const LoadedModel> sharedModel(const EvalArguments& args) {
   static std::shared_ptr<const LoadedModel> model;
   if (!model) {
-    if (args.model.empty()) throw InputError("--model: required by the fastforward method");
     setTorchThreadCount(0);
     ModelLoadOptions options;
     options.backbone_dtype = parseBackboneDtype(args.dtype);
@@ -102,8 +103,14 @@ void runEval(const EvalArguments& args) {
   if (methods.empty()) throw InputError("--methods: empty list");
   if (args.outliers < 0 || args.outliers > 1) throw InputError("--outliers: must be in [0, 1]");
   if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
-  if ((!args.poses_path.empty() || !args.ply_path.empty()) && (methods.size() != 1 || args.datasets.size() != 1))
-    throw InputError("--poses / --ply: need exactly one dataset and one method");
+  if (!args.poses_path.empty() && (methods.size() != 1 || args.datasets.size() != 1))
+    throw InputError("--poses: needs exactly one dataset and one method");
+  if (!args.ply_path.empty() && args.datasets.size() != 1) throw InputError("--ply: needs exactly one dataset");
+#ifdef FFLOC_WITH_TORCH
+  // The PLY shows one method's poses: fastforward's when it runs (with its predicted points).
+  const bool has_fastforward = std::find(methods.begin(), methods.end(), "fastforward") != methods.end();
+  const std::string ply_method = has_fastforward ? "fastforward" : methods.front();
+#endif
 
   EvaluationOptions options;
   options.pnp.solver = parsePnpSolver(args.solver);
@@ -111,6 +118,7 @@ void runEval(const EvalArguments& args) {
   options.pnp.inlier_threshold_px = args.inlier_threshold_px;
   options.pnp.confidence_threshold = args.confidence_threshold;
   options.pnp.max_correspondences = args.max_correspondences;
+  options.pnp.min_correspondences = args.min_correspondences;
   options.max_queries = args.max_queries;
   options.quiet = args.quiet;
 
@@ -126,7 +134,7 @@ void runEval(const EvalArguments& args) {
       summaries.push_back(summarize(frames));
       all_frames.insert(all_frames.end(), frames.begin(), frames.end());
 #ifdef FFLOC_WITH_TORCH
-      if (!args.ply_path.empty()) {
+      if (!args.ply_path.empty() && method == ply_method) {
         // FastForward adds the predicted points of the last query.
         const auto* fastforward = dynamic_cast<const FastForwardSource*>(source.get());
         evaluationPly(scene, frames, fastforward ? &fastforward->lastPrediction().correspondences : nullptr,
@@ -201,19 +209,22 @@ void registerEvalCommand(CLI::App& app) {
   cmd->add_option("--max-correspondences", args->max_correspondences,
                   "Subsample to at most this many correspondences before PnP")
       ->capture_default_str();
+  cmd->add_option("--min-correspondences", args->min_correspondences,
+                  "When fewer pass the confidence threshold, use this many most confident ones (0: strict threshold)")
+      ->capture_default_str();
   cmd->add_option("--max-queries", args->max_queries, "Evaluate at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed for sampling, noise and RANSAC")->capture_default_str();
   cmd->add_option("--poses", args->poses_path, "Write the estimated poses as an hloc pose list (one dataset and method)");
 #ifdef FFLOC_WITH_TORCH
-  cmd->add_option("--model", args->model, "fastforward: weights (see 'ffloc map --help')");
+  cmd->add_option("--model", args->model, "fastforward: weights (see 'ffloc map --help')")->capture_default_str();
   cmd->add_option("--map", args->map_path, "fastforward: a map from 'ffloc map' (default: map the mapping split in memory)");
   cmd->add_option("--top-k", args->top_k, "fastforward: mapping images per query")->capture_default_str();
   cmd->add_option("--features", args->features, "fastforward: map tokens per query")->capture_default_str();
   cmd->add_option("--selection", args->selection, "fastforward: retrieval, uniform or random")->capture_default_str();
   cmd->add_option("--dtype", args->dtype, "fastforward: backbone precision f32 or bf16")->capture_default_str();
   cmd->add_option("--ply", args->ply_path,
-                  "Write a PLY (one dataset and method): mapping cameras grey, ground truth green, estimates blue, "
+                  "Write a PLY (one dataset; fastforward's poses when it runs, else the first method's): mapping cameras grey, ground truth green, estimates blue, "
                   "fastforward's predicted points of the last query red");
 #endif
   cmd->add_flag("--quiet", args->quiet, "No progress bar");

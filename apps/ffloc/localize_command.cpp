@@ -23,7 +23,7 @@ namespace {
 
 struct LocalizeArguments {
   std::string map_path;
-  std::string model;
+  std::string model = "default";
   std::string image;
   std::string image_list;
   std::string intrinsics;
@@ -235,7 +235,7 @@ void registerLocalizeCommand(CLI::App& app) {
       "be localised, 2 for bad input.");
   cmd->add_option("--map", args->map_path, "Map file from 'ffloc map'")->required();
   cmd->add_option("--model", args->model, "The model the map was built with (same forms as for 'ffloc map')")
-      ->required();
+      ->capture_default_str();
   cmd->add_option("--image", args->image, "Query image");
   cmd->add_option("--images", args->image_list,
                   "Text file, one query per line: image path (relative to the file) [fx fy cx cy]");

@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   ffloc::cli::registerBenchCommand(app);
   ffloc::cli::registerMapCommand(app);
   ffloc::cli::registerLocalizeCommand(app);
+  ffloc::cli::registerRetrievalCommand(app);
   ffloc::cli::registerTrainCommand(app);
 #endif
   try {

@@ -18,7 +18,7 @@ namespace {
 struct MapArguments {
   std::string dataset;
   std::string format = "auto";
-  std::string model;
+  std::string model = "default";
   std::string output;
   std::string dtype = "f32";
   bool append = false;
@@ -72,9 +72,10 @@ void registerMapCommand(CLI::App& app) {
   cmd->add_option("--dataset", args->dataset, "Dataset folder (its mapping split is mapped)")->required();
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
   cmd->add_option("--model", args->model,
-                  "FastForward checkpoint, DUSt3R checkpoint (.pth or safetensors; initialises FastForward, whose ray "
-                  "MLP and map head are then untrained) or random:<tiny|large>[:seed] for tests")
-      ->required();
+                  "'default' (the shipped model, models/MODEL_CARD.md; FFLOC_MODEL overrides), a FastForward "
+                  "checkpoint, a DUSt3R checkpoint (.pth or safetensors; initialises FastForward, whose ray MLP and "
+                  "map head are then untrained) or random:<tiny|small|large>[:seed] for tests")
+      ->capture_default_str();
   cmd->add_option("-o,--output", args->output, "Map file to write (atomically)")->required();
   cmd->add_flag("--append", args->append,
                 "Add the dataset's images to an existing map (same model required); images already in it (by name) "

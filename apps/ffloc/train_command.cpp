@@ -16,6 +16,7 @@
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
+#include "ffloc/data/splits.h"
 #include "ffloc/train/trainer.h"
 #include "ffloc/train/training_checkpoint.h"
 
@@ -27,6 +28,7 @@ namespace fs = std::filesystem;
 struct TrainArguments {
   std::string config;
   std::vector<std::string> data;
+  std::vector<std::string> validation_data;
   std::string out;
   bool resume = false;
   std::optional<int64_t> steps;
@@ -38,9 +40,41 @@ struct TrainArguments {
   bool quiet = false;
 };
 
+// "DIR" or "DIR@<split>": a dataset, or only its frames of one split (e.g. a dataset's mapping
+// split, so that its queries stay unseen for evaluation).
+Scene loadTrainingData(const std::string& spec) {
+  const size_t at = spec.rfind('@');
+  if (at == std::string::npos) return loadDataset(spec);
+  const std::string dir = spec.substr(0, at);
+  const std::string split_name = spec.substr(at + 1);
+  Split split = Split::kUnassigned;
+  if (split_name == "mapping") {
+    split = Split::kMapping;
+  } else if (split_name == "query") {
+    split = Split::kQuery;
+  } else {
+    throwInputError("--data", 0, "'" + spec + "': unknown split '" + split_name + "' (expected mapping or query)");
+  }
+  Scene scene = loadDataset(dir);
+  requireSplits(scene);
+  std::vector<Frame> kept;
+  for (const size_t index : scene.indices(split)) kept.push_back(scene.frames[index]);
+  scene.frames = std::move(kept);
+  scene.points.clear();  // their observations index the frames that were dropped
+  return scene;
+}
+
+std::string validationSummary(const ValidationStats& stats) {
+  char text[256];
+  std::snprintf(text, sizeof(text), "  val loss %.4f, pose median %.3g / %.3g deg, %.0f%% in 10cm/10deg", stats.loss,
+                stats.median_translation_error, stats.median_rotation_error_deg, 100.0 * stats.within_10cm_10deg);
+  return text;
+}
+
 const char* kCsvHeader =
     "step,loss,query_loss,map_loss,query_error,map_error,learning_rate,grad_norm,samples_per_s,"
-    "val_loss,val_query_error,val_map_error\n";
+    "val_loss,val_query_error,val_map_error,val_median_translation,val_median_rotation_deg,val_10cm_10deg,"
+    "val_25cm_5deg\n";
 
 void runTrain(const TrainArguments& args) {
   TrainingConfig config = args.config.empty() ? TrainingConfig{} : readTrainingConfig(args.config);
@@ -53,18 +87,29 @@ void runTrain(const TrainArguments& args) {
   config.validate("command line");
 
   std::vector<Scene> scenes;
-  for (const std::string& dir : args.data) scenes.push_back(loadDataset(dir));
+  for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
   const fs::path run_dir = args.out;
   if (!args.resume && latestTrainingCheckpoint(run_dir)) {
     throwInputError(run_dir.string(), 0, "already holds a training run; pass --resume to continue it");
   }
   fs::create_directories(run_dir);
-  Trainer trainer(config, std::move(scenes), run_dir, args.resume);
+  std::vector<Scene> validation_scenes;
+  for (const std::string& spec : args.validation_data) validation_scenes.push_back(loadTrainingData(spec));
+  Trainer trainer(config, std::move(scenes), run_dir, args.resume, std::move(validation_scenes));
   {
     std::ofstream(run_dir / "config.json") << toJson(config).dump(2) << "\n";
   }
   const fs::path log_path = run_dir / "log.csv";
   const bool new_log = !fs::exists(log_path) || !args.resume;
+  if (!new_log) {
+    std::ifstream existing(log_path);
+    std::string header;
+    std::getline(existing, header);
+    if (header + "\n" != kCsvHeader) {
+      throwInputError(log_path.string(), 1, "columns differ from this version's log (" + std::string(kCsvHeader) +
+                                                "); move the old log away to resume");
+    }
+  }
   std::ofstream log(log_path, new_log ? std::ios::trunc : std::ios::app);
   if (!log) throwInputError(log_path.string(), 0, "cannot write the training log");
   if (new_log) log << kCsvHeader;
@@ -96,11 +141,13 @@ void runTrain(const TrainArguments& args) {
                   stats.learning_rate, stats.grad_norm, rate);
     log << row;
     if (validation) {
-      std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g", validation->loss, validation->query_error,
-                    validation->map_error);
+      std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g", validation->loss,
+                    validation->query_error, validation->map_error, validation->median_translation_error,
+                    validation->median_rotation_error_deg, validation->within_10cm_10deg,
+                    validation->within_25cm_5deg);
       log << row;
     } else {
-      log << ",,";
+      log << ",,,,,,";
     }
     log << "\n" << std::flush;
     if (!args.quiet) {
@@ -109,7 +156,7 @@ void runTrain(const TrainArguments& args) {
                    static_cast<long long>(stats.step), static_cast<long long>(config.steps), stats.loss,
                    window_loss / static_cast<double>(window_steps), stats.query_error, stats.map_error,
                    stats.learning_rate, stats.grad_norm, rate, eta,
-                   validation ? ("  val loss " + std::to_string(validation->loss)).c_str() : "");
+                   validation ? validationSummary(*validation).c_str() : "");
     }
     window_start = Clock::now();
     window_steps = 0;
@@ -126,8 +173,11 @@ void registerTrainCommand(CLI::App& app) {
   auto args = std::make_shared<TrainArguments>();
   CLI::App* cmd = app.add_subcommand("train", "Train FastForward on posed RGB-D datasets (docs/training.md)");
   cmd->add_option("--config", args->config, "Training settings (JSON; see docs/training.md)");
-  cmd->add_option("--data", args->data, "Dataset folders (any format ffloc reads, with depth)")
+  cmd->add_option("--data", args->data, "Dataset folders (any format ffloc reads, with depth); DIR@mapping or DIR@query keeps one split")
       ->required()
+      ->delimiter(',');
+  cmd->add_option("--val-data", args->validation_data,
+                  "Held-out datasets for validation (loss and PnP pose); default: samples of --data")
       ->delimiter(',');
   cmd->add_option("--out", args->out, "Run folder: log.csv, config.json, checkpoints/")->required();
   cmd->add_flag("--resume", args->resume, "Continue from the latest checkpoint in the run folder");

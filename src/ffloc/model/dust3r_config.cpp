@@ -48,7 +48,19 @@ Dust3rConfig Dust3rConfig::preset(const std::string& name) {
     config.head.last_dim = 24;
     return config;
   }
-  throwInputError("Dust3rConfig", 0, "unknown preset '" + name + "' (expected large or tiny)");
+  if (name == "small") {
+    config.enc_dim = 192;
+    config.enc_depth = 6;
+    config.enc_heads = 3;
+    config.dec_dim = 192;
+    config.dec_depth = 6;
+    config.dec_heads = 3;
+    config.head.layer_dims = {48, 96, 192, 192};
+    config.head.feature_dim = 64;
+    config.head.last_dim = 32;
+    return config;
+  }
+  throwInputError("Dust3rConfig", 0, "unknown preset '" + name + "' (expected large, small or tiny)");
 }
 
 namespace {

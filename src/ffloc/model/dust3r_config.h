@@ -38,7 +38,8 @@ struct Dust3rConfig {
   // width, a head dim RoPE2D cannot split into four equal parts).
   void validate() const;
 
-  // "large" (the official model) or "tiny" (the fixture model in shared/fixtures/dust3r).
+  // "large" (the official model), "small" (the size of the shipped model, for training on small
+  // hardware) or "tiny" (the fixture model in shared/fixtures/dust3r).
   static Dust3rConfig preset(const std::string& name);
 };
 

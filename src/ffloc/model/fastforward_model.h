@@ -18,6 +18,9 @@ namespace ffloc {
 struct FastForwardConfig {
   Dust3rConfig dust3r;
   RayEncoderConfig rays;
+  // Long side of the images the model was trained on; mapping and localisation preprocess to it
+  // unless told otherwise. DUSt3R's 512; a FastForward checkpoint records its own.
+  int64_t input_long_side = 512;
 };
 
 // N map tokens, each remembering where it came from.

@@ -11,6 +11,7 @@
 #include "ffloc/geometry/rays.h"
 #include "ffloc/model/ray_encoding.h"
 #include "ffloc/pipeline/prepared_image.h"
+#include "ffloc/pipeline/query_descriptor.h"
 
 namespace ffloc {
 namespace {
@@ -86,9 +87,7 @@ QueryPrediction Localizer::predict(const cv::Mat& rgb, const Intrinsics& intrins
   out.timings.encoding = secondsSince(start);
 
   start = Clock::now();
-  const at::Tensor query_tokens = encoding.tokens[0].to(at::kFloat).contiguous();
-  const std::vector<float> descriptor =
-      globalDescriptor(query_tokens.data_ptr<float>(), query_tokens.size(0), query_tokens.size(1), options.descriptor);
+  const std::vector<float> descriptor = encodingDescriptor(encoding, options.descriptor);
   out.selected = selectImages(descriptor, options);
   out.timings.retrieval = secondsSince(start);
 

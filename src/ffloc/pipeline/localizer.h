@@ -21,7 +21,7 @@ struct LocalizeOptions {
   int64_t num_features = 1500;  // N map tokens sampled from them
   uint64_t seed = 0;            // token sampling (and random image selection)
   ImageSelection selection = ImageSelection::kRetrieval;
-  int long_side = 512;                 // of the preprocessed query, as MappingOptions
+  int long_side = 0;                   // of the preprocessed query, as MappingOptions
   GlobalDescriptorOptions descriptor;  // must match the mapper's
   PnpOptions pnp;
 

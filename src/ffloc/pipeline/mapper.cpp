@@ -9,6 +9,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/pipeline/prepared_image.h"
+#include "ffloc/pipeline/query_descriptor.h"
 
 namespace ffloc {
 
@@ -30,7 +31,7 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
   const at::Tensor half = tokens.to(at::kHalf).contiguous();
   image.tokens.resize(static_cast<size_t>(half.numel()));
   std::memcpy(image.tokens.data(), half.data_ptr(), image.tokens.size() * sizeof(uint16_t));
-  image.descriptor = globalDescriptor(tokens.data_ptr<float>(), tokens.size(0), tokens.size(1), options.descriptor);
+  image.descriptor = encodingDescriptor(encoding, options.descriptor);
   return image;
 }
 

@@ -14,8 +14,9 @@ namespace ffloc {
 // pose, the intrinsics of the preprocessed image, the preprocessing geometry and a global
 // descriptor pooled from the same tokens. Queries never run the encoder on mapping images again.
 struct MappingOptions {
-  // Long side of the preprocessed image: 512 for the paper's model; tests use less for speed.
-  int long_side = 512;
+  // Long side of the preprocessed image; 0: the model's input_long_side (512 for the paper's
+  // model). Tests use less for speed.
+  int long_side = 0;
   GlobalDescriptorOptions descriptor;
   bool quiet = false;  // no progress bar
 };

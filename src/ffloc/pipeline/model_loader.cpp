@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 
@@ -54,7 +55,7 @@ bool sameSizes(const Dust3rConfig& a, const Dust3rConfig& b) {
 // that preset's heads (the tiny fixture's head dims are 16 and 12); anything else gets DUSt3R's
 // head dim of 64.
 Dust3rConfig configFromArchive(const TensorArchive& archive) {
-  for (const char* name : {"large", "tiny"}) {
+  for (const char* name : {"large", "small", "tiny"}) {
     const Dust3rConfig preset = Dust3rConfig::preset(name);
     Dust3rConfigInference heads;
     heads.enc_head_dim = preset.enc_dim / preset.enc_heads;
@@ -67,6 +68,21 @@ Dust3rConfig configFromArchive(const TensorArchive& archive) {
     }
   }
   return inferDust3rConfig(archive);
+}
+
+// A trained checkpoint records the image size it learned on (metadata 'input_long_side');
+// checkpoints without it are taken to be at DUSt3R's 512.
+int64_t inputLongSide(const TensorArchive& archive, int64_t patch_size) {
+  const auto found = archive.metadata().find("input_long_side");
+  if (found == archive.metadata().end()) return 512;
+  char* end = nullptr;
+  const long long value = std::strtoll(found->second.c_str(), &end, 10);
+  if (found->second.empty() || *end != '\0' || value < patch_size || value > 8192) {
+    throwInputError(archive.path().string(), 0,
+                    "metadata 'input_long_side': expected an image size of at least the patch size " +
+                        std::to_string(patch_size) + ", got '" + found->second + "'");
+  }
+  return value;
 }
 
 LoadedModel randomModel(const std::string& spec) {
@@ -85,7 +101,7 @@ LoadedModel randomModel(const std::string& spec) {
   try {
     config.dust3r = Dust3rConfig::preset(preset);
   } catch (const InputError&) {
-    throwInputError("--model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny or large)");
+    throwInputError("--model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny, small or large)");
   }
   LoadedModel loaded;
   loaded.model = std::make_unique<FastForwardModel>(config);
@@ -142,7 +158,17 @@ uint64_t parameterFingerprint(FastForwardModel& model) {
   return hash;
 }
 
-LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options) {
+std::string defaultModelPath() {
+  const char* override_path = std::getenv("FFLOC_MODEL");
+  if (override_path != nullptr && *override_path != '\0') return override_path;
+  return FFLOC_SHIPPED_MODEL;
+}
+
+LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& options) {
+  const std::string spec = requested == "default" ? defaultModelPath() : requested;
+  if (requested == "default" && !std::filesystem::is_regular_file(spec)) {
+    throwInputError(spec, 0, "the default model is missing (set FFLOC_MODEL, or pass --model; docs/training.md trains one)");
+  }
   if (options.backbone_dtype != at::kFloat && options.backbone_dtype != at::kBFloat16)
     throwInputError("--model", 0, "backbone dtype must be float32 or bfloat16");
   LoadedModel loaded;
@@ -158,6 +184,7 @@ LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options) 
       const TensorView& fc1 = archive->at("ray_embed.fc1.weight");
       if (fc1.shape.size() != 2) throwInputError(spec, 0, "tensor 'ray_embed.fc1.weight': expected 2 dimensions");
       if (fc1.shape[0] != config.dust3r.enc_dim) config.rays.hidden_dim = fc1.shape[0];
+      config.input_long_side = inputLongSide(*archive, config.dust3r.patch_size);
       loaded.model = std::make_unique<FastForwardModel>(config);
       loaded.model->loadWeights(*archive);
       loaded.id = "fastforward/" + sizes + "/" + hex64(parameterFingerprint(*loaded.model));

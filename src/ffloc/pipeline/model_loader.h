@@ -14,7 +14,9 @@ namespace ffloc {
 // - a FastForward checkpoint (safetensors or .pth holding map_head.* and ray_embed.*);
 // - a DUSt3R checkpoint (.pth or safetensors): FastForward is initialised from it
 //   (FastForwardModel::initializeFromDust3r), so its ray MLP and map head are untrained;
-// - "random:<preset>[:<seed>]" (preset "tiny" or "large"): every parameter drawn from a seeded
+// - "default": the model shipped in models/ (models/MODEL_CARD.md), or the file named by the
+//   FFLOC_MODEL environment variable when it is set;
+// - "random:<preset>[:<seed>]" (preset "tiny", "small" or "large"): every parameter drawn from a seeded
 //   generator, for tests and timing. Its predictions are meaningless.
 struct ModelLoadOptions {
   at::ScalarType backbone_dtype = at::kFloat;  // kFloat or kBFloat16
@@ -29,6 +31,9 @@ struct LoadedModel {
   std::string id;
   std::string description;  // one line for logs
 };
+
+// The file "default" stands for.
+std::string defaultModelPath();
 
 // InputError naming the file (or the spec) when it cannot be read or is neither kind of checkpoint.
 LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options = {});

@@ -1,3 +1,7 @@
+#include <ATen/TensorOperators.h>
+#include <ATen/ops/isfinite.h>
+#include <ATen/ops/zeros.h>
+#include <c10/core/InferenceMode.h>
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -6,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <cstdio>
+#include <cstdlib>
 #include <random>
 
 #include "ffloc/core/error.h"
@@ -17,6 +22,7 @@
 #include "ffloc/pipeline/localizer.h"
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/pipeline/model_loader.h"
+#include "ffloc/pipeline/prepared_image.h"
 
 namespace ffloc {
 namespace {
@@ -266,6 +272,33 @@ TEST(Pipeline, FixtureModelOnRedkitchen) {
 
   EXPECT_NE(inputErrorOf([&] { loadModel((dataset / "camera-intrinsics.txt").string()); }).find("camera-intrinsics"),
             std::string::npos);
+}
+
+}  // namespace
+}  // namespace ffloc
+
+namespace ffloc {
+namespace {
+
+// The model shipped in models/ is what "default" loads: a FastForward checkpoint of the small
+// preset that preprocesses at the size it was trained at, and whose predictions are finite.
+TEST(Pipeline, ShippedDefaultModelLoadsAndPredicts) {
+  ::unsetenv("FFLOC_MODEL");
+  const LoadedModel model = loadModel("default");
+  EXPECT_EQ(model.id.rfind("fastforward/e192x6-d192x6/", 0), 0u) << model.id;
+  EXPECT_EQ(model.model->config().input_long_side, 256);
+  EXPECT_EQ(preprocessOptionsFor(*model.model).long_side, 256);
+
+  c10::InferenceMode inference;
+  const at::Tensor image = at::zeros({1, 3, 192, 256}, at::kFloat);
+  const Dust3rEncoding query = model.model->encode(image);
+  EXPECT_EQ(query.tokens.size(1), 12 * 16);
+  const MapTokens map = gatherMapTokens({query}, {at::zeros({1, 12 * 16, 6}, at::kFloat)},
+                                        sampleMapTokenIndices({12 * 16}, 100, 3));
+  const FastForwardPrediction prediction = model.model->forward(query, map);
+  EXPECT_EQ(prediction.query.pts3d.sizes(), (std::vector<int64_t>{1, 192, 256, 3}));
+  EXPECT_TRUE(at::isfinite(prediction.query.pts3d).all().item<bool>());
+  EXPECT_TRUE((prediction.query.conf >= 1).all().item<bool>());
 }
 
 }  // namespace

@@ -35,7 +35,7 @@ Dust3rEncoding encodeImage(const FastForwardModel& model, const PreparedImage& i
 
 PreprocessOptions preprocessOptionsFor(const FastForwardModel& model, int long_side) {
   PreprocessOptions options;
-  options.long_side = long_side;
+  options.long_side = long_side > 0 ? long_side : static_cast<int>(model.config().input_long_side);
   options.patch_size = static_cast<int>(model.config().dust3r.patch_size);
   return options;
 }

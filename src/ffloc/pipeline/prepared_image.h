@@ -26,6 +26,7 @@ PreparedImage prepareImage(const cv::Mat& rgb, const Intrinsics& intrinsics, con
 Dust3rEncoding encodeImage(const FastForwardModel& model, const PreparedImage& image);
 
 // Preprocessing that matches the model's patch size; the long side is DUSt3R's 512 unless told.
-PreprocessOptions preprocessOptionsFor(const FastForwardModel& model, int long_side = 512);
+// long_side <= 0: the model's input_long_side.
+PreprocessOptions preprocessOptionsFor(const FastForwardModel& model, int long_side = 0);
 
 }  // namespace ffloc

@@ -99,7 +99,8 @@ PnpResult estimatePose(const Correspondences& correspondences, const Intrinsics&
 
   std::mt19937_64 rng(options.seed);
   const std::vector<int> selected =
-      selectCorrespondences(correspondences, options.confidence_threshold, options.max_correspondences, &rng);
+      selectCorrespondences(correspondences, options.confidence_threshold, options.max_correspondences, &rng,
+                            options.min_correspondences);
   result.used_correspondences = static_cast<int>(selected.size());
   if (selected.size() < 4) return finish(PnpStatus::kTooFewCorrespondences);
 

@@ -24,6 +24,9 @@ struct PnpOptions {
   PnpSolver solver = PnpSolver::kLoRansac;
   float confidence_threshold = 1.5f;
   size_t max_correspondences = 5000;
+  // Fewer pairs than this above the threshold: the most confident this many are used instead
+  // (selectCorrespondences). 0 keeps the threshold strict.
+  size_t min_correspondences = 500;
   uint64_t seed = 0;  // seeds the subsampling and, for kLoRansac, the minimal samples
   double inlier_threshold_px = 8.0;
   int max_iterations = 10000;  // cap on minimal samples; the count adapts below it

@@ -140,9 +140,14 @@ TEST_P(BothSolvers, TooFewPairsIsAStatus) {
   EXPECT_EQ(result.status, PnpStatus::kTooFewCorrespondences);
   EXPECT_EQ(result.used_correspondences, 3);
 
+  // Three pairs above the threshold: too few when the threshold is strict; by default the most
+  // confident pairs (all ten) are used instead.
   Correspondences filtered = q.correspondences;
   for (size_t i = 3; i < filtered.size(); ++i) filtered.confidences[i] = 1.0f;
-  EXPECT_EQ(estimatePose(filtered, testCamera(), options()).status, PnpStatus::kTooFewCorrespondences);
+  PnpOptions strict = options();
+  strict.min_correspondences = 0;
+  EXPECT_EQ(estimatePose(filtered, testCamera(), strict).status, PnpStatus::kTooFewCorrespondences);
+  EXPECT_EQ(estimatePose(filtered, testCamera(), options()).used_correspondences, 10);
 }
 
 TEST_P(BothSolvers, CollinearPointsGiveNoPose) {

@@ -41,5 +41,16 @@ TEST(SelectCorrespondences, SubsamplesToADistinctSortedSubsetThatDependsOnTheSee
   EXPECT_NE(selectCorrespondences(c, 1.5f, 1000, &other), a);
 }
 
+TEST(SelectCorrespondences, FallsBackToTheMostConfidentWhenTooFewPassTheThreshold) {
+  Correspondences c = withConfidences({1.2f, 1.4f, 1.1f, 1.6f, 1.3f, 1.4f, std::nanf(""), 1.0f});
+  std::mt19937_64 rng(0);
+  // Only index 3 passes 1.5; with min_count 4 the four most confident finite pairs are used,
+  // the tie at 1.4 broken by index and NaN never taken.
+  EXPECT_EQ(selectCorrespondences(c, 1.5f, 5000, &rng, 4), (std::vector<int>{1, 3, 4, 5}));
+  EXPECT_EQ(selectCorrespondences(c, 1.5f, 5000, &rng, 1), (std::vector<int>{3}));
+  EXPECT_EQ(selectCorrespondences(c, 1.5f, 5000, &rng, 100), (std::vector<int>{0, 1, 2, 3, 4, 5, 7}));
+  EXPECT_EQ(selectCorrespondences(c, 1.5f, 2, &rng, 4).size(), 2u);
+}
+
 }  // namespace
 }  // namespace ffloc

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <fstream>
 #include <functional>
@@ -259,9 +260,12 @@ TEST(Trainer, OverfitsOneSample) {
   config.warmup_steps = 10;
   config.learning_rate = 2e-3;
   config.weight_decay = 0;
+  config.validation_samples = 1;
   const fs::path run = testing::makeTempDir("ffloc-train-overfit");
   Trainer trainer(config, {smallScene()}, run);
-  const TrainingSample sample = trainer.sampler().sample(3);
+  // The validation sample, so that validation measures the fitted pose below.
+  const TrainingSample sample = trainer.sampler().sample(validationSampleSeed(config.seed, 0));
+  const ValidationStats before = trainer.validate();
   std::vector<TrainingStepStats> history;
   for (int64_t i = 0; i < config.steps; ++i) history.push_back(trainer.step(sample));
     const auto mean_of = [&](size_t begin, size_t end, const std::function<double(const TrainingStepStats&)>& value) {
@@ -282,6 +286,36 @@ TEST(Trainer, OverfitsOneSample) {
   EXPECT_GT(last_loss, 0);  // so that the ratio above is a real drop, not a sign flip
   EXPECT_LT(last_error, first_error / 10);
   EXPECT_LT(last_error, early_error / 2);
+
+  // Validation localises the sample's query from its predicted points through PnP-RANSAC: the
+  // fitted network gives a usable pose where the random one gave none or a poor one.
+  const ValidationStats after = trainer.validate();
+  std::printf("validation pose: %.3f m / %.2f deg before, %.3f m / %.2f deg after\n", before.median_translation_error,
+              before.median_rotation_error_deg, after.median_translation_error, after.median_rotation_error_deg);
+  EXPECT_EQ(after.samples, 1);
+  EXPECT_NEAR(after.query_error, history.back().query_error, 0.5 * history.back().query_error + 1e-3);
+  EXPECT_LT(after.median_translation_error, 0.5);
+  EXPECT_LT(after.median_rotation_error_deg, 5.0);
+  EXPECT_FALSE(before.median_translation_error < 0.5 && before.median_rotation_error_deg < 5.0);
+}
+
+// A checkpoint records the image size it was trained at; loading it (directly or as the
+// "default" model through FFLOC_MODEL) preprocesses at that size.
+TEST(Trainer, CheckpointsCarryTheInputSize) {
+  TrainingConfig config = smallConfig();
+  config.steps = 1;
+  config.warmup_steps = 0;
+  const fs::path run = testing::makeTempDir("ffloc-train-input-size");
+  Trainer trainer(config, {smallScene()}, run);
+  trainer.step();
+  const fs::path weights = trainer.saveCheckpoint() / "model.safetensors";
+  EXPECT_EQ(loadModel(weights.string()).model->config().input_long_side, 128);
+  ::setenv("FFLOC_MODEL", weights.c_str(), 1);
+  const LoadedModel by_default = loadModel("default");
+  ::unsetenv("FFLOC_MODEL");
+  EXPECT_EQ(by_default.model->config().input_long_side, 128);
+  EXPECT_EQ(by_default.id, loadModel(weights.string()).id);
+  EXPECT_EQ(loadModel("random:tiny").model->config().input_long_side, 512);
 }
 
 std::vector<std::pair<std::string, at::Tensor>> parameterSnapshot(FastForwardModel& model) {

@@ -26,8 +26,15 @@ struct TrainingStepStats {
   int64_t map_tokens = 0;
 };
 
+// Validation on fixed samples: the losses, and the query's pose from its predicted points through
+// the same confidence filter and PnP-RANSAC as localisation (pose errors in metres on metric data;
+// a failed PnP counts as an infinite error).
 struct ValidationStats {
   double loss = 0, query_error = 0, map_error = 0;  // means over the samples
+  double median_translation_error = 0;              // of the PnP poses
+  double median_rotation_error_deg = 0;
+  double within_10cm_10deg = 0;  // fraction of samples
+  double within_25cm_5deg = 0;
   int samples = 0;
 };
 
@@ -47,8 +54,10 @@ class Trainer {
   // A fresh run from config.model, or, when `resume`, the latest checkpoint in run_dir (whose
   // stored configuration must agree with `config` on everything but the step count and the
   // logging, checkpoint and validation intervals; InputError naming the field otherwise).
+  // `validation_scenes`: held-out scenes for validate(); none: validation draws from the training
+  // scenes.
   Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const std::filesystem::path& run_dir,
-          bool resume = false);
+          bool resume = false, std::vector<Scene> validation_scenes = {});
 
   // One update on the sample of the current step (trainingSampleSeed).
   TrainingStepStats step();
@@ -56,7 +65,7 @@ class Trainer {
   // and the schedule advance as for step().
   TrainingStepStats step(const TrainingSample& sample);
   TrainingSampler& sampler() { return *sampler_; }
-  // The loss on config.validation_samples fixed samples, without gradients.
+  // config.validation_samples fixed samples (validationSampleSeed), without gradients.
   ValidationStats validate();
   // Writes <run_dir>/checkpoints/step_<n>/ and points `latest` at it; keeps the newest
   // config.keep_checkpoints. Returns the folder.
@@ -71,6 +80,8 @@ class Trainer {
  private:
   struct Losses;
   Losses evaluate(const TrainingSample& sample) const;
+  FastForwardPrediction predict(const TrainingSample& sample) const;
+  Losses lossesOf(const FastForwardPrediction& prediction, const TrainingSample& sample) const;
 
   TrainingConfig config_;
   std::filesystem::path run_dir_;
@@ -78,6 +89,7 @@ class Trainer {
   std::string model_description_;
   std::unique_ptr<AdamW> optimizer_;
   std::unique_ptr<TrainingSampler> sampler_;
+  std::unique_ptr<TrainingSampler> validation_sampler_;  // null: validate on sampler_
   at::Device device_ = at::kCPU;
 };
 

@@ -85,7 +85,10 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   const ParameterTable table = model.parameterTable();
   for (const auto& entry : table.entries()) weights.emplace_back(entry.name, *entry.tensor);
   writeTensors(partial / "model.safetensors", weights,
-               {{"format", "ffloc-fastforward"}, {"step", std::to_string(step)}, {"training_config", config_json}});
+               {{"format", "ffloc-fastforward"},
+                {"step", std::to_string(step)},
+                {"input_long_side", std::to_string(config.long_side)},
+                {"training_config", config_json}});
   writeTensors(partial / "optimizer.safetensors", optimizer.state(),
                {{"format", "ffloc-train-state"}, {"step", std::to_string(step)}, {"training_config", config_json}});
   fs::remove_all(folder);

@@ -181,6 +181,8 @@ TrainingSample TrainingSampler::sample(uint64_t seed) {
 
     // Query image and per-pixel ground truth.
     const PreparedFrame& q = prepared(scene, query);
+    out.query_camera = q.frame.intrinsics;
+    out.query_pose = q.frame.camera_to_world;
     out.query_image = normalizedImageTensor(jitterColour(q.rgb, options_.colour_jitter, rng));
     const int height = q.depth.rows, width = q.depth.cols;
     out.query_points = at::zeros({1, height, width, 3}, at::kFloat);

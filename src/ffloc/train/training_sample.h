@@ -45,6 +45,8 @@ struct TrainingSample {
   at::Tensor map_points;                    // (1, N, 3) float32, the tokens' patch-centre points
   at::Tensor map_valid;                     // (1, N) bool
   SceneNormalization normalization;
+  Intrinsics query_camera;  // of the preprocessed query image
+  Pose query_pose;          // camera-to-world, in the dataset's world frame
   std::string scene;
   std::string query;
   std::vector<std::string> mapping;

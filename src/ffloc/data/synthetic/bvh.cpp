@@ -11,32 +11,48 @@ constexpr int kLeafSize = 1;
 constexpr int kMaxDepth = 60;
 
 struct RayBoxTest {
-  Vec3 origin, inverse;
-  bool negative[3];  // per axis: the ray meets the box's upper face first
+  double origin[3], inverse[3];
+  int near[3], far[3];  // per axis: which entry of Node::bounds the ray meets first and last
 
   explicit RayBoxTest(const Ray& ray)
-      : origin(ray.origin),
-        inverse(1.0 / ray.direction.x, 1.0 / ray.direction.y, 1.0 / ray.direction.z),
-        negative{inverse.x < 0.0, inverse.y < 0.0, inverse.z < 0.0} {}
-
-  // Entry distance into the box, or 1e300 when the ray misses it within (t_min, t_max).
-  double enter(const Aabb& box, double t_min, double t_max) const {
-    double lo = t_min, hi = t_max;
+      : origin{ray.origin.x, ray.origin.y, ray.origin.z},
+        inverse{1.0 / ray.direction.x, 1.0 / ray.direction.y, 1.0 / ray.direction.z} {
     for (int a = 0; a < 3; ++a) {
-      const double t0 = ((negative[a] ? box.hi[a] : box.lo[a]) - origin[a]) * inverse[a];
-      const double t1 = ((negative[a] ? box.lo[a] : box.hi[a]) - origin[a]) * inverse[a];
-      // NaN (0 * inf for a ray in a box face) compares false and leaves the bound untouched.
-      if (t0 > lo) lo = t0;
-      if (t1 < hi) hi = t1;
-      if (lo > hi) return 1e300;
+      near[a] = inverse[a] < 0.0 ? a + 3 : a;
+      far[a] = inverse[a] < 0.0 ? a : a + 3;
     }
-    return lo;
+  }
+
+  // Whether the ray meets the box within (t_min, t_max), and where it enters. One branch,
+  // on the answer: per-axis early exits cost more in mispredictions than the arithmetic
+  // they skip.
+  bool enters(const double* bounds, double t_min, double t_max, double& enter) const {
+    const double x0 = (bounds[near[0]] - origin[0]) * inverse[0];
+    const double x1 = (bounds[far[0]] - origin[0]) * inverse[0];
+    const double y0 = (bounds[near[1]] - origin[1]) * inverse[1];
+    const double y1 = (bounds[far[1]] - origin[1]) * inverse[1];
+    const double z0 = (bounds[near[2]] - origin[2]) * inverse[2];
+    const double z1 = (bounds[far[2]] - origin[2]) * inverse[2];
+    // NaN (0 * inf for a ray in a box face) compares false and leaves the bound untouched.
+    double lo = x0 > t_min ? x0 : t_min, hi = x1 < t_max ? x1 : t_max;
+    lo = y0 > lo ? y0 : lo;
+    hi = y1 < hi ? y1 : hi;
+    lo = z0 > lo ? z0 : lo;
+    hi = z1 < hi ? z1 : hi;
+    enter = lo;
+    return lo <= hi;
   }
 };
 
-}  // namespace
-
-namespace {
+// Whether the box lies wholly on the far side of the plane: even its corner lowest along the
+// normal is above the offset.
+bool outside(const double* bounds, const Plane& plane) {
+  const Vec3& n = plane.normal;
+  const double lowest = n.x * (n.x > 0.0 ? bounds[0] : bounds[3]) +
+                        n.y * (n.y > 0.0 ? bounds[1] : bounds[4]) +
+                        n.z * (n.z > 0.0 ? bounds[2] : bounds[5]);
+  return lowest > plane.offset;
+}
 
 double surfaceArea(const Aabb& box) {
   const Vec3 e = box.hi - box.lo;
@@ -67,7 +83,10 @@ int Bvh::build(std::vector<int>& items, int begin, int end, const std::vector<Aa
     box.grow(boxes[items[i]]);
     centres.grow(boxes[items[i]].centre());
   }
-  nodes_[index].box = box;
+  for (int a = 0; a < 3; ++a) {
+    nodes_[index].bounds[a] = box.lo[a];
+    nodes_[index].bounds[a + 3] = box.hi[a];
+  }
   const int count = end - begin;
   auto makeLeaf = [&]() {
     nodes_[index].first = begin;
@@ -78,7 +97,10 @@ int Bvh::build(std::vector<int>& items, int begin, int end, const std::vector<Aa
 
   constexpr int kBins = 16;
   constexpr double kTraversalCost = 1.0;
-  double best_cost = count * surfaceArea(box);  // cost of a leaf, in intersection tests
+  // Always split, even where the heuristic prices a leaf lower: it assumes rays come from
+  // outside the box, but cameras stand inside the room or plaza, where every ray enters the
+  // box of the walls and a leaf of walls would cost every ray all of their intersections.
+  double best_cost = 1e300;
   int best_axis = -1, best_split = 0;
   for (int axis = 0; axis < 3; ++axis) {
     const double lo = centres.lo[axis], extent = centres.hi[axis] - lo;
@@ -129,11 +151,9 @@ int Bvh::build(std::vector<int>& items, int begin, int end, const std::vector<Aa
                                 return b < best_split;
                               }) -
         items.begin());
-  } else if (count > 8) {
-    // No split pays off by area, but a long leaf is slow: halve it in index order.
-    mid = begin + count / 2;
   } else {
-    return makeLeaf();
+    // All centres coincide: halve in index order.
+    mid = begin + count / 2;
   }
   build(items, begin, mid, boxes, depth + 1);  // lands at index + 1
   const int right = build(items, mid, end, boxes, depth + 1);
@@ -144,25 +164,20 @@ int Bvh::build(std::vector<int>& items, int begin, int end, const std::vector<Aa
 
 bool Bvh::closestHit(const std::vector<Shape>& shapes, const Ray& ray, double t_min,
                      double t_max, Hit& hit) const {
-  if (nodes_.empty()) return false;
-  bool found = false;
-  double best = t_max;
+  double best = t_max, enter;
   const RayBoxTest test(ray);
-  // Each pending node carries its entry distance, so a node is box-tested once, when its
-  // parent is visited, and dropped on the pop if a nearer hit has been found since.
-  struct Pending {
-    int node;
-    double enter;
-  };
-  Pending stack[kMaxDepth + 2];
+  if (nodes_.empty() || !test.enters(nodes_[0].bounds, t_min, best, enter)) return false;
+  bool found = false;
+  // Depth first, nearer child first; the nearer child stays in registers and only the farther
+  // one is stacked, with its entry distance, so it can be dropped unvisited once a hit nearer
+  // than its box has been found. Node and distance live in separate arrays: a pop then reads
+  // exactly what a push wrote, which the processor can forward from the store.
+  int pending_node[kMaxDepth + 2];
+  double pending_enter[kMaxDepth + 2];
   int top = 0;
-  const double root_enter = test.enter(nodes_[0].box, t_min, best);
-  if (root_enter > best) return found;
-  stack[top++] = {0, root_enter};
-  while (top > 0) {
-    const Pending pending = stack[--top];
-    if (pending.enter > best) continue;
-    const Node& node = nodes_[pending.node];
+  int current = 0;
+  for (;;) {
+    const Node& node = nodes_[current];
     if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
         const int s = order_[i];
@@ -177,45 +192,121 @@ bool Bvh::closestHit(const std::vector<Shape>& shapes, const Ray& ray, double t_
         hit.local_normal = n;
         found = true;
       }
+    } else {
+      const int left = current + 1, right = node.first;
+      double tl, tr;
+      const bool enters_left = test.enters(nodes_[left].bounds, t_min, best, tl);
+      const bool enters_right = test.enters(nodes_[right].bounds, t_min, best, tr);
+      if (enters_left && enters_right) {
+        const bool left_first = tl <= tr;
+        pending_node[top] = left_first ? right : left;
+        pending_enter[top] = left_first ? tr : tl;
+        ++top;
+        current = left_first ? left : right;
+        continue;
+      }
+      if (enters_left || enters_right) {
+        current = enters_left ? left : right;
+        continue;
+      }
+    }
+    do {
+      if (top == 0) return found;
+      --top;
+    } while (pending_enter[top] > best);
+    current = pending_node[top];
+  }
+}
+
+int Bvh::occluder(const std::vector<Shape>& shapes, const Ray& ray, double t_min,
+                  double t_max, int ignore) const {
+  double enter;
+  const RayBoxTest test(ray);
+  if (nodes_.empty() || !test.enters(nodes_[0].bounds, t_min, t_max, enter)) return -1;
+  // Any hit ends the search, so the order does not matter; as in closestHit, one child is
+  // carried in a register and only a second one is stacked.
+  int pending[kMaxDepth + 2];
+  int top = 0;
+  int current = 0;
+  for (;;) {
+    const Node& node = nodes_[current];
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const int s = order_[i];
+        double t;
+        Vec3 n;
+        if (s != ignore && intersect(shapes[s], ray, t_min, t_max, t, n)) return s;
+      }
+    } else {
+      const int left = current + 1, right = node.first;
+      const bool enters_left = test.enters(nodes_[left].bounds, t_min, t_max, enter);
+      const bool enters_right = test.enters(nodes_[right].bounds, t_min, t_max, enter);
+      if (enters_left && enters_right) pending[top++] = right;
+      if (enters_left || enters_right) {
+        current = enters_left ? left : right;
+        continue;
+      }
+    }
+    if (top == 0) return -1;
+    current = pending[--top];
+  }
+}
+
+void Bvh::collect(const Plane* planes, int count, std::vector<BoxedShape>& out) const {
+  if (nodes_.empty()) return;
+  int pending[kMaxDepth + 2];
+  int top = 0;
+  pending[top++] = 0;
+  while (top > 0) {
+    const int index = pending[--top];
+    const Node& node = nodes_[index];
+    bool culled = false;
+    for (int p = 0; p < count && !culled; ++p) culled = outside(node.bounds, planes[p]);
+    if (culled) continue;
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        BoxedShape entry;
+        for (int k = 0; k < 6; ++k) entry.bounds[k] = node.bounds[k];
+        entry.shape = order_[i];
+        out.push_back(entry);
+      }
       continue;
     }
-    // Visit the nearer child first so the far one is often culled by the shrunken bound.
-    const int left = pending.node + 1, right = node.first;
-    const double tl = test.enter(nodes_[left].box, t_min, best);
-    const double tr = test.enter(nodes_[right].box, t_min, best);
-    if (tl <= tr) {
-      if (tr <= best) stack[top++] = {right, tr};
-      if (tl <= best) stack[top++] = {left, tl};
-    } else {
-      if (tl <= best) stack[top++] = {left, tl};
-      if (tr <= best) stack[top++] = {right, tr};
-    }
+    // Right first, so the left subtree is listed first.
+    pending[top++] = node.first;
+    pending[top++] = index + 1;
+  }
+}
+
+bool closestHitAmong(const std::vector<Shape>& shapes, const std::vector<BoxedShape>& list,
+                     const Ray& ray, double t_min, double t_max, Hit& hit) {
+  const RayBoxTest test(ray);
+  double best = t_max, enter;
+  bool found = false;
+  for (const BoxedShape& entry : list) {
+    if (!test.enters(entry.bounds, t_min, best, enter)) continue;
+    double t;
+    Vec3 n;
+    if (!intersect(shapes[entry.shape], ray, t_min, best, t, n)) continue;
+    best = t;
+    hit.t = t;
+    hit.shape = entry.shape;
+    hit.local_normal = n;
+    found = true;
   }
   return found;
 }
 
-bool Bvh::occluded(const std::vector<Shape>& shapes, const Ray& ray, double t_min,
-                   double t_max) const {
-  if (nodes_.empty()) return false;
-  double t;
-  Vec3 n;
+int occluderAmong(const std::vector<Shape>& shapes, const std::vector<BoxedShape>& list,
+                  const Ray& ray, double t_min, double t_max, int ignore) {
   const RayBoxTest test(ray);
-  int stack[kMaxDepth + 2];
-  int top = 0;
-  stack[top++] = 0;
-  while (top > 0) {
-    const Node& node = nodes_[stack[--top]];
-    if (test.enter(node.box, t_min, t_max) > t_max) continue;
-    if (node.count > 0) {
-      for (int i = node.first; i < node.first + node.count; ++i) {
-        if (intersect(shapes[order_[i]], ray, t_min, t_max, t, n)) return true;
-      }
-      continue;
-    }
-    stack[top++] = static_cast<int>(&node - nodes_.data()) + 1;
-    stack[top++] = node.first;
+  double enter, t;
+  Vec3 n;
+  for (const BoxedShape& entry : list) {
+    if (entry.shape == ignore || !test.enters(entry.bounds, t_min, t_max, enter)) continue;
+    if (intersect(shapes[entry.shape], ray, t_min, t_max, t, n)) return entry.shape;
   }
-  return false;
+  return -1;
 }
 
 }  // namespace ffloc::synthetic

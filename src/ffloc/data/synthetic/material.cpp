@@ -7,7 +7,7 @@
 namespace ffloc::synthetic {
 namespace {
 
-double fract(double x) { return x - std::floor(x); }
+double fract(double x) { return x - floorExact(x); }
 
 double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
@@ -64,7 +64,7 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
     }
     case Pattern::kTiles: {
       const double u = s / P, w = t / P;
-      const double cs = std::floor(u), ct = std::floor(w);
+      const double cs = floorExact(u), ct = floorExact(w);
       const double jitter = cellValue(cs, ct, m.seed);
       const bool odd = (static_cast<int64_t>(cs + ct) & 1) != 0;
       const Vec3 tile = lerp(m.base, m.accent, odd ? 0.85 : 0.15 * jitter) * (0.9 + 0.2 * jitter);
@@ -79,9 +79,9 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
     }
     case Pattern::kBricks: {
       const double row_f = t / P;
-      const double row = std::floor(row_f);
+      const double row = floorExact(row_f);
       const double u = s / (2.0 * P) + ((static_cast<int64_t>(row) & 1) ? 0.5 : 0.0);
-      const double jitter = cellValue(std::floor(u), row, m.seed);
+      const double jitter = cellValue(floorExact(u), row, m.seed);
       const Vec3 brick = lerp(m.base, m.accent, jitter);
       const double gap = std::fmin(lineDistance(u) * 2.0 * P, lineDistance(row_f) * P);
       const double mortar_keep = resolvable(P * 0.15, footprint);
@@ -92,7 +92,7 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
       break;
     }
     case Pattern::kWood: {
-      const double plank = std::floor(s / (P * 1.5));
+      const double plank = floorExact(s / (P * 1.5));
       const double warp = fractalNoise(Vec3{s * 0.3 / P, t * 4.0 / P, plank}, 3,
                                        footprint * 4.0 / P, m.seed + 11);
       const double rings = fract(t * 6.0 / P + warp * 3.0 + plank * 0.37);
@@ -113,7 +113,7 @@ Vec3 albedo(const Material& m, const Vec3& p, const Vec3& n, double footprint) {
     case Pattern::kWindows: {
       const double cell_w = P, cell_h = P * 1.25;
       const double u = s / cell_w, w = t / cell_h;
-      const double cs = std::floor(u), ct = std::floor(w);
+      const double cs = floorExact(u), ct = floorExact(w);
       const double fu = u - cs, fw = w - ct;
       const bool glass_here = fu > 0.22 && fu < 0.78 && fw > 0.25 && fw < 0.82;
       const bool frame_here = fu > 0.19 && fu < 0.81 && fw > 0.21 && fw < 0.86;

@@ -1,0 +1,201 @@
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "commands.h"
+#include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
+#include "ffloc/core/text_file_writer.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/io/image.h"
+#include "ffloc/io/map_file.h"
+#include "ffloc/model/torch_threads.h"
+#include "ffloc/pipeline/mapper.h"
+#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/pipeline/model_options.h"
+#include "ffloc/pipeline/query_descriptor.h"
+#include "ffloc/retrieval/image_selection.h"
+#include "ffloc/retrieval/retrieval_recall.h"
+
+namespace ffloc::cli {
+namespace {
+
+struct RetrievalArguments {
+  std::string map_path;
+  std::string model = "default";
+  std::string dataset;
+  std::string format = "auto";
+  std::vector<size_t> top_k = {1, 5, 10, 20};
+  size_t max_queries = 0;
+  uint64_t seed = 0;
+  std::string dtype = "f32";
+  int threads = 0;
+  std::string json_path;
+  bool quiet = false;
+};
+
+// The map's images must be the dataset's frames, with the same poses, or the map and the queries
+// live in different worlds and "nearest camera" means nothing (datasets share names like
+// images/0000.jpg, so the name alone does not tell).
+void checkMapAgainstDataset(const MapFile& map, const std::string& map_path, const Scene& scene, int64_t enc_dim) {
+  std::map<std::string, const Frame*> frames;
+  for (const Frame& frame : scene.frames) frames[frame.name] = &frame;
+  const size_t length = static_cast<size_t>(2 * enc_dim);
+  for (const MapImage& image : map.images) {
+    const auto found = frames.find(image.name);
+    if (found == frames.end())
+      throwInputError(map_path, 0, "image '" + image.name + "' is not a frame of dataset " + scene.root.string() +
+                                       " (the map was built from another dataset)");
+    const Pose& pose = found->second->camera_to_world;
+    const double tolerance = 1e-6 * std::max(1.0, pose.t.norm());
+    if ((image.camera_to_world.matrix() - pose.matrix()).cwiseAbs().maxCoeff() > tolerance)
+      throwInputError(map_path, 0, "image '" + image.name + "': pose differs from that frame's in dataset " +
+                                       scene.root.string() + " (the map was built from another dataset)");
+    if (image.descriptor.size() != length)
+      throwInputError(map_path, 0, "image '" + image.name + "': descriptor has " +
+                                       std::to_string(image.descriptor.size()) + " values, the model's has " +
+                                       std::to_string(length));
+  }
+}
+
+std::string fixed(double value, int digits) {
+  std::ostringstream out;
+  out << std::fixed << std::setprecision(digits) << value;
+  return out.str();
+}
+
+void printTable(const RetrievalRecall& result, size_t queries, size_t mapping) {
+  std::cout << "recall@K of the pose-nearest mapping camera (" << queries << " queries, " << mapping
+            << " mapping images)\n";
+  std::cout << "    K  retrieval  uniform  random\n";
+  for (const RecallAtK& r : result.recall)
+    std::cout << std::setw(5) << r.k << "  " << std::setw(9) << fixed(r.retrieval, 3) << "  " << std::setw(7)
+              << fixed(r.uniform, 3) << "  " << std::setw(6) << fixed(r.random, 3) << "\n";
+  std::cout << "median rank of the nearest camera under retrieval: " << fixed(result.median_rank, 1) << " of "
+            << mapping << "\n";
+}
+
+void runRetrieval(const RetrievalArguments& args) {
+  if (args.top_k.empty()) throw InputError("--top-k: no K given");
+  for (size_t k : args.top_k)
+    if (k == 0) throw InputError("--top-k: K must be positive");
+  const std::filesystem::path json_folder = std::filesystem::path(args.json_path).parent_path();
+  if (!json_folder.empty() && !std::filesystem::is_directory(json_folder))
+    throwInputError(args.json_path, 0, "--json: folder " + json_folder.string() + " does not exist");
+
+  const int threads = setTorchThreadCount(args.threads);
+  ModelLoadOptions load_options;
+  load_options.backbone_dtype = parseBackboneDtype(args.dtype);
+  const LoadedModel model = loadModel(args.model, load_options);
+  std::cerr << "model: " << model.description << " (" << threads << " threads, backbone " << args.dtype << ")\n";
+  const MapFile map = readMapFile(args.map_path, model.id);
+  const int64_t enc_dim = model.model->config().dust3r.enc_dim;
+  if (map.images.empty()) throwInputError(args.map_path, 0, "map holds no images");
+  if (map.token_dim != enc_dim)
+    throwInputError(args.map_path, 0, "token width " + std::to_string(map.token_dim) + " differs from the model's " +
+                                          std::to_string(enc_dim));
+
+  const Scene scene = loadDataset(args.dataset, args.format);
+  requireSplits(scene);
+  checkMapAgainstDataset(map, args.map_path, scene, enc_dim);
+  std::vector<size_t> query_frames = scene.queryIndices();
+  if (args.max_queries > 0 && args.max_queries < query_frames.size()) {
+    std::vector<size_t> kept;
+    for (size_t i : uniformSelection(query_frames.size(), args.max_queries)) kept.push_back(query_frames[i]);
+    query_frames = kept;
+  }
+
+  std::vector<Pose> mapping_poses, query_poses;
+  std::vector<std::vector<float>> mapping_descriptors, query_descriptors;
+  for (const MapImage& image : map.images) {
+    mapping_poses.push_back(image.camera_to_world);
+    mapping_descriptors.push_back(image.descriptor);
+  }
+  // The map does not record its preprocessing and pooling settings; `ffloc map` uses the defaults.
+  const MappingOptions mapping_options;
+  ProgressBar progress("encoding queries", query_frames.size(), args.quiet);
+  double encoding_seconds = 0;
+  for (size_t i = 0; i < query_frames.size(); ++i) {
+    const Frame& frame = scene.frames[query_frames[i]];
+    const auto start = std::chrono::steady_clock::now();
+    query_descriptors.push_back(queryDescriptor(*model.model, readImageRgb(frame.image_path), frame.intrinsics,
+                                                frame.name, mapping_options.long_side, mapping_options.descriptor));
+    encoding_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    query_poses.push_back(frame.camera_to_world);
+    progress.update(i + 1);
+  }
+  progress.finish();
+
+  RetrievalRecallOptions options;
+  options.top_k = args.top_k;
+  options.seed = args.seed;
+  const RetrievalRecall result =
+      measureRetrievalRecall(mapping_poses, query_poses, mapping_descriptors, query_descriptors, options);
+  std::cout << "dataset " << scene.root.string() << ", map " << args.map_path << "\n";
+  printTable(result, query_frames.size(), map.images.size());
+  const double encoding_ms = 1e3 * encoding_seconds / static_cast<double>(query_frames.size());
+  std::cout << "reading, preparing and encoding a query: " << fixed(encoding_ms, 1) << " ms per query\n";
+
+  if (args.json_path.empty()) return;
+  nlohmann::json recall = nlohmann::json::array();
+  for (const RecallAtK& r : result.recall)
+    recall.push_back({{"k", r.k}, {"retrieval", r.retrieval}, {"uniform", r.uniform}, {"random", r.random}});
+  const size_t largest_k = *std::max_element(args.top_k.begin(), args.top_k.end());
+  nlohmann::json per_query = nlohmann::json::array();
+  for (size_t q = 0; q < query_frames.size(); ++q) {
+    const std::vector<size_t> top = topKBySimilarity(mapping_descriptors, query_descriptors[q], largest_k);
+    nlohmann::json top_names = nlohmann::json::array();
+    for (size_t index : top) top_names.push_back(map.images[index].name);
+    per_query.push_back({{"name", scene.frames[query_frames[q]].name},
+                         {"nearest", map.images[result.nearest[q]].name},
+                         {"rank", result.rank[q]},
+                         {"top", top_names}});
+  }
+  const nlohmann::json out = {{"dataset", scene.root.string()},
+                              {"map", args.map_path},
+                              {"model_id", model.id},
+                              {"model", model.description},
+                              {"mapping_images", map.images.size()},
+                              {"queries", query_frames.size()},
+                              {"random_seed", args.seed},
+                              {"recall", recall},
+                              {"median_rank", result.median_rank},
+                              {"encoding_ms_per_query", encoding_ms},
+                              {"per_query", per_query}};
+  writeTextFile(args.json_path, out.dump(2) + "\n");
+  std::cerr << "wrote " << args.json_path << "\n";
+}
+
+}  // namespace
+
+void registerRetrievalCommand(CLI::App& app) {
+  auto args = std::make_shared<RetrievalArguments>();
+  CLI::App* cmd = app.add_subcommand(
+      "retrieval",
+      "Measure image retrieval on a dataset's query split: for each K, the fraction of queries whose K mapping "
+      "images selected by global-descriptor retrieval (and, for reference, by uniform and random selection) contain "
+      "the mapping camera nearest to the query's ground-truth pose; also the median rank of that camera.");
+  cmd->add_option("--map", args->map_path, "Map file from 'ffloc map' built from this dataset")->required();
+  cmd->add_option("--model", args->model, "The model the map was built with (same forms as for 'ffloc map')")
+      ->capture_default_str();
+  cmd->add_option("--dataset", args->dataset, "Dataset folder; its query split is measured")->required();
+  cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
+  cmd->add_option("--top-k", args->top_k, "Comma-separated K values")->delimiter(',')->capture_default_str();
+  cmd->add_option("--max-queries", args->max_queries, "Measure at most this many evenly spaced queries (0 = all)")
+      ->capture_default_str();
+  cmd->add_option("--seed", args->seed, "Seed of the random selection")->capture_default_str();
+  cmd->add_option("--dtype", args->dtype, "Backbone precision: f32 or bf16")->capture_default_str();
+  cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--json", args->json_path, "Write the recall table and per-query ranks as JSON here");
+  cmd->add_flag("--quiet", args->quiet, "No progress bar");
+  cmd->callback([args] { runRetrieval(*args); });
+}
+
+}  // namespace ffloc::cli
