@@ -31,6 +31,7 @@
 #include <vector>
 
 #include "commands.h"
+#include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/fastforward_model.h"
 #include "ffloc/model/torch_threads.h"
@@ -251,15 +252,6 @@ std::string setBlasThreads(int threads) {
   return std::string("OpenBLAS, core ") + (core ? core() : "unknown") + ", " + std::to_string(threads) + " threads";
 }
 
-bool cpuHasFlag(const std::string& flag) {
-  std::ifstream cpuinfo("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(cpuinfo, line)) {
-    if (line.rfind("flags", 0) == 0) return (" " + line + " ").find(" " + flag + " ") != std::string::npos;
-  }
-  return false;
-}
-
 class Report {
  public:
   Report(const BenchModelArguments& args, std::optional<ReferenceTiming> reference)
@@ -343,7 +335,7 @@ void benchDust3r(const BenchModelArguments& args, const Report& report, const st
   at::manual_seed(args.seed);
   Dust3rModel model(Dust3rConfig::preset(args.config));
   fillRandomParameters(model.parameterTable(), dtype);
-  model.to(at::kCPU, dtype);
+  model.to(at::kCPU, dtype, dtype);
   MemoryReport memory = startMemoryWindow();
   const Dust3rConfig& config = model.config();
   const at::Tensor image1 = at::rand({1, 3, args.height, args.width}) * 2 - 1;
@@ -376,7 +368,7 @@ void benchFastForward(const BenchModelArguments& args, const Report& report, con
   ff_config.dust3r = Dust3rConfig::preset(args.config);
   FastForwardModel model(ff_config);
   fillRandomParameters(model.parameterTable(), dtype);
-  model.to(at::kCPU, dtype);
+  model.to(at::kCPU, dtype, dtype);
   MemoryReport memory = startMemoryWindow();
   const Dust3rConfig& config = model.config().dust3r;
   const Dust3rEncoding query = model.encode(at::rand({1, 3, args.height, args.width}) * 2 - 1);
@@ -472,7 +464,7 @@ void registerBenchCommand(CLI::App& app) {
                "DUSt3R's decoder + heads, with random weights, beside the Python reference timing");
   cmd->add_option("--config", args->config, "Network size: large (the official DUSt3R) or tiny")
       ->capture_default_str();
-  cmd->add_option("--dtype", args->dtypes, "Backbone precisions, comma-separated: fp32, bf16")
+  cmd->add_option("--dtype", args->dtypes, "Network precisions, comma-separated: fp32, bf16 (bf16: encoder, decoder and DPT heads, as the reference under CPU autocast)")
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "Intra-op and BLAS threads (0 = all hardware threads)")

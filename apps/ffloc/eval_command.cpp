@@ -42,6 +42,7 @@ struct EvalArguments {
   size_t top_k = 10;        // the paper's indoor setting
   int64_t features = 1500;
   std::string poses_path, ply_path;
+  int threads = 0;
   bool quiet = false;
 };
 
@@ -59,9 +60,9 @@ std::vector<std::string> splitList(const std::string& text) {
 std::shared_ptr<const LoadedModel> sharedModel(const EvalArguments& args) {
   static std::shared_ptr<const LoadedModel> model;
   if (!model) {
-    setTorchThreadCount(0);
+    setTorchThreadCount(args.threads);
     ModelLoadOptions options;
-    options.backbone_dtype = parseBackboneDtype(args.dtype);
+    options.dtype = parseNetworkDtype(args.dtype);
     model = std::make_shared<const LoadedModel>(loadModel(args.model, options));
   }
   return model;
@@ -146,6 +147,12 @@ void runEval(const EvalArguments& args) {
     }
   }
 
+  // Several metric datasets: one more row per method over all their frames. Thresholds in metres
+  // mean nothing for a dataset of arbitrary scale, so such a mix gets no pooled row.
+  if (args.datasets.size() > 1 && non_metric.empty()) {
+    const std::string label = "all " + std::to_string(args.datasets.size()) + " datasets";
+    for (const std::string& method : methods) summaries.push_back(summarizePooled(all_frames, method, label));
+  }
   const std::string table = markdownTable(summaries, non_metric);
   std::cout << table;
   std::string csv_path = args.csv_path, markdown_path = args.markdown_path;
@@ -222,7 +229,9 @@ void registerEvalCommand(CLI::App& app) {
   cmd->add_option("--top-k", args->top_k, "fastforward: mapping images per query")->capture_default_str();
   cmd->add_option("--features", args->features, "fastforward: map tokens per query")->capture_default_str();
   cmd->add_option("--selection", args->selection, "fastforward: retrieval, uniform or random")->capture_default_str();
-  cmd->add_option("--dtype", args->dtype, "fastforward: backbone precision f32 or bf16")->capture_default_str();
+  cmd->add_option("--dtype", args->dtype, "fastforward: network precision f32, or bf16 (encoder, decoder and DPT head)")
+      ->capture_default_str();
+  cmd->add_option("--threads", args->threads, "fastforward: libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--ply", args->ply_path,
                   "Write a PLY (one dataset; fastforward's poses when it runs, else the first method's): mapping cameras grey, ground truth green, estimates blue, "
                   "fastforward's predicted points of the last query red");

@@ -167,9 +167,9 @@ void runLocalize(const LocalizeArguments& args) {
 
   const int threads = setTorchThreadCount(args.threads);
   ModelLoadOptions load_options;
-  load_options.backbone_dtype = parseBackboneDtype(args.dtype);
+  load_options.dtype = parseNetworkDtype(args.dtype);
   const LoadedModel model = loadModel(args.model, load_options);
-  std::cerr << "model: " << model.description << " (" << threads << " threads, backbone " << args.dtype << ")\n";
+  std::cerr << "model: " << model.description << " (" << threads << " threads, " << args.dtype << ")\n";
   const Localizer localizer(*model.model, readMapFile(args.map_path, model.id));
   const MapFile& map = localizer.map();
   std::cerr << "map: " << map.images.size() << " images; K = " << options.top_k << ", N = " << options.num_features
@@ -247,7 +247,7 @@ void registerLocalizeCommand(CLI::App& app) {
   cmd->add_option("--selection", args->selection, "Mapping image selection: retrieval, uniform or random")
       ->capture_default_str();
   cmd->add_option("--solver", args->solver, "PnP-RANSAC solver: lo-ransac or opencv-usac")->capture_default_str();
-  cmd->add_option("--dtype", args->dtype, "Backbone precision: f32 or bf16")->capture_default_str();
+  cmd->add_option("--dtype", args->dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head)")->capture_default_str();
   cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--poses", args->poses_path, "Write the estimated poses as an hloc pose list");
   cmd->add_option("--ply", args->ply_path,

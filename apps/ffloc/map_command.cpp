@@ -29,12 +29,12 @@ struct MapArguments {
 void runMap(const MapArguments& args) {
   const int threads = setTorchThreadCount(args.threads);
   ModelLoadOptions load_options;
-  load_options.backbone_dtype = parseBackboneDtype(args.dtype);
+  load_options.dtype = parseNetworkDtype(args.dtype);
   auto start = std::chrono::steady_clock::now();
   const LoadedModel model = loadModel(args.model, load_options);
   const double load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   std::cerr << "model: " << model.description << "\n  id " << model.id << ", loaded in " << std::fixed
-            << std::setprecision(2) << load_seconds << " s, " << threads << " threads, backbone " << args.dtype << "\n";
+            << std::setprecision(2) << load_seconds << " s, " << threads << " threads, " << args.dtype << "\n";
 
   const Scene scene = loadDataset(args.dataset, args.format);
   const std::vector<size_t> frames = scene.mappingIndices();
@@ -80,7 +80,7 @@ void registerMapCommand(CLI::App& app) {
   cmd->add_flag("--append", args->append,
                 "Add the dataset's images to an existing map (same model required); images already in it (by name) "
                 "are skipped and the earlier ones kept as they are");
-  cmd->add_option("--dtype", args->dtype, "Backbone precision: f32 or bf16 (tokens are stored fp16 either way)")
+  cmd->add_option("--dtype", args->dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head; tokens are stored fp16 either way)")
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_flag("--quiet", args->quiet, "No progress bar");

@@ -92,9 +92,9 @@ void runRetrieval(const RetrievalArguments& args) {
 
   const int threads = setTorchThreadCount(args.threads);
   ModelLoadOptions load_options;
-  load_options.backbone_dtype = parseBackboneDtype(args.dtype);
+  load_options.dtype = parseNetworkDtype(args.dtype);
   const LoadedModel model = loadModel(args.model, load_options);
-  std::cerr << "model: " << model.description << " (" << threads << " threads, backbone " << args.dtype << ")\n";
+  std::cerr << "model: " << model.description << " (" << threads << " threads, " << args.dtype << ")\n";
   const MapFile map = readMapFile(args.map_path, model.id);
   const int64_t enc_dim = model.model->config().dust3r.enc_dim;
   if (map.images.empty()) throwInputError(args.map_path, 0, "map holds no images");
@@ -191,7 +191,7 @@ void registerRetrievalCommand(CLI::App& app) {
   cmd->add_option("--max-queries", args->max_queries, "Measure at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the random selection")->capture_default_str();
-  cmd->add_option("--dtype", args->dtype, "Backbone precision: f32 or bf16")->capture_default_str();
+  cmd->add_option("--dtype", args->dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head)")->capture_default_str();
   cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--json", args->json_path, "Write the recall table and per-query ranks as JSON here");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");

@@ -44,6 +44,26 @@ TEST(Metrics, AccuracyAndMediansCountFailuresAsInfinite) {
   EXPECT_TRUE(std::isinf(mostly_failed.median_translation));
 }
 
+// The pooled row takes the median over every frame of one method, whatever its dataset: here
+// {0.01, 0.02, 0.03 | 0.30, fail} pools to a median of 0.03, which neither scene's median is.
+TEST(Metrics, PooledSummaryIsOverAllFramesOfOneMethod) {
+  std::vector<FrameResult> frames = {frame(0.01, 1), frame(0.02, 1), frame(0.03, 1)};
+  for (FrameResult f : {frame(0.30, 1), frame(0, 0, false)}) {
+    f.dataset = "e";
+    frames.push_back(f);
+  }
+  FrameResult other_method = frame(5, 90);
+  other_method.method = "other";
+  frames.push_back(other_method);
+  const MethodSummary pooled = summarizePooled(frames, "m", "all 2 datasets");
+  EXPECT_EQ(pooled.dataset, "all 2 datasets");
+  EXPECT_EQ(pooled.method, "m");
+  EXPECT_EQ(pooled.frames, 5);
+  EXPECT_EQ(pooled.failed, 1);
+  EXPECT_DOUBLE_EQ(pooled.median_translation, 0.03);
+  EXPECT_DOUBLE_EQ(pooled.accuracy_percent[1], 60.0);  // 10cm,10deg: 3 of 5
+}
+
 TEST(Metrics, MedianAndPercentile) {
   EXPECT_DOUBLE_EQ(median({3, 1, 2}), 2);
   EXPECT_DOUBLE_EQ(median({4, 1, 3, 2}), 2);

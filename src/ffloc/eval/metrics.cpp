@@ -60,4 +60,15 @@ MethodSummary summarize(const std::vector<FrameResult>& frames) {
   return s;
 }
 
+MethodSummary summarizePooled(const std::vector<FrameResult>& frames, const std::string& method,
+                              const std::string& label) {
+  std::vector<FrameResult> selected;
+  for (const FrameResult& frame : frames)
+    if (frame.method == method) selected.push_back(frame);
+  MethodSummary pooled = summarize(selected);
+  pooled.dataset = label;
+  pooled.method = method;
+  return pooled;
+}
+
 }  // namespace ffloc

@@ -53,6 +53,11 @@ struct MethodSummary {
 // Failed frames count as infinite error in the medians and as misses in the accuracies.
 MethodSummary summarize(const std::vector<FrameResult>& frames);
 
+// One method's frames of every dataset together, as one summary named `label`: the pooled row
+// of a multi-scene evaluation (medians over all frames, not a mean of per-scene medians).
+MethodSummary summarizePooled(const std::vector<FrameResult>& frames, const std::string& method,
+                              const std::string& label);
+
 // The lower median (no interpolation), so an infinite error is reported as soon as half the
 // frames failed, never averaged with a finite one. Empty input gives 0.
 double median(std::vector<double> values);

@@ -88,8 +88,10 @@ at::Tensor DptHead::forward(const std::array<at::Tensor, 4>& tokens, int64_t hei
   std::array<at::Tensor, 4> layers;
   for (size_t i = 0; i < 4; ++i) {
     const at::Tensor& t = tokens[i];
-    // (B, N, C) -> (B, C, rows, cols), token n at row n / cols.
-    at::Tensor map = t.transpose(1, 2).reshape({t.size(0), t.size(2), rows, cols});
+    // (B, N, C) -> (B, C, rows, cols), token n at row n / cols, as a channels-last view without a
+    // copy. The whole head then stays channels-last, where oneDNN's convolutions and the bilinear
+    // upsampling are fastest (bf16 upsampling: 8.5 ms against 200 ms in NCHW, measured).
+    at::Tensor map = t.reshape({t.size(0), rows, cols, t.size(2)}).permute({0, 3, 1, 2});
     map = project[i].forward(map);
     if (i != 2) map = resample[i].forward(map);
     record(trace, trace_prefix, "act_postprocess" + std::to_string(i), map);
@@ -108,7 +110,9 @@ at::Tensor DptHead::forward(const std::array<at::Tensor, 4>& tokens, int64_t hei
   const at::Tensor path1 = applyFusion(refinenet[0], path2, &layers[0]);
   record(trace, trace_prefix, "path1", path1);
   at::Tensor out = upsampleTwice(head0.forward(path1));
-  out = head4.forward(at::relu(head2.forward(out)));
+  // The output projection keeps its own precision (float32), so depth and confidence, which go
+  // through exp, are not rounded to bfloat16.
+  out = head4.forward(at::relu(head2.forward(out)).to(head4.weight.scalar_type()));
   record(trace, trace_prefix, "raw", out);
   return out;
 }

@@ -35,7 +35,10 @@ void checkImages(const at::Tensor& images, int64_t patch, const std::string& wha
 
 Dust3rPointMap pointMapFromRaw(const at::Tensor& raw) { return pointsFromRaw(raw.permute({0, 2, 3, 1})); }
 
-Dust3rPointMap pointsFromRaw(const at::Tensor& fmap) {
+Dust3rPointMap pointsFromRaw(const at::Tensor& raw) {
+  // float32 whatever produced `raw` (under mixed precision a bf16 layer may have): exp would
+  // otherwise carry bf16's 8-bit mantissa into depth and confidence.
+  const at::Tensor fmap = raw.to(at::kFloat);
   const at::Tensor xyz = fmap.narrow(-1, 0, 3);
   const std::vector<int64_t> last = {-1};
   const at::Tensor d = at::linalg_vector_norm(xyz, 2, at::IntArrayRef(last), /*keepdim=*/true);
@@ -95,12 +98,14 @@ ParameterTable Dust3rModel::parameterTable(Dust3rHeads heads) {
 
 void Dust3rModel::loadWeights(const TensorArchive& archive) {
   loadParameters(parameterTable(), archive);
-  to(device_, backbone_dtype_);
+  to(device_, backbone_dtype_, head_dtype_);
 }
 
-void Dust3rModel::to(at::Device device, at::ScalarType backbone_dtype) {
-  if (backbone_dtype != at::kFloat && backbone_dtype != at::kBFloat16) {
-    throw std::invalid_argument("Dust3rModel::to: backbone dtype must be float32 or bfloat16");
+void Dust3rModel::to(at::Device device, at::ScalarType backbone_dtype, at::ScalarType head_dtype) {
+  for (const at::ScalarType dtype : {backbone_dtype, head_dtype}) {
+    if (dtype != at::kFloat && dtype != at::kBFloat16) {
+      throw std::invalid_argument("Dust3rModel::to: dtypes must be float32 or bfloat16");
+    }
   }
   ParameterTable backbone, heads;
   registerBackbone(backbone);
@@ -109,9 +114,12 @@ void Dust3rModel::to(at::Device device, at::ScalarType backbone_dtype) {
     if (entry.tensor->defined()) *entry.tensor = entry.tensor->to(device, backbone_dtype);
   }
   for (const auto& entry : heads.entries()) {
-    if (entry.tensor->defined()) *entry.tensor = entry.tensor->to(device, at::kFloat);
+    if (!entry.tensor->defined()) continue;
+    const bool output_projection = entry.name.find(".head.4.") != std::string::npos;
+    *entry.tensor = entry.tensor->to(device, output_projection ? at::kFloat : head_dtype);
   }
   backbone_dtype_ = backbone_dtype;
+  head_dtype_ = head_dtype;
   device_ = device;
 }
 
@@ -186,8 +194,7 @@ at::Tensor Dust3rModel::headForward(size_t index, const std::vector<at::Tensor>&
                                     int64_t width, TensorTrace* trace, const std::string& view) const {
   const std::array<int64_t, 4> hooks = config_.dptHooks();
   std::array<at::Tensor, 4> tokens;
-  // The heads run in float32 whatever the backbone precision, like the reference.
-  for (size_t i = 0; i < 4; ++i) tokens[i] = decoded.at(hooks[i]).to(at::kFloat);
+  for (size_t i = 0; i < 4; ++i) tokens[i] = decoded.at(hooks[i]).to(head_dtype_);
   return heads_.at(index).forward(tokens, height, width, config_.patch_size, trace, view + ".head");
 }
 

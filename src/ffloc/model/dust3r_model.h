@@ -50,13 +50,16 @@ at::Tensor patchPositions(int64_t batch, int64_t rows, int64_t cols, at::Device 
 // parameter names. Built with undefined tensors; loadWeights() fills them.
 //
 // Precision: the backbone (patch embedding, encoder, decoder) runs in the chosen dtype (float32
-// or bfloat16); the DPT heads and post-processing always run in float32, as in the reference.
+// or bfloat16). The DPT heads run in float32 by default, as the reference does on CUDA, or in
+// bfloat16, as the reference does on CPU under autocast; their last 1x1 projection and the
+// post-processing always run in float32.
 class Dust3rModel {
  public:
   explicit Dust3rModel(const Dust3rConfig& config);
 
   const Dust3rConfig& config() const { return config_; }
   at::ScalarType backboneDtype() const { return backbone_dtype_; }
+  at::ScalarType headDtype() const { return head_dtype_; }
   at::Device device() const { return device_; }
 
   // The state_dict (1009 keys for the large config), pointing into this model: rebuild it after
@@ -64,9 +67,9 @@ class Dust3rModel {
   ParameterTable parameterTable(Dust3rHeads heads = Dust3rHeads::kBoth);
   // Strict load (see loadParameters); the tensors then get the current dtype and device.
   void loadWeights(const TensorArchive& archive);
-  // Moves every tensor to `device`, casting the backbone to `backbone_dtype` (kFloat or
-  // kBFloat16); the heads stay float32.
-  void to(at::Device device, at::ScalarType backbone_dtype);
+  // Moves every tensor to `device`, casting the backbone to `backbone_dtype` and the heads to
+  // `head_dtype` (each kFloat or kBFloat16).
+  void to(at::Device device, at::ScalarType backbone_dtype, at::ScalarType head_dtype = at::kFloat);
 
   // images: (B, 3, H, W) normalised (see normalizedImageTensor), H and W multiples of the patch
   // size. Trace names "<view>.patch_embed.x", "<view>.enc.block<i>", "<view>.enc.out", ...
@@ -92,6 +95,7 @@ class Dust3rModel {
 
   Dust3rConfig config_;
   at::ScalarType backbone_dtype_ = at::kFloat;
+  at::ScalarType head_dtype_ = at::kFloat;
   at::Device device_ = at::kCPU;
   at::Tensor mask_token_;  // in the checkpoint, unused at inference
   nn::Conv2d patch_embed_;

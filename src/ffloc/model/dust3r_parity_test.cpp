@@ -11,6 +11,7 @@
 
 #include <cstdio>
 
+#include "ffloc/core/cpu_features.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/model/dust3r_model.h"
@@ -23,9 +24,15 @@ namespace ffloc {
 namespace {
 
 constexpr double kRelativeTolerance = 1e-5;
-// Measured worst max|bf16 - ref| / max|ref| over both pair cases: 0.025 (view2.dec.out), 0.020
-// on the final points; 0.05 keeps 2x headroom.
-constexpr double kBfloat16RelativeTolerance = 0.05;
+// bf16 tolerances, max|bf16 - ref| / max|ref| over both pair cases, 2x the measured worst. They
+// depend on the kernels: with native bf16 (AMX, oneDNN) the worst was 0.025 (view2.dec.out) with
+// float32 heads and 0.050 (view2.pts3d_in_other_view) with bf16 heads; on a CPU without native
+// bf16 (AMD EPYC Zen 3, libtorch's emulated kernels) 0.081 (view2.dec.out) either way. (The Python
+// reference's CPU autocast, heads in bf16, measured 0.38 on its random large model's pts3d.)
+double bfloat16Tolerance(bool bf16_heads) {
+  if (!cpuHasNativeBfloat16()) return 0.16;
+  return bf16_heads ? 0.1 : 0.05;
+}
 
 struct Comparison {
   double max_abs = 0;
@@ -168,23 +175,35 @@ TEST_F(Dust3rParity, DetectsWrongLayerNormEpsilon) {
   EXPECT_EQ(mismatch.rfind("view1.enc.block0:", 0), 0u) << mismatch;
 }
 
-// bfloat16 backbone (heads in float32) against the float32 reference; see docs/model.md for the
-// per-tensor numbers.
-TEST_F(Dust3rParity, Bfloat16BackboneAgreement) {
-  model_->to(at::kCPU, at::kBFloat16);
+// bfloat16 against the float32 reference, with the heads in float32 (as the reference on CUDA) and
+// in bfloat16 (as the reference on CPU); see docs/model.md for the per-tensor numbers.
+void expectBfloat16Agreement(Dust3rModel& model, const std::filesystem::path& dir, at::ScalarType head_dtype,
+                             double tolerance) {
+  model.to(at::kCPU, at::kBFloat16, head_dtype);
+  const std::string label = head_dtype == at::kFloat ? "bf16 backbone" : "bf16 backbone+heads";
   for (const std::string file : {"case_pair_landscape.safetensors", "case_pair_mixed.safetensors"}) {
-    const auto fixture = openSafetensors(dir_ / file);
+    const auto fixture = openSafetensors(dir / file);
     TensorTrace trace;
-    model_->forward(checkedInput(*fixture, "view1"), checkedInput(*fixture, "view2"), &trace);
+    model.forward(checkedInput(*fixture, "view1"), checkedInput(*fixture, "view2"), &trace);
     EXPECT_EQ(trace.at("view1.enc.out").scalar_type(), at::kBFloat16);
+    EXPECT_EQ(trace.at("view1.head.path1").scalar_type(), head_dtype);
     EXPECT_EQ(trace.at("view1.head.raw").scalar_type(), at::kFloat);
     for (const std::string name : {"view1.enc.out", "view1.dec.out", "view2.dec.out", "view1.head.raw",
                                    "view1.pts3d", "view1.conf", "view2.pts3d_in_other_view", "view2.conf"}) {
       const Comparison c = compareTensors(trace.at(name).to(at::kFloat), toTorch(fixture->at(name)));
-      std::printf("bf16 %s %s: max abs %.3g, relative %.3g\n", file.c_str(), name.c_str(), c.max_abs, c.relative());
-      EXPECT_LE(c.relative(), kBfloat16RelativeTolerance) << file << " " << name;
+      std::printf("%s %s %s: max abs %.3g, relative %.3g\n", label.c_str(), file.c_str(), name.c_str(), c.max_abs,
+                  c.relative());
+      EXPECT_LE(c.relative(), tolerance) << label << " " << file << " " << name;
     }
   }
+}
+
+TEST_F(Dust3rParity, Bfloat16BackboneAgreement) {
+  expectBfloat16Agreement(*model_, dir_, at::kFloat, bfloat16Tolerance(false));
+}
+
+TEST_F(Dust3rParity, Bfloat16HeadsAgreement) {
+  expectBfloat16Agreement(*model_, dir_, at::kBFloat16, bfloat16Tolerance(true));
 }
 
 }  // namespace

@@ -144,8 +144,8 @@ void castLinear(nn::Linear& layer, at::Device device, at::ScalarType dtype) {
 
 }  // namespace
 
-void FastForwardModel::to(at::Device device, at::ScalarType backbone_dtype) {
-  dust3r_.to(device, backbone_dtype);
+void FastForwardModel::to(at::Device device, at::ScalarType backbone_dtype, at::ScalarType head_dtype) {
+  dust3r_.to(device, backbone_dtype, head_dtype);
   castLinear(ray_embed_.fc1, device, backbone_dtype);
   castLinear(ray_embed_.fc2, device, backbone_dtype);
   castLinear(map_head_, device, at::kFloat);

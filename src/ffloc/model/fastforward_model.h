@@ -65,7 +65,7 @@ class FastForwardModel {
   // zero biases from `seed`, the ray MLP's last layer zero so that map tokens start as DUSt3R's.
   void initializeFromDust3r(const TensorArchive& dust3r, uint64_t seed = 0);
   // As Dust3rModel::to; the ray MLP follows the backbone dtype, the map head stays float32.
-  void to(at::Device device, at::ScalarType backbone_dtype);
+  void to(at::Device device, at::ScalarType backbone_dtype, at::ScalarType head_dtype = at::kFloat);
 
   // Shared encoder (see Dust3rModel::encode).
   Dust3rEncoding encode(const at::Tensor& images) const { return dust3r_.encode(images); }

@@ -6,6 +6,7 @@
 #include <ATen/ops/gelu.h>
 #include <ATen/ops/layer_norm.h>
 #include <ATen/ops/linear.h>
+#include <ATen/ops/matmul.h>
 
 #include "ffloc/model/torch_compat.h"
 
@@ -41,7 +42,28 @@ void Conv2d::registerIn(ParameterTable& table, const std::string& prefix) {
   if (has_bias) table.add(prefix + ".bias", {out}, &bias);
 }
 
+namespace {
+
+// A transposed convolution whose stride equals its kernel and without padding puts one k x k
+// block per input pixel: a matrix product, then a pixel shuffle. libtorch 1.13's own
+// conv_transpose2d routes bfloat16 to oneDNN's forward convolution and returns wrong shapes, and
+// refuses inputs smaller than the kernel in any dtype; this form is exact in every dtype.
+at::Tensor blockTransposedConv(const at::Tensor& x, const at::Tensor& weight, const at::Tensor& bias,
+                               int64_t kernel) {
+  const int64_t batch = x.size(0), in = x.size(1), rows = x.size(2), cols = x.size(3);
+  const int64_t out = weight.size(1);
+  // (B, C, H, W) x (C, O*k*k) -> (B, H, W, O, k, k) -> (B, H, k, W, k, O), a channels-last image.
+  at::Tensor blocks = at::matmul(x.permute({0, 2, 3, 1}), weight.reshape({in, out * kernel * kernel}));
+  blocks = blocks.reshape({batch, rows, cols, out, kernel, kernel}).permute({0, 1, 4, 2, 5, 3});
+  at::Tensor image = blocks.reshape({batch, rows * kernel, cols * kernel, out}).permute({0, 3, 1, 2});
+  if (bias.defined()) image = image + bias.reshape({1, out, 1, 1});
+  return image;
+}
+
+}  // namespace
+
 at::Tensor Conv2d::forward(const at::Tensor& x) const {
+  if (transposed && stride == kernel && padding == 0) return blockTransposedConv(x, weight, bias, kernel);
   if (transposed) return at::conv_transpose2d(x, weight, bias, {stride, stride}, {padding, padding});
   return at::conv2d(x, weight, bias, {stride, stride}, {padding, padding});
 }

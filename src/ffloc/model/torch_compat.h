@@ -11,6 +11,8 @@
 #include <ATen/ops/upsample_bilinear2d.h>
 #include <torch/version.h>
 
+#include "ffloc/model/softmax_kernel.h"
+
 #include <cmath>
 #include <vector>
 
@@ -33,9 +35,12 @@ inline at::Tensor resizeBilinearAlignCorners(const at::Tensor& input, int64_t he
                                  c10::nullopt);
 }
 
-// softmax(q k^T * head_dim^-0.5) v for (B, heads, N, head_dim) tensors. On CPU this is the
-// reference's exact op sequence (scores scaled after the product), which the fixtures check.
-// On CUDA with PyTorch >= 2.1 the fused kernel is used; it scales differently in the last bits.
+// softmax(q k^T * head_dim^-0.5) v for (B, heads, N, head_dim) tensors. On CUDA with PyTorch
+// >= 2.1 the fused kernel is used. On CPU the scale is applied to q (N x head_dim values) rather
+// than to the N x M scores, which differs from the reference's order only in the last float bits.
+// Without autograd the softmax overwrites the scores with the vectorised kernel: at 768 x 768
+// tokens and 16 heads each saved pass over the scores is ~10 ms per block on one core (measured,
+// docs/benchmarks.md). (One head at a time, to keep the scores in L2, was 30 % slower overall.)
 inline at::Tensor attention(const at::Tensor& q, const at::Tensor& k, const at::Tensor& v) {
   const double scale = std::pow(static_cast<double>(q.size(-1)), -0.5);
 #if FFLOC_TORCH_HAS_SDPA
@@ -44,8 +49,10 @@ inline at::Tensor attention(const at::Tensor& q, const at::Tensor& k, const at::
                                             /*is_causal=*/false, scale);
   }
 #endif
-  const at::Tensor scores = at::matmul(q, k.transpose(-2, -1)) * scale;
-  return at::matmul(at::softmax(scores, -1), v);
+  at::Tensor scores = at::matmul(q * scale, k.transpose(-2, -1));
+  if (scores.requires_grad()) return at::matmul(at::softmax(scores, -1), v);
+  softmaxLastDimInPlace(scores);
+  return at::matmul(scores, v);
 }
 
 }  // namespace ffloc::torch_compat

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 
+#include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/model/parameter_table.h"
@@ -169,8 +170,13 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   if (requested == "default" && !std::filesystem::is_regular_file(spec)) {
     throwInputError(spec, 0, "the default model is missing (set FFLOC_MODEL, or pass --model; docs/training.md trains one)");
   }
-  if (options.backbone_dtype != at::kFloat && options.backbone_dtype != at::kBFloat16)
-    throwInputError("--model", 0, "backbone dtype must be float32 or bfloat16");
+  if (options.dtype != at::kFloat && options.dtype != at::kBFloat16)
+    throwInputError("--model", 0, "network dtype must be float32 or bfloat16");
+  if (options.dtype == at::kBFloat16 && !cpuHasNativeBfloat16()) {
+    std::fprintf(stderr,
+                 "warning: this CPU has neither AMX nor AVX512-BF16, so bf16 is emulated and much slower than "
+                 "f32 here (docs/benchmarks.md); use --dtype f32\n");
+  }
   LoadedModel loaded;
   if (spec.rfind("random:", 0) == 0) {
     loaded = randomModel(spec);
@@ -201,7 +207,7 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
                       "checkpoint (no 'downstream_head1.dpt.head.4.weight')");
     }
   }
-  loaded.model->to(at::kCPU, options.backbone_dtype);
+  loaded.model->to(at::kCPU, options.dtype, options.dtype);
   return loaded;
 }
 

@@ -19,7 +19,9 @@ namespace ffloc {
 // - "random:<preset>[:<seed>]" (preset "tiny", "small" or "large"): every parameter drawn from a seeded
 //   generator, for tests and timing. Its predictions are meaningless.
 struct ModelLoadOptions {
-  at::ScalarType backbone_dtype = at::kFloat;  // kFloat or kBFloat16
+  // kFloat, or kBFloat16 for the backbone and the DPT head (whose last projection and the
+  // post-processing stay float32; the map head too).
+  at::ScalarType dtype = at::kFloat;
   uint64_t init_seed = 0;                      // the untrained layers of a DUSt3R initialisation
 };
 

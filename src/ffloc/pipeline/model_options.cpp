@@ -4,7 +4,7 @@
 
 namespace ffloc {
 
-at::ScalarType parseBackboneDtype(const std::string& name, const std::string& field) {
+at::ScalarType parseNetworkDtype(const std::string& name, const std::string& field) {
   if (name == "f32" || name == "float32") return at::kFloat;
   if (name == "bf16" || name == "bfloat16") return at::kBFloat16;
   throwInputError(field, 0, "unknown dtype '" + name + "' (expected f32 or bf16)");

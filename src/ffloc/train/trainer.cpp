@@ -5,13 +5,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <set>
 
+#include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/model_loader.h"
 #include "ffloc/pose/pnp.h"
+#include "ffloc/train/autocast.h"
 #include "ffloc/train/confidence_loss.h"
 #include "ffloc/train/training_checkpoint.h"
 
@@ -31,7 +34,7 @@ uint64_t splitMix(uint64_t z) {
 const std::set<std::string>& resumableFields() {
   static const std::set<std::string> fields = {"steps",           "log_every",        "checkpoint_every",
                                                "keep_checkpoints", "validation_every", "validation_samples",
-                                               "threads",         "device"};
+                                               "threads",         "device",           "precision"};
   return fields;
 }
 
@@ -123,6 +126,11 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   config_.validate();
   setTorchThreadCount(config_.threads);
   device_ = config_.device == "cuda" ? at::Device(at::kCUDA) : at::Device(at::kCPU);
+  if (config_.precision == "bf16" && device_.is_cpu() && !cpuHasNativeBfloat16()) {
+    std::fprintf(stderr,
+                 "warning: this CPU has neither AMX nor AVX512-BF16, so bf16 mixed precision is emulated and slower "
+                 "than fp32 here (docs/training.md)\n");
+  }
 
   std::optional<CheckpointInfo> checkpoint;
   if (resume) {
@@ -164,6 +172,7 @@ int64_t Trainer::trainableParameterCount() const {
 }
 
 FastForwardPrediction Trainer::predict(const TrainingSample& sample) const {
+  const AutocastGuard mixed_precision(device_.type(), at::kBFloat16, config_.precision == "bf16");
   // A frozen encoder records no graph: its tokens are constants for the decoder's backward.
   const auto encode = [&](const at::Tensor& image) {
     if (config_.train_encoder) return model_->encode(image);

@@ -49,6 +49,7 @@ const std::map<std::string, FieldBinding>& fieldBindings() {
       {"seed", bindField(&TrainingConfig::seed)},
       {"threads", bindField(&TrainingConfig::threads)},
       {"device", bindField(&TrainingConfig::device)},
+      {"precision", bindField(&TrainingConfig::precision)},
       {"log_every", bindField(&TrainingConfig::log_every)},
       {"checkpoint_every", bindField(&TrainingConfig::checkpoint_every)},
       {"keep_checkpoints", bindField(&TrainingConfig::keep_checkpoints)},
@@ -89,6 +90,7 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (!(clip_grad_norm >= 0)) fail("clip_grad_norm", "must be non-negative (0: off)");
   if (threads < 0) fail("threads", "must be non-negative");
   if (device != "cpu" && device != "cuda") fail("device", "must be cpu or cuda");
+  if (precision != "fp32" && precision != "bf16") fail("precision", "must be fp32 or bf16");
   if (log_every < 1) fail("log_every", "must be positive");
   if (checkpoint_every < 1) fail("checkpoint_every", "must be positive");
   if (keep_checkpoints < 1) fail("keep_checkpoints", "must be at least 1");

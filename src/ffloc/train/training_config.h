@@ -47,6 +47,9 @@ struct TrainingConfig {
   uint64_t seed = 0;  // samples and augmentation; the only source of randomness in a run
   int threads = 0;    // libtorch intra-op threads (0: all cores)
   std::string device = "cpu";
+  // "fp32", or "bf16": mixed precision, with float32 weights, optimiser and loss and the network's
+  // matrix products and convolutions in bfloat16 (autocast; train/autocast.h).
+  std::string precision = "fp32";
 
   int64_t log_every = 10;
   int64_t checkpoint_every = 500;

@@ -1,0 +1,16 @@
+#pragma once
+
+#include <string>
+
+namespace ffloc {
+
+// Whether the kernel lists `flag` (e.g. "avx512_bf16", "amx_bf16") among this CPU's flags in
+// /proc/cpuinfo. False where that file cannot be read.
+bool cpuHasFlag(const std::string& flag);
+
+// Whether bfloat16 matrix products run natively here (AMX or AVX512-BF16, which oneDNN uses).
+// Without either, libtorch emulates bf16 through float32 conversions, and bf16 inference is far
+// slower than float32 (docs/benchmarks.md).
+bool cpuHasNativeBfloat16();
+
+}  // namespace ffloc

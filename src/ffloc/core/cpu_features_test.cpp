@@ -1,0 +1,24 @@
+#include "ffloc/core/cpu_features.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+namespace ffloc {
+namespace {
+
+TEST(CpuFeatures, FindsWholeFlagsOnly) {
+  if (!std::ifstream("/proc/cpuinfo")) GTEST_SKIP() << "/proc/cpuinfo is not readable here";
+  // Every x86-64 CPU has sse2 and fpu; a prefix of a flag is not a flag.
+#if defined(__x86_64__)
+  EXPECT_TRUE(cpuHasFlag("sse2"));
+  EXPECT_TRUE(cpuHasFlag("fpu"));
+  EXPECT_FALSE(cpuHasFlag("ss"));
+#endif
+  EXPECT_FALSE(cpuHasFlag("no_such_cpu_flag"));
+  EXPECT_FALSE(cpuHasFlag(""));
+  EXPECT_EQ(cpuHasNativeBfloat16(), cpuHasFlag("amx_bf16") || cpuHasFlag("avx512_bf16"));
+}
+
+}  // namespace
+}  // namespace ffloc

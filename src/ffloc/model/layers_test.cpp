@@ -1,0 +1,80 @@
+#include "ffloc/model/layers.h"
+#include "ffloc/model/softmax_kernel.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+
+namespace ffloc::nn {
+namespace {
+
+// out[o, i*k + di, j*k + dj] = bias[o] + sum_c x[c, i, j] * w[c, o, di, dj], written out directly.
+at::Tensor transposedConvByDefinition(const at::Tensor& x, const at::Tensor& w, const at::Tensor& b, int64_t k) {
+  const int64_t in = x.size(1), rows = x.size(2), cols = x.size(3), out = w.size(1);
+  at::Tensor result = at::zeros({1, out, rows * k, cols * k}, at::kDouble);
+  const at::Tensor xd = x.to(at::kDouble), wd = w.to(at::kDouble), bd = b.to(at::kDouble);
+  auto r = result.accessor<double, 4>();
+  auto xa = xd.accessor<double, 4>();
+  auto wa = wd.accessor<double, 4>();
+  auto ba = bd.accessor<double, 1>();
+  for (int64_t o = 0; o < out; ++o)
+    for (int64_t i = 0; i < rows; ++i)
+      for (int64_t j = 0; j < cols; ++j)
+        for (int64_t di = 0; di < k; ++di)
+          for (int64_t dj = 0; dj < k; ++dj) {
+            double sum = ba[o];
+            for (int64_t c = 0; c < in; ++c) sum += xa[0][c][i][j] * wa[c][o][di][dj];
+            r[0][o][i * k + di][j * k + dj] = sum;
+          }
+  return result;
+}
+
+// The DPT head's x4 and x2 resampling: stride = kernel, no padding. Covers an input smaller than
+// the kernel (which libtorch 1.13's conv_transpose2d refuses) and bfloat16 (where it returns wrong
+// shapes).
+TEST(Conv2d, StrideEqualsKernelTransposedConvMatchesDefinition) {
+  at::manual_seed(3);
+  for (const int64_t kernel : {2, 4}) {
+    for (const auto& [rows, cols] : {std::pair<int64_t, int64_t>{1, 1}, {3, 5}}) {
+      Conv2d conv(6, 5, kernel, kernel, 0, /*has_bias=*/true, /*transposed=*/true);
+      conv.weight = at::randn({6, 5, kernel, kernel});
+      conv.bias = at::randn({5});
+      const at::Tensor x = at::randn({1, 6, rows, cols});
+      const at::Tensor expected = transposedConvByDefinition(x, conv.weight, conv.bias, kernel);
+
+      const at::Tensor fp32 = conv.forward(x);
+      ASSERT_EQ(fp32.sizes(), expected.sizes());
+      EXPECT_LT((fp32.to(at::kDouble) - expected).abs().max().item<double>(), 1e-5);
+
+      Conv2d half = conv;
+      half.weight = conv.weight.to(at::kBFloat16);
+      half.bias = conv.bias.to(at::kBFloat16);
+      const at::Tensor bf16 = half.forward(x.to(at::kBFloat16));
+      ASSERT_EQ(bf16.sizes(), expected.sizes());
+      const double scale = expected.abs().max().item<double>();
+      EXPECT_LT((bf16.to(at::kDouble) - expected).abs().max().item<double>(), 0.05 * scale);
+    }
+  }
+}
+
+// Rows of several lengths (a multiple of the vector width, a tail, shorter than one vector) and a
+// wide value range, against ATen's softmax in double precision.
+TEST(Softmax, InPlaceKernelMatchesReference) {
+  if (!vectorizedSoftmaxAvailable()) GTEST_SKIP() << "no AVX-512 on this CPU: the kernel falls back to ATen";
+  at::manual_seed(5);
+  for (const int64_t length : {1, 7, 16, 100, 768}) {
+    const at::Tensor input = at::randn({3, 5, length}) * 20;
+    const at::Tensor expected = at::softmax(input.to(at::kDouble), -1);
+    at::Tensor fp32 = input.clone();
+    softmaxLastDimInPlace(fp32);
+    EXPECT_LT((fp32.to(at::kDouble) - expected).abs().max().item<double>(), 1e-6) << "length " << length;
+    at::Tensor bf16 = input.to(at::kBFloat16);
+    const at::Tensor aten = at::softmax(bf16, -1);
+    softmaxLastDimInPlace(bf16);
+    // Both round float32 values to bfloat16 (8 significant bits): at most one step apart.
+    EXPECT_LE((bf16.to(at::kDouble) - aten.to(at::kDouble)).abs().max().item<double>(), 4e-3) << "length " << length;
+    EXPECT_NEAR(bf16.to(at::kDouble).sum(-1).mean().item<double>(), 1.0, 1e-2);
+  }
+}
+
+}  // namespace
+}  // namespace ffloc::nn
