@@ -13,4 +13,8 @@ bool cpuHasFlag(const std::string& flag);
 // slower than float32 (docs/benchmarks.md).
 bool cpuHasNativeBfloat16();
 
+// Without native bf16, writes to stderr that bf16 is emulated and slow here, ending with `advice`
+// (what to use instead). Silent on CPUs with native bf16.
+void warnIfBfloat16IsEmulated(const std::string& advice);
+
 }  // namespace ffloc

@@ -172,11 +172,7 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   }
   if (options.dtype != at::kFloat && options.dtype != at::kBFloat16)
     throwInputError("--model", 0, "network dtype must be float32 or bfloat16");
-  if (options.dtype == at::kBFloat16 && !cpuHasNativeBfloat16()) {
-    std::fprintf(stderr,
-                 "warning: this CPU has neither AMX nor AVX512-BF16, so bf16 is emulated and much slower than "
-                 "f32 here (docs/benchmarks.md); use --dtype f32\n");
-  }
+  if (options.dtype == at::kBFloat16) warnIfBfloat16IsEmulated("use --dtype f32 (docs/benchmarks.md)");
   LoadedModel loaded;
   if (spec.rfind("random:", 0) == 0) {
     loaded = randomModel(spec);

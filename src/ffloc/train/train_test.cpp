@@ -259,14 +259,20 @@ TEST(TrainingSampler, ReportsImpossibleOverlapRequests) {
   EXPECT_TRUE(contains(errorOf([] { TrainingSampler({Scene{}}, SampleOptions{}); }), "no frame with depth"));
 }
 
-// The acceptance test of the training loop: a tiny randomly initialised network fits one
-// sample of a synthetic scene, its regression error falling more than tenfold.
-TEST(Trainer, OverfitsOneSample) {
+// Settings for fitting one sample quickly: a high learning rate, no weight decay.
+TrainingConfig overfitConfig(int64_t steps) {
   TrainingConfig config = smallConfig();
-  config.steps = 200;
+  config.steps = steps;
   config.warmup_steps = 10;
   config.learning_rate = 2e-3;
   config.weight_decay = 0;
+  return config;
+}
+
+// The acceptance test of the training loop: a tiny randomly initialised network fits one
+// sample of a synthetic scene, its regression error falling more than tenfold.
+TEST(Trainer, OverfitsOneSample) {
+  TrainingConfig config = overfitConfig(200);
   config.validation_samples = 1;
   const fs::path run = testing::makeTempDir("ffloc-train-overfit");
   Trainer trainer(config, {smallScene()}, run);
@@ -275,7 +281,7 @@ TEST(Trainer, OverfitsOneSample) {
   const ValidationStats before = trainer.validate();
   std::vector<TrainingStepStats> history;
   for (int64_t i = 0; i < config.steps; ++i) history.push_back(trainer.step(sample));
-    const auto mean_of = [&](size_t begin, size_t end, const std::function<double(const TrainingStepStats&)>& value) {
+  const auto mean_of = [&](size_t begin, size_t end, const std::function<double(const TrainingStepStats&)>& value) {
     double sum = 0;
     for (size_t i = begin; i < end; ++i) sum += value(history[i]);
     return sum / static_cast<double>(end - begin);
@@ -309,11 +315,7 @@ TEST(Trainer, OverfitsOneSample) {
 // Mixed precision: the same overfit in bf16 autocast (float32 weights and optimiser) still fits
 // the sample, and the weights stay float32.
 TEST(Trainer, OverfitsOneSampleInMixedPrecision) {
-  TrainingConfig config = smallConfig();
-  config.steps = 100;
-  config.warmup_steps = 10;
-  config.learning_rate = 2e-3;
-  config.weight_decay = 0;
+  TrainingConfig config = overfitConfig(100);
   config.precision = "bf16";
   const fs::path run = testing::makeTempDir("ffloc-train-bf16");
   Trainer trainer(config, {smallScene()}, run);

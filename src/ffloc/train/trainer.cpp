@@ -5,7 +5,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <limits>
 #include <set>
 
@@ -126,10 +125,8 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   config_.validate();
   setTorchThreadCount(config_.threads);
   device_ = config_.device == "cuda" ? at::Device(at::kCUDA) : at::Device(at::kCPU);
-  if (config_.precision == "bf16" && device_.is_cpu() && !cpuHasNativeBfloat16()) {
-    std::fprintf(stderr,
-                 "warning: this CPU has neither AMX nor AVX512-BF16, so bf16 mixed precision is emulated and slower "
-                 "than fp32 here (docs/training.md)\n");
+  if (config_.precision == "bf16" && device_.is_cpu()) {
+    warnIfBfloat16IsEmulated("train with precision fp32 (docs/training.md)");
   }
 
   std::optional<CheckpointInfo> checkpoint;
