@@ -16,6 +16,9 @@ void registerLocalizeCommand(CLI::App& app);
 void registerRetrievalCommand(CLI::App& app);
 void registerTrainCommand(CLI::App& app);
 #endif
+#ifdef FFLOC_WITH_SERVER  // the network and cpp-httplib
+void registerServeCommand(CLI::App& app);
+#endif
 
 int& exitCode();
 

@@ -28,6 +28,9 @@ int main(int argc, char** argv) {
   ffloc::cli::registerRetrievalCommand(app);
   ffloc::cli::registerTrainCommand(app);
 #endif
+#ifdef FFLOC_WITH_SERVER
+  ffloc::cli::registerServeCommand(app);
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,205 @@
+#include "ffloc/server/localization_server.h"
+
+#include <chrono>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "ffloc/core/error.h"
+#include "ffloc/pipeline/localization_json.h"
+#include "ffloc/server/localize_request.h"
+
+// Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace ffloc {
+
+struct LocalizationServer::Http {
+  httplib::Server server;
+  std::mutex log_mutex;
+};
+
+namespace {
+
+constexpr const char* kJson = "application/json";
+
+std::string reasonPhrase(int status) {
+  switch (status) {
+    case 400: return "bad request";
+    case 404: return "not found";
+    case 405: return "method not allowed";
+    case 413: return "payload too large";
+    default: return "HTTP " + std::to_string(status);
+  }
+}
+
+void replyError(httplib::Response& response, int status, const std::string& message) {
+  response.status = status;
+  response.set_content(nlohmann::json{{"error", message}}.dump(), kJson);
+}
+
+// URL parameters, then (multipart) form fields; a field given twice is a request error rather
+// than a silent choice between two values.
+std::map<std::string, std::string> requestFields(const httplib::Request& request) {
+  std::map<std::string, std::string> fields;
+  auto add = [&fields](const std::string& key, const std::string& value) {
+    if (!fields.emplace(key, value).second) throw InputError(key + ": given more than once");
+  };
+  for (const auto& [key, value] : request.params) add(key, value);
+  for (const auto& [key, part] : request.files) {
+    if (key != "image") add(key, part.content);
+  }
+  return fields;
+}
+
+// curl --data-binary without -H sends this type, and the HTTP library then reads the image as
+// URL-encoded form fields (refusing it as too large past 8 KiB).
+bool isUrlEncodedForm(const httplib::Request& request) {
+  return request.get_header_value("Content-Type").rfind("application/x-www-form-urlencoded", 0) == 0;
+}
+
+constexpr const char* kSendImageAs =
+    "send the image as the body with Content-Type image/jpeg, image/png or application/octet-stream "
+    "(curl: -H 'Content-Type: image/jpeg' --data-binary @query.jpg), or as the 'image' part of a multipart form "
+    "(curl: -F image=@query.jpg)";
+
+const std::string& imageBytes(const httplib::Request& request) {
+  if (!request.is_multipart_form_data()) return request.body;
+  if (!request.has_file("image")) throw InputError("image: the multipart form has no 'image' part");
+  return request.files.find("image")->second.content;
+}
+
+}  // namespace
+
+LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions options, std::string model_description)
+    : localizer_(localizer),
+      options_(std::move(options)),
+      model_description_(std::move(model_description)),
+      http_(std::make_unique<Http>()) {
+  httplib::Server& server = http_->server;
+  server.set_payload_max_length(options_.max_body_bytes);
+  // Without it, small answers wait on Nagle's algorithm: 28 ms per GET /health over loopback
+  // instead of 0.5 ms (bench/server_bench.cpp).
+  server.set_tcp_nodelay(true);
+  // SO_REUSEADDR so a restart can take the port at once, but not the library's default
+  // SO_REUSEPORT, with which a second server on the same port binds silently and the kernel
+  // shares requests between two maps.
+  server.set_socket_options([](socket_t socket) {
+    const int yes = 1;
+    setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
+  });
+
+  auto log = [this](const std::string& line) {
+    if (!options_.log) return;
+    std::lock_guard<std::mutex> lock(http_->log_mutex);
+    *options_.log << line << std::endl;
+  };
+
+  server.Get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
+    const nlohmann::json body = {{"status", "ok"},
+                                 {"model", model_description_},
+                                 {"map_images", localizer_.map().images.size()}};
+    response.set_content(body.dump(), kJson);
+    log(request.method + " " + request.path + " 200");
+  });
+
+  server.Get("/map", [this, log](const httplib::Request& request, httplib::Response& response) {
+    const MapFile& map = localizer_.map();
+    nlohmann::json names = nlohmann::json::array();
+    for (const MapImage& image : map.images) names.push_back(image.name);
+    const nlohmann::json body = {
+        {"images", map.images.size()},
+        {"names", names},
+        {"metric", map.metric},
+        {"model_id", map.model_id},
+        {"defaults",
+         {{"top_k", options_.localize.top_k},
+          {"features", options_.localize.num_features},
+          {"seed", options_.localize.seed},
+          {"selection", toString(options_.localize.selection)}}}};
+    response.set_content(body.dump(), kJson);
+    log(request.method + " " + request.path + " 200");
+  });
+
+  server.Post("/localize", [this, log](const httplib::Request& request, httplib::Response& response) {
+    const auto start = std::chrono::steady_clock::now();
+    LocalizeRequest query;
+    try {
+      if (isUrlEncodedForm(request)) throw InputError(std::string("image: body is a URL-encoded form; ") + kSendImageAs);
+      query = parseLocalizeRequest(requestFields(request), imageBytes(request), options_.localize,
+                                   options_.max_image_pixels);
+    } catch (const InputError& e) {
+      replyError(response, 400, e.what());
+      return;
+    }
+    nlohmann::json body;
+    try {
+      std::lock_guard<std::mutex> lock(localize_mutex_);
+      const LocalizationResult result = localizer_.localize(query.rgb, query.intrinsics, query.name, query.options);
+      body = localizationJson(query.name, result, localizer_.map());
+    } catch (const InputError& e) {
+      replyError(response, 400, e.what());
+      return;
+    }
+    response.set_content(body.dump(), kJson);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    log(request.method + " " + request.path + " 200 " + query.name + " " + body["status"].get<std::string>() + " " +
+        std::to_string(body["inliers"].get<int>()) + " inliers, " + std::to_string(static_cast<int>(ms)) + " ms");
+  });
+
+  // Every status >= 400, ours and the library's (404, 413, ...), answers JSON and is logged.
+  server.set_error_handler([this, log](const httplib::Request& request, httplib::Response& response) {
+    if (response.body.empty()) {
+      std::string message = reasonPhrase(response.status);
+      if (response.status == 413 && isUrlEncodedForm(request)) {
+        message += ": image: body is a URL-encoded form; " + std::string(kSendImageAs);
+      } else if (response.status == 413) {
+        message += ": the body is over the server's limit of " + std::to_string(options_.max_body_bytes) + " bytes";
+      }
+      if (response.status == 404)
+        message += ": " + request.method + " " + request.path + " (known: GET /health, GET /map, POST /localize)";
+      replyError(response, response.status, message);
+    }
+    const nlohmann::json body = nlohmann::json::parse(response.body, nullptr, false);
+    const std::string message = body.is_object() && body.contains("error") ? body["error"].get<std::string>() : "";
+    log(request.method + " " + request.path + " " + std::to_string(response.status) + " " + message);
+  });
+
+  server.set_exception_handler([log](const httplib::Request& request, httplib::Response& response,
+                                     std::exception_ptr exception) {
+    std::string what = "unknown exception";
+    try {
+      std::rethrow_exception(exception);
+    } catch (const std::exception& e) {
+      what = e.what();
+    } catch (...) {
+    }
+    replyError(response, 500, "internal error: " + what);
+    log(request.method + " " + request.path + " 500 internal error: " + what);
+  });
+}
+
+LocalizationServer::~LocalizationServer() { stop(); }
+
+int LocalizationServer::bind() {
+  if (bound_port_ >= 0) return bound_port_;
+  httplib::Server& server = http_->server;
+  if (options_.port == 0) {
+    bound_port_ = server.bind_to_any_port(options_.host);
+  } else if (server.bind_to_port(options_.host, options_.port)) {
+    bound_port_ = options_.port;
+  }
+  if (bound_port_ < 0) {
+    throw InputError("--host " + options_.host + " --port " + std::to_string(options_.port) +
+                     ": cannot listen there (address in use, not an address of this machine, or a privileged port)");
+  }
+  return bound_port_;
+}
+
+void LocalizationServer::serve() {
+  bind();
+  http_->server.listen_after_bind();
+}
+
+void LocalizationServer::stop() { http_->server.stop(); }
+
+}  // namespace ffloc

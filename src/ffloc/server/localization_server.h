@@ -1,0 +1,56 @@
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <mutex>
+#include <ostream>
+#include <string>
+
+#include "ffloc/pipeline/localizer.h"
+
+namespace ffloc {
+
+// HTTP front of a Localizer: the map and the model are loaded once, then every request is one
+// query (docs/server.md).
+//   GET  /health    {"status": "ok", ...}
+//   GET  /map       the map's images, model and the request defaults
+//   POST /localize  an encoded image as the body (fields as URL parameters) or as the "image"
+//                   part of a multipart form (fields as URL parameters or form fields);
+//                   answers what `ffloc localize --json` prints
+// Bad requests get status 400 and {"error": "<field>: <what>"}; a body over max_body_bytes 413.
+struct ServerOptions {
+  std::string host = "127.0.0.1";  // loopback: serving other machines is a choice (0.0.0.0)
+  int port = 8080;                 // 0: any free port, see LocalizationServer::bind()
+  size_t max_body_bytes = size_t{32} << 20;
+  size_t max_image_pixels = 40'000'000;
+  LocalizeOptions localize;  // per-request defaults; requests may override K, N, seed, selection
+  std::ostream* log = nullptr;  // one line per request when set
+};
+
+class LocalizationServer {
+ public:
+  // `localizer` must outlive the server. `model_description` is reported by /health.
+  LocalizationServer(const Localizer& localizer, ServerOptions options, std::string model_description);
+  ~LocalizationServer();
+  LocalizationServer(const LocalizationServer&) = delete;
+  LocalizationServer& operator=(const LocalizationServer&) = delete;
+
+  // Binds the socket and returns the port. InputError naming host and port when that fails.
+  int bind();
+  // Answers requests until stop(); binds first when bind() was not called.
+  void serve();
+  // From any thread: finishes the requests in flight, then serve() returns.
+  void stop();
+
+ private:
+  struct Http;
+  const Localizer& localizer_;
+  ServerOptions options_;
+  std::string model_description_;
+  std::unique_ptr<Http> http_;
+  int bound_port_ = -1;
+  // One query at a time: each already uses every torch thread, and the model is shared.
+  std::mutex localize_mutex_;
+};
+
+}  // namespace ffloc

@@ -1,0 +1,131 @@
+#include "ffloc/server/localize_request.h"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <set>
+#include <sstream>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+namespace {
+
+const std::set<std::string>& knownFields() {
+  static const std::set<std::string> fields = {"fx",   "fy",    "cx",       "cy",   "distortion",
+                                               "name", "top_k", "features", "seed", "selection"};
+  return fields;
+}
+
+double parseFiniteNumber(const std::string& field, const std::string& text) {
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const double value = std::strtod(begin, &end);
+  if (text.empty() || end != begin + text.size() || errno == ERANGE || !std::isfinite(value))
+    throw InputError(field + ": expected a finite number, got '" + text + "'");
+  return value;
+}
+
+long long parseInteger(const std::string& field, const std::string& text, long long min, long long max) {
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const long long value = std::strtoll(begin, &end, 10);
+  if (text.empty() || end != begin + text.size() || errno == ERANGE || value < min || value > max) {
+    throw InputError(field + ": expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) +
+                     "], got '" + text + "'");
+  }
+  return value;
+}
+
+double requiredNumber(const std::map<std::string, std::string>& fields, const std::string& field) {
+  const auto it = fields.find(field);
+  if (it == fields.end()) throw InputError(field + ": missing (the query's intrinsics fx, fy, cx, cy are required)");
+  return parseFiniteNumber(field, it->second);
+}
+
+std::vector<double> parseDistortion(const std::string& text) {
+  std::vector<double> coefficients;
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) coefficients.push_back(parseFiniteNumber("distortion", item));
+  const size_t n = coefficients.size();
+  if (n != 4 && n != 5 && n != 8)
+    throw InputError("distortion: expected 4, 5 or 8 comma-separated coefficients (k1,k2,p1,p2[,k3[,k4,k5,k6]]), got " +
+                     std::to_string(n));
+  return coefficients;
+}
+
+cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
+  if (bytes.empty()) throw InputError("image: the request carries no image");
+  const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
+  cv::Mat bgr;
+  try {
+    bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
+  } catch (const cv::Exception&) {
+    bgr.release();
+  }
+  if (bgr.empty()) throw InputError("image: " + std::to_string(bytes.size()) + " bytes that OpenCV cannot decode as an image");
+  if (static_cast<size_t>(bgr.total()) > max_image_pixels) {
+    throw InputError("image: " + std::to_string(bgr.cols) + "x" + std::to_string(bgr.rows) + " is more than the " +
+                     std::to_string(max_image_pixels) + " pixels this server accepts");
+  }
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  return rgb;
+}
+
+}  // namespace
+
+LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
+                                     const LocalizeOptions& defaults, size_t max_image_pixels) {
+  for (const auto& [field, value] : fields) {
+    if (!knownFields().count(field)) {
+      throw InputError(field + ": unknown field (known: fx, fy, cx, cy, distortion, name, top_k, features, seed, "
+                               "selection)");
+    }
+  }
+  LocalizeRequest request;
+  request.options = defaults;
+  request.intrinsics.fx = requiredNumber(fields, "fx");
+  request.intrinsics.fy = requiredNumber(fields, "fy");
+  request.intrinsics.cx = requiredNumber(fields, "cx");
+  request.intrinsics.cy = requiredNumber(fields, "cy");
+  if (!(request.intrinsics.fx > 0)) throw InputError("fx: must be positive");
+  if (!(request.intrinsics.fy > 0)) throw InputError("fy: must be positive");
+  if (const auto it = fields.find("distortion"); it != fields.end()) request.intrinsics.distortion = parseDistortion(it->second);
+  if (const auto it = fields.find("name"); it != fields.end() && !it->second.empty()) request.name = it->second;
+  if (const auto it = fields.find("top_k"); it != fields.end())
+    request.options.top_k = static_cast<size_t>(parseInteger("top_k", it->second, 1, 1000));
+  if (const auto it = fields.find("features"); it != fields.end())
+    request.options.num_features = parseInteger("features", it->second, 1, 100000);
+  if (const auto it = fields.find("seed"); it != fields.end()) {
+    request.options.seed = static_cast<uint64_t>(parseInteger("seed", it->second, 0, INT64_MAX));
+    request.options.pnp.seed = request.options.seed;
+  }
+  if (const auto it = fields.find("selection"); it != fields.end()) {
+    try {
+      request.options.selection = parseImageSelection(it->second);
+    } catch (const InputError& e) {
+      throw InputError(std::string("selection: ") + e.what());
+    }
+  }
+
+  request.rgb = decodeRgb(image_bytes, max_image_pixels);
+  request.intrinsics.width = request.rgb.cols;
+  request.intrinsics.height = request.rgb.rows;
+  const Intrinsics& k = request.intrinsics;
+  if (k.cx < 0 || k.cx > k.width || k.cy < 0 || k.cy > k.height) {
+    std::ostringstream what;
+    what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << k.width << "x"
+         << k.height << " image (intrinsics must be in pixels of the image sent)";
+    throw InputError(what.str());
+  }
+  return request;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,33 @@
+#pragma once
+
+#include <cstddef>
+#include <map>
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "ffloc/geometry/camera.h"
+#include "ffloc/pipeline/localizer.h"
+
+namespace ffloc {
+
+// One POST /localize, decoded and checked before any network work starts.
+struct LocalizeRequest {
+  std::string name = "query";  // for logs and the answer
+  cv::Mat rgb;                 // 8-bit RGB
+  Intrinsics intrinsics;       // of `rgb`
+  LocalizeOptions options;     // the server's defaults with the request's overrides
+};
+
+// `fields` are the URL query parameters and form fields, `image_bytes` an encoded image (any
+// format OpenCV reads: JPEG, PNG, TIFF, ...). Fields:
+//   fx, fy, cx, cy   required, pixels of the sent image
+//   distortion       optional, OpenCV order k1,k2,p1,p2[,k3[,k4,k5,k6]]
+//   name             optional label
+//   top_k, features, seed, selection   optional overrides of `defaults`
+// InputError naming the field for a missing, malformed or unknown field, and naming "image" for
+// bytes that do not decode or an image of more than `max_image_pixels`.
+LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
+                                     const LocalizeOptions& defaults, size_t max_image_pixels);
+
+}  // namespace ffloc

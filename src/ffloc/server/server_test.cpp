@@ -1,0 +1,317 @@
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <thread>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/io/image.h"
+#include "ffloc/model/torch_threads.h"
+#include "ffloc/pipeline/localization_json.h"
+#include "ffloc/pipeline/mapper.h"
+#include "ffloc/server/localization_server.h"
+#include "ffloc/server/localize_request.h"
+
+// Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string pngBytes(const cv::Mat& rgb) {
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  std::vector<uchar> bytes;
+  cv::imencode(".png", bgr, bytes);
+  return std::string(bytes.begin(), bytes.end());
+}
+
+std::map<std::string, std::string> pinholeFields() {
+  return {{"fx", "100"}, {"fy", "101"}, {"cx", "31.5"}, {"cy", "23.5"}};
+}
+
+std::string requestErrorOf(const std::map<std::string, std::string>& fields, const std::string& image,
+                           size_t max_pixels = 1 << 20) {
+  try {
+    parseLocalizeRequest(fields, image, LocalizeOptions{}, max_pixels);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(LocalizeRequest, ReadsIntrinsicsOverridesAndTheImageInRgbOrder) {
+  cv::Mat rgb(48, 64, CV_8UC3, cv::Scalar(0, 0, 0));
+  rgb.at<cv::Vec3b>(5, 7) = cv::Vec3b(255, 0, 0);
+  auto fields = pinholeFields();
+  fields["distortion"] = "0.1,-0.02,0.001,0";
+  fields["name"] = "door.png";
+  fields["top_k"] = "3";
+  fields["features"] = "200";
+  fields["seed"] = "17";
+  fields["selection"] = "uniform";
+  LocalizeOptions defaults;
+  defaults.top_k = 10;
+  const LocalizeRequest request = parseLocalizeRequest(fields, pngBytes(rgb), defaults, 1 << 20);
+
+  EXPECT_EQ(request.name, "door.png");
+  EXPECT_DOUBLE_EQ(request.intrinsics.fx, 100);
+  EXPECT_DOUBLE_EQ(request.intrinsics.fy, 101);
+  EXPECT_DOUBLE_EQ(request.intrinsics.cx, 31.5);
+  EXPECT_DOUBLE_EQ(request.intrinsics.cy, 23.5);
+  EXPECT_EQ(request.intrinsics.width, 64);
+  EXPECT_EQ(request.intrinsics.height, 48);
+  EXPECT_EQ(request.intrinsics.distortion, (std::vector<double>{0.1, -0.02, 0.001, 0}));
+  EXPECT_EQ(request.options.top_k, 3u);
+  EXPECT_EQ(request.options.num_features, 200);
+  EXPECT_EQ(request.options.seed, 17u);
+  EXPECT_EQ(request.options.pnp.seed, 17u);
+  EXPECT_EQ(request.options.selection, ImageSelection::kUniform);
+  ASSERT_EQ(request.rgb.size(), rgb.size());
+  EXPECT_EQ(request.rgb.at<cv::Vec3b>(5, 7), cv::Vec3b(255, 0, 0));
+
+  const LocalizeRequest plain = parseLocalizeRequest(pinholeFields(), pngBytes(rgb), defaults, 1 << 20);
+  EXPECT_EQ(plain.options.top_k, 10u);
+  EXPECT_EQ(plain.name, "query");
+  EXPECT_TRUE(plain.intrinsics.distortion.empty());
+}
+
+TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
+  const std::string image = pngBytes(cv::Mat(48, 64, CV_8UC3, cv::Scalar(90, 90, 90)));
+  struct Case {
+    std::string field, value, expected_prefix;
+  };
+  const std::vector<Case> cases = {
+      {"fx", "abc", "fx:"},       {"fx", "-3", "fx:"},          {"fy", "nan", "fy:"},
+      {"cx", "1e9", "cx, cy:"},   {"cy", "-5", "cx, cy:"},      {"top_k", "0", "top_k:"},
+      {"top_k", "2.5", "top_k:"}, {"features", "", "features:"}, {"seed", "-1", "seed:"},
+      {"topk", "3", "topk:"},     {"distortion", "0.1,0.2", "distortion:"},
+      {"distortion", "a,b,c,d", "distortion:"}, {"selection", "best", "selection:"},
+  };
+  for (const Case& c : cases) {
+    auto fields = pinholeFields();
+    fields[c.field] = c.value;
+    const std::string error = requestErrorOf(fields, image);
+    EXPECT_EQ(error.rfind(c.expected_prefix, 0), 0u) << c.field << "=" << c.value << " gave '" << error << "'";
+  }
+  auto missing = pinholeFields();
+  missing.erase("cy");
+  EXPECT_EQ(requestErrorOf(missing, image).rfind("cy: missing", 0), 0u);
+  EXPECT_EQ(requestErrorOf(pinholeFields(), "").rfind("image:", 0), 0u);
+  EXPECT_EQ(requestErrorOf(pinholeFields(), "not an image at all").rfind("image:", 0), 0u);
+  EXPECT_EQ(requestErrorOf(pinholeFields(), image, 64 * 48 - 1).rfind("image:", 0), 0u);
+  EXPECT_EQ(requestErrorOf(pinholeFields(), image, 64 * 48), "");
+}
+
+// The server against the library it fronts: a synthetic scene, a random tiny model (its pose is
+// meaningless, but deterministic), every route and every refusal over real sockets.
+class ServerTest : public ::testing::Test {
+ protected:
+  static constexpr int kLongSide = 256;
+
+  static void SetUpTestSuite() {
+    setTorchThreadCount(1);
+    dir_ = new fs::path(testing::makeTempDir("ffloc_server"));
+    SyntheticOptions synthetic;
+    synthetic.seed = 5;
+    synthetic.mapping_frames = 6;
+    synthetic.query_frames = 1;
+    scene_ = new Scene(generateSyntheticScene(synthetic, *dir_));
+    model_ = new LoadedModel(loadModel("random:tiny:3"));
+    MappingOptions mapping;
+    mapping.quiet = true;
+    mapping.long_side = kLongSide;
+    MapFile map = emptyMap(*model_, true);
+    std::vector<size_t> mapping_frames;
+    for (size_t i = 0; i < scene_->frames.size(); ++i)
+      if (scene_->frames[i].split == Split::kMapping) mapping_frames.push_back(i);
+    addToMap(map, *model_, *scene_, mapping_frames, mapping);
+    localizer_ = new Localizer(*model_->model, std::move(map));
+  }
+
+  static void TearDownTestSuite() {
+    delete localizer_;
+    delete model_;
+    delete scene_;
+    fs::remove_all(*dir_);
+    delete dir_;
+  }
+
+  void SetUp() override {
+    options_.port = 0;
+    options_.max_body_bytes = size_t{2} << 20;
+    options_.localize.top_k = 4;
+    options_.localize.num_features = 300;
+    options_.localize.long_side = kLongSide;
+    server_ = std::make_unique<LocalizationServer>(*localizer_, options_, "random tiny");
+    port_ = server_->bind();
+    serving_ = std::thread([this] { server_->serve(); });
+    client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
+    client_->set_read_timeout(120);
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+    while (!client_->Get("/health") && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+
+  void TearDown() override {
+    server_->stop();
+    serving_.join();
+  }
+
+  const Frame& query() const {
+    for (const Frame& frame : scene_->frames)
+      if (frame.split == Split::kQuery) return frame;
+    throw std::logic_error("no query");
+  }
+
+  std::string queryFileBytes() const {
+    std::ifstream file(query().image_path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(file), {});
+  }
+
+  std::string intrinsicsParameters() const {
+    const Intrinsics& k = query().intrinsics;
+    char text[200];
+    std::snprintf(text, sizeof(text), "fx=%.17g&fy=%.17g&cx=%.17g&cy=%.17g", k.fx, k.fy, k.cx, k.cy);
+    return text;
+  }
+
+  static nlohmann::json body(const httplib::Result& result) { return nlohmann::json::parse(result->body); }
+
+  static inline fs::path* dir_ = nullptr;
+  static inline Scene* scene_ = nullptr;
+  static inline LoadedModel* model_ = nullptr;
+  static inline Localizer* localizer_ = nullptr;
+  ServerOptions options_;
+  std::unique_ptr<LocalizationServer> server_;
+  int port_ = 0;
+  std::thread serving_;
+  std::unique_ptr<httplib::Client> client_;
+};
+
+TEST_F(ServerTest, HealthAndMapDescribeWhatIsServed) {
+  const auto health = client_->Get("/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  EXPECT_EQ(body(health)["status"], "ok");
+  EXPECT_EQ(body(health)["map_images"], 6);
+
+  const auto map = client_->Get("/map");
+  ASSERT_TRUE(map);
+  EXPECT_EQ(map->status, 200);
+  EXPECT_EQ(body(map)["images"], 6);
+  EXPECT_EQ(body(map)["names"][0], localizer_->map().images[0].name);
+  EXPECT_EQ(body(map)["model_id"], model_->id);
+  EXPECT_EQ(body(map)["defaults"]["top_k"], 4);
+}
+
+TEST_F(ServerTest, LocalizeAnswersWhatTheLibraryComputes) {
+  LocalizeOptions options = options_.localize;
+  options.seed = options.pnp.seed = 9;
+  const LocalizationResult direct =
+      localizer_->localize(readImageRgb(query().image_path), query().intrinsics, query().name, options);
+  const nlohmann::json expected = localizationJson("q", direct, localizer_->map());
+  // Deterministic: this seed's scene and model give a pose, so the answers' poses are compared.
+  ASSERT_TRUE(direct.pnp.ok()) << toString(direct.pnp.status);
+
+  const auto raw = client_->Post(("/localize?name=q&seed=9&" + intrinsicsParameters()).c_str(), queryFileBytes(),
+                                 "image/png");
+  ASSERT_TRUE(raw);
+  ASSERT_EQ(raw->status, 200) << raw->body;
+  const httplib::MultipartFormDataItems form = {{"image", queryFileBytes(), "query.png", "image/png"},
+                                                {"name", "q", "", ""},
+                                                {"seed", "9", "", ""}};
+  const auto multipart = client_->Post(("/localize?" + intrinsicsParameters()).c_str(), form);
+  ASSERT_TRUE(multipart);
+  ASSERT_EQ(multipart->status, 200) << multipart->body;
+
+  for (const nlohmann::json& answer : {body(raw), body(multipart)}) {
+    EXPECT_EQ(answer["name"], "q");
+    EXPECT_EQ(answer["status"], expected["status"]);
+    EXPECT_EQ(answer["selected"], expected["selected"]);
+    EXPECT_EQ(answer["inliers"], expected["inliers"]);
+    EXPECT_EQ(answer["pnp_correspondences"], expected["pnp_correspondences"]);
+    EXPECT_GT(answer["pnp_correspondences"].get<int>(), 0);
+    ASSERT_TRUE(answer.contains("camera_to_world"));
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 4; ++c)
+        EXPECT_NEAR(answer["camera_to_world"][r][c].get<double>(), expected["camera_to_world"][r][c].get<double>(), 1e-9);
+    EXPECT_GT(answer["timings_ms"]["total"].get<double>(), 0);
+  }
+}
+
+TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
+  const auto no_fx = client_->Post("/localize?fy=1&cx=1&cy=1", queryFileBytes(), "image/png");
+  ASSERT_TRUE(no_fx);
+  EXPECT_EQ(no_fx->status, 400);
+  EXPECT_EQ(body(no_fx)["error"].get<std::string>().rfind("fx: missing", 0), 0u) << no_fx->body;
+
+  const auto garbage = client_->Post(("/localize?" + intrinsicsParameters()).c_str(), "%PDF-1.4", "image/png");
+  ASSERT_TRUE(garbage);
+  EXPECT_EQ(garbage->status, 400);
+  EXPECT_EQ(body(garbage)["error"].get<std::string>().rfind("image:", 0), 0u) << garbage->body;
+
+  // What curl --data-binary sends without -H: small bodies reach the handler, large ones stop at
+  // the library's form limit; both say how to send an image instead.
+  for (const size_t size : {size_t{100}, size_t{100000}}) {
+    const auto form_encoded = client_->Post(("/localize?" + intrinsicsParameters()).c_str(), queryFileBytes().substr(0, size),
+                                            "application/x-www-form-urlencoded");
+    ASSERT_TRUE(form_encoded);
+    EXPECT_TRUE(form_encoded->status == 400 || form_encoded->status == 413);
+    EXPECT_NE(body(form_encoded)["error"].get<std::string>().find("Content-Type: image/jpeg"), std::string::npos)
+        << form_encoded->body;
+  }
+
+  const httplib::MultipartFormDataItems no_image = {{"fx", "100", "", ""}};
+  const auto form = client_->Post("/localize", no_image);
+  ASSERT_TRUE(form);
+  EXPECT_EQ(form->status, 400);
+  EXPECT_NE(body(form)["error"].get<std::string>().find("'image' part"), std::string::npos) << form->body;
+
+  const auto twice = client_->Post(("/localize?seed=1&" + intrinsicsParameters()).c_str(),
+                                   httplib::MultipartFormDataItems{{"image", queryFileBytes(), "q.png", "image/png"},
+                                                                   {"seed", "2", "", ""}});
+  ASSERT_TRUE(twice);
+  EXPECT_EQ(twice->status, 400);
+  EXPECT_EQ(body(twice)["error"].get<std::string>().rfind("seed:", 0), 0u) << twice->body;
+
+  const auto unknown = client_->Get("/localise");
+  ASSERT_TRUE(unknown);
+  EXPECT_EQ(unknown->status, 404);
+  EXPECT_NE(body(unknown)["error"].get<std::string>().find("POST /localize"), std::string::npos);
+
+  const auto too_large = client_->Post(("/localize?" + intrinsicsParameters()).c_str(),
+                                       std::string(options_.max_body_bytes + 1, 'x'), "image/png");
+  ASSERT_TRUE(too_large);
+  EXPECT_EQ(too_large->status, 413);
+  EXPECT_NE(body(too_large)["error"].get<std::string>().find("limit"), std::string::npos);
+
+  // Still serving after every refusal.
+  const auto health = client_->Get("/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+}
+
+TEST_F(ServerTest, SecondServerOnTheSamePortIsAnInputError) {
+  ServerOptions taken = options_;
+  taken.port = port_;
+  LocalizationServer second(*localizer_, taken, "random tiny");
+  try {
+    second.bind();
+    FAIL() << "bound a port already in use";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("--port " + std::to_string(port_)), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace ffloc
