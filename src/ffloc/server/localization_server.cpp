@@ -32,9 +32,15 @@ std::string reasonPhrase(int status) {
   }
 }
 
+// Request text (a name, an unknown field) reaches answers and may not be UTF-8: replace rather
+// than throw.
+std::string jsonText(const nlohmann::json& value) {
+  return value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
 void replyError(httplib::Response& response, int status, const std::string& message) {
   response.status = status;
-  response.set_content(nlohmann::json{{"error", message}}.dump(), kJson);
+  response.set_content(jsonText({{"error", message}}), kJson);
 }
 
 // URL parameters, then (multipart) form fields; a field given twice is a request error rather
@@ -98,7 +104,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     const nlohmann::json body = {{"status", "ok"},
                                  {"model", model_description_},
                                  {"map_images", localizer_.map().images.size()}};
-    response.set_content(body.dump(), kJson);
+    response.set_content(jsonText(body), kJson);
     log(request.method + " " + request.path + " 200");
   });
 
@@ -116,7 +122,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
           {"features", options_.localize.num_features},
           {"seed", options_.localize.seed},
           {"selection", toString(options_.localize.selection)}}}};
-    response.set_content(body.dump(), kJson);
+    response.set_content(jsonText(body), kJson);
     log(request.method + " " + request.path + " 200");
   });
 
@@ -140,7 +146,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
       replyError(response, 400, e.what());
       return;
     }
-    response.set_content(body.dump(), kJson);
+    response.set_content(jsonText(body), kJson);
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     log(request.method + " " + request.path + " 200 " + query.name + " " + body["status"].get<std::string>() + " " +
         std::to_string(body["inliers"].get<int>()) + " inliers, " + std::to_string(static_cast<int>(ms)) + " ms");

@@ -284,6 +284,18 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   EXPECT_EQ(twice->status, 400);
   EXPECT_EQ(body(twice)["error"].get<std::string>().rfind("seed:", 0), 0u) << twice->body;
 
+  // Text that is not UTF-8 is replaced in answers, not a failure.
+  const auto not_utf8 = client_->Post(("/localize?name=%FF%FE&" + intrinsicsParameters()).c_str(), queryFileBytes(),
+                                      "application/octet-stream");
+  ASSERT_TRUE(not_utf8);
+  EXPECT_EQ(not_utf8->status, 200) << not_utf8->body;
+  EXPECT_EQ(body(not_utf8)["name"], "\xEF\xBF\xBD\xEF\xBF\xBD");
+  const auto bad_field = client_->Post(("/localize?%FF=1&" + intrinsicsParameters()).c_str(), queryFileBytes(),
+                                       "image/png");
+  ASSERT_TRUE(bad_field);
+  EXPECT_EQ(bad_field->status, 400);
+  EXPECT_NE(body(bad_field)["error"].get<std::string>().find("unknown field"), std::string::npos);
+
   const auto unknown = client_->Get("/localise");
   ASSERT_TRUE(unknown);
   EXPECT_EQ(unknown->status, 404);
