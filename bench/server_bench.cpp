@@ -40,7 +40,7 @@ void BM_ParseRequest(benchmark::State& state, const std::string& extension) {
   const std::string bytes = encodedTexture(width, height, extension);
   const std::map<std::string, std::string> fields = {
       {"fx", "500"}, {"fy", "500"}, {"cx", std::to_string(width / 2)}, {"cy", std::to_string(height / 2)}};
-  for (auto _ : state) benchmark::DoNotOptimize(parseLocalizeRequest(fields, bytes, LocalizeOptions{}, 50'000'000));
+  for (auto _ : state) benchmark::DoNotOptimize(parseLocalizeRequest(fields, bytes, LocalizeOptions{}));
   state.SetLabel(std::to_string(width) + "x" + std::to_string(height) + extension + ", " +
                  std::to_string(bytes.size() / 1024) + " KiB");
 }

@@ -1,8 +1,9 @@
+#include <fcntl.h>
 #include <unistd.h>
 
-#include <atomic>
-#include <chrono>
+#include <cerrno>
 #include <csignal>
+#include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <stdexcept>
@@ -30,6 +31,7 @@ struct ServeArguments {
   std::string dtype = "f32";
   int threads = 0;
   size_t max_body_mb = 32;
+  size_t max_waiting = 4;
 };
 
 // SIGINT and SIGTERM stop the server through a pipe: the handler only writes one byte (all a
@@ -38,35 +40,37 @@ struct ServeArguments {
 int stop_pipe[2] = {-1, -1};
 
 extern "C" void writeStopByte(int signal) {
+  const int saved_errno = errno;
   const char byte = static_cast<char>(signal);
   [[maybe_unused]] const ssize_t written = write(stop_pipe[1], &byte, 1);
+  errno = saved_errno;
 }
 
 class StopOnSignal {
  public:
   explicit StopOnSignal(LocalizationServer& server) {
-    if (pipe(stop_pipe) != 0) throw std::runtime_error("serve: cannot create the signal pipe");
+    if (pipe2(stop_pipe, O_CLOEXEC) != 0 || fcntl(stop_pipe[1], F_SETFL, O_NONBLOCK) != 0)
+      throw std::runtime_error("serve: cannot create the signal pipe");
     struct sigaction action = {};
     action.sa_handler = writeStopByte;
+    action.sa_flags = SA_RESTART;
     sigemptyset(&action.sa_mask);
     sigaction(SIGINT, &action, &previous_interrupt_);
     sigaction(SIGTERM, &action, &previous_terminate_);
     waiter_ = std::thread([this, &server] {
       char signal = 0;
-      if (read(stop_pipe[0], &signal, 1) != 1 || signal == 0) return;
-      std::cerr << "signal " << int(signal) << ": stopping after the requests in flight\n";
-      // The signal may arrive before the server listens, when a stop would be missed: repeat
-      // until serve() has returned.
-      while (!done_) {
-        server.stop();
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-      }
+      ssize_t got = 0;
+      do {
+        got = read(stop_pipe[0], &signal, 1);
+      } while (got < 0 && errno == EINTR);
+      if (got != 1 || signal == 0) return;
+      restoreHandlers();  // a second Ctrl-C ends the process at once
+      std::cerr << "signal " << int(signal) << ": stopping after the requests in flight (again to quit now)\n";
+      server.stop();
     });
   }
   ~StopOnSignal() {
-    done_ = true;
-    sigaction(SIGINT, &previous_interrupt_, nullptr);
-    sigaction(SIGTERM, &previous_terminate_, nullptr);
+    restoreHandlers();
     const char wake = 0;
     [[maybe_unused]] const ssize_t written = write(stop_pipe[1], &wake, 1);
     waiter_.join();
@@ -75,8 +79,12 @@ class StopOnSignal {
   }
 
  private:
+  void restoreHandlers() {
+    sigaction(SIGINT, &previous_interrupt_, nullptr);
+    sigaction(SIGTERM, &previous_terminate_, nullptr);
+  }
+
   struct sigaction previous_interrupt_ = {}, previous_terminate_ = {};
-  std::atomic<bool> done_{false};
   std::thread waiter_;
 };
 
@@ -85,6 +93,9 @@ void runServe(const ServeArguments& args) {
   options.host = args.host;
   options.port = args.port;
   options.max_body_bytes = args.max_body_mb << 20;
+  options.max_waiting_queries = args.max_waiting;
+  // Formats whose header parseLocalizeRequest cannot read are bounded by OpenCV's own limit.
+  setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(options.limits.max_image_pixels).c_str(), /*overwrite=*/0);
   options.localize = LocalizeOptions::preset(args.preset);
   if (args.top_k > 0) options.localize.top_k = args.top_k;
   if (args.features > 0) options.localize.num_features = args.features;
@@ -132,6 +143,9 @@ void registerServeCommand(CLI::App& app) {
   cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--max-body-mb", args->max_body_mb, "Largest request body accepted, in MiB")
       ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  cmd->add_option("--max-waiting", args->max_waiting,
+                  "Queries that may wait while one runs; more are answered 503 (busy)")
       ->capture_default_str();
   cmd->callback([args] { runServe(*args); });
 }

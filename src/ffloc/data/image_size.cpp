@@ -4,6 +4,8 @@
 #include <cstdint>
 #include <fstream>
 #include <optional>
+#include <sstream>
+#include <string>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/error.h"
@@ -17,7 +19,7 @@ uint32_t bigEndian(const unsigned char* bytes, int count) {
   return value;
 }
 
-std::optional<cv::Size> pngSize(std::ifstream& in) {
+std::optional<cv::Size> pngSize(std::istream& in) {
   std::array<unsigned char, 24> header{};
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(header.data()), header.size())) return std::nullopt;
@@ -29,7 +31,7 @@ std::optional<cv::Size> pngSize(std::ifstream& in) {
 
 // Walks the JPEG marker segments up to the first start-of-frame. Gives up (nullopt) on EXIF,
 // since cv::imread applies the EXIF orientation and may swap width and height.
-std::optional<cv::Size> jpegSize(std::ifstream& in) {
+std::optional<cv::Size> jpegSize(std::istream& in) {
   unsigned char marker[4];
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(marker), 2) || marker[0] != 0xFF || marker[1] != 0xD8) return std::nullopt;
@@ -61,18 +63,28 @@ std::optional<cv::Size> jpegSize(std::ifstream& in) {
   return std::nullopt;
 }
 
-}  // namespace
-
-cv::Size readImageSize(const std::filesystem::path& path) {
-  if (!std::filesystem::exists(path)) throwInputError(path.string(), 0, "image file not found");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throwInputError(path.string(), 0, "cannot open image file");
+std::optional<cv::Size> headerSize(std::istream& in) {
   std::optional<cv::Size> size = pngSize(in);
   if (!size) {
     in.clear();
     size = jpegSize(in);
   }
-  if (size && size->width > 0 && size->height > 0) return *size;
+  if (size && size->width > 0 && size->height > 0) return size;
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<cv::Size> encodedImageSize(const std::string& bytes) {
+  std::istringstream in(bytes);
+  return headerSize(in);
+}
+
+cv::Size readImageSize(const std::filesystem::path& path) {
+  if (!std::filesystem::exists(path)) throwInputError(path.string(), 0, "image file not found");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throwInputError(path.string(), 0, "cannot open image file");
+  if (const std::optional<cv::Size> size = headerSize(in)) return *size;
   const cv::Mat image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
   if (image.empty()) throwInputError(path.string(), 0, "cannot decode image (not a readable image file)");
   return image.size();

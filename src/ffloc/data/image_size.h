@@ -1,6 +1,8 @@
 #pragma once
 
 #include <filesystem>
+#include <optional>
+#include <string>
 #include <opencv2/core.hpp>
 
 namespace ffloc {
@@ -11,5 +13,9 @@ namespace ffloc {
 // tag may swap the sides), are decoded. Throws InputError naming the file when it is missing or
 // not a readable image.
 cv::Size readImageSize(const std::filesystem::path& path);
+
+// The size an encoded PNG or JPEG (without EXIF) in memory declares in its header, before any
+// decoding; nullopt for other formats and for bytes whose header does not tell.
+std::optional<cv::Size> encodedImageSize(const std::string& bytes);
 
 }  // namespace ffloc

@@ -28,6 +28,20 @@ TEST(ImageSize, ReadsHeadersOfEveryEncoding) {
   testing::expectInputError([&] { readImageSize(dir / "none.png"); }, {"none.png", "not found"});
 }
 
+TEST(ImageSize, ReadsHeadersInMemory) {
+  const cv::Mat3b image(7, 13, cv::Vec3b(10, 20, 30));
+  for (const std::string extension : {".png", ".jpg"}) {
+    std::vector<uchar> bytes;
+    ASSERT_TRUE(cv::imencode(extension, image, bytes));
+    EXPECT_EQ(encodedImageSize(std::string(bytes.begin(), bytes.end())), cv::Size(13, 7)) << extension;
+  }
+  std::vector<uchar> tiff;
+  ASSERT_TRUE(cv::imencode(".tiff", image, tiff));
+  EXPECT_FALSE(encodedImageSize(std::string(tiff.begin(), tiff.end())));
+  EXPECT_FALSE(encodedImageSize("\x89PNG"));
+  EXPECT_FALSE(encodedImageSize(""));
+}
+
 TEST(ImageSize, AgreesWithDecodingOnTheSharedSamples) {
   FFLOC_REQUIRE_SHARED(data, "data");
   for (const std::string name :

@@ -1,6 +1,8 @@
 #include "ffloc/server/localization_server.h"
 
 #include <chrono>
+#include <stdexcept>
+#include <thread>
 #include <map>
 #include <nlohmann/json.hpp>
 
@@ -26,7 +28,8 @@ std::string reasonPhrase(int status) {
   switch (status) {
     case 400: return "bad request";
     case 404: return "not found";
-    case 405: return "method not allowed";
+    case 411: return "length required";
+    case 503: return "busy";
     case 413: return "payload too large";
     default: return "HTTP " + std::to_string(status);
   }
@@ -70,9 +73,25 @@ constexpr const char* kSendImageAs =
 
 const std::string& imageBytes(const httplib::Request& request) {
   if (!request.is_multipart_form_data()) return request.body;
-  if (!request.has_file("image")) throw InputError("image: the multipart form has no 'image' part");
+  const size_t parts = request.files.count("image");
+  if (parts == 0) throw InputError("image: the multipart form has no 'image' part");
+  if (parts > 1) throw InputError("image: given more than once");
   return request.files.find("image")->second.content;
 }
+
+// Counts a query from arrival to answer; refuses it when too many already wait.
+class QueryTicket {
+ public:
+  QueryTicket(std::atomic<size_t>& in_flight, size_t max_waiting) : in_flight_(in_flight) {
+    admitted_ = in_flight_.fetch_add(1) <= max_waiting;
+  }
+  ~QueryTicket() { in_flight_.fetch_sub(1); }
+  bool admitted() const { return admitted_; }
+
+ private:
+  std::atomic<size_t>& in_flight_;
+  bool admitted_ = false;
+};
 
 }  // namespace
 
@@ -126,13 +145,27 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     log(request.method + " " + request.path + " 200");
   });
 
+  // The body limit of the HTTP library holds only for bodies that announce their length, so a
+  // chunked upload or one without Content-Length is refused before it is read.
+  server.set_pre_routing_handler([](const httplib::Request& request, httplib::Response& response) {
+    if (request.method != "POST" || request.has_header("Content-Length")) return httplib::Server::HandlerResponse::Unhandled;
+    replyError(response, 411, "length required: send the body with a Content-Length header (no chunked transfer)");
+    return httplib::Server::HandlerResponse::Handled;
+  });
+
   server.Post("/localize", [this, log](const httplib::Request& request, httplib::Response& response) {
     const auto start = std::chrono::steady_clock::now();
+    const QueryTicket ticket(queries_in_flight_, options_.max_waiting_queries);
+    if (!ticket.admitted()) {
+      replyError(response, 503,
+                 "busy: one query is running and " + std::to_string(options_.max_waiting_queries) +
+                     " are waiting; retry later");
+      return;
+    }
     LocalizeRequest query;
     try {
       if (isUrlEncodedForm(request)) throw InputError(std::string("image: body is a URL-encoded form; ") + kSendImageAs);
-      query = parseLocalizeRequest(requestFields(request), imageBytes(request), options_.localize,
-                                   options_.max_image_pixels);
+      query = parseLocalizeRequest(requestFields(request), imageBytes(request), options_.localize, options_.limits);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
       return;
@@ -156,7 +189,9 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
   server.set_error_handler([this, log](const httplib::Request& request, httplib::Response& response) {
     if (response.body.empty()) {
       std::string message = reasonPhrase(response.status);
-      if (response.status == 413 && isUrlEncodedForm(request)) {
+      if (response.status == 400) {
+        message += ": the HTTP library could not parse the request (malformed headers or multipart form)";
+      } else if (response.status == 413 && isUrlEncodedForm(request)) {
         message += ": image: body is a URL-encoded form; " + std::string(kSendImageAs);
       } else if (response.status == 413) {
         message += ": the body is over the server's limit of " + std::to_string(options_.max_body_bytes) + " bytes";
@@ -170,8 +205,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     log(request.method + " " + request.path + " " + std::to_string(response.status) + " " + message);
   });
 
-  server.set_exception_handler([log](const httplib::Request& request, httplib::Response& response,
-                                     std::exception_ptr exception) {
+  server.set_exception_handler([](const httplib::Request&, httplib::Response& response, std::exception_ptr exception) {
     std::string what = "unknown exception";
     try {
       std::rethrow_exception(exception);
@@ -179,8 +213,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
       what = e.what();
     } catch (...) {
     }
-    replyError(response, 500, "internal error: " + what);
-    log(request.method + " " + request.path + " 500 internal error: " + what);
+    replyError(response, 500, "internal error: " + what);  // logged by the error handler
   });
 }
 
@@ -201,11 +234,21 @@ int LocalizationServer::bind() {
   return bound_port_;
 }
 
+// The HTTP library's stop() does nothing before its listen loop has started, so stop() and serve()
+// meet through two flags: whichever runs second sees the other's.
 void LocalizationServer::serve() {
   bind();
-  http_->server.listen_after_bind();
+  serving_ = true;
+  const bool listened = !stop_requested_ && http_->server.listen_after_bind();
+  serving_ = false;
+  if (!listened && !stop_requested_)
+    throw std::runtime_error("serve: the socket on port " + std::to_string(bound_port_) + " failed while listening");
 }
 
-void LocalizationServer::stop() { http_->server.stop(); }
+void LocalizationServer::stop() {
+  stop_requested_ = true;
+  while (serving_ && !http_->server.is_running()) std::this_thread::yield();
+  http_->server.stop();
+}
 
 }  // namespace ffloc

@@ -1,5 +1,6 @@
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <memory>
 #include <mutex>
@@ -7,6 +8,7 @@
 #include <string>
 
 #include "ffloc/pipeline/localizer.h"
+#include "ffloc/server/localize_request.h"
 
 namespace ffloc {
 
@@ -17,12 +19,16 @@ namespace ffloc {
 //   POST /localize  an encoded image as the body (fields as URL parameters) or as the "image"
 //                   part of a multipart form (fields as URL parameters or form fields);
 //                   answers what `ffloc localize --json` prints
-// Bad requests get status 400 and {"error": "<field>: <what>"}; a body over max_body_bytes 413.
+// Bad requests get status 400 and {"error": "<field>: <what>"}; a body over max_body_bytes 413,
+// a POST without Content-Length 411, a query beyond max_waiting_queries 503.
 struct ServerOptions {
   std::string host = "127.0.0.1";  // loopback: serving other machines is a choice (0.0.0.0)
   int port = 8080;                 // 0: any free port, see LocalizationServer::bind()
   size_t max_body_bytes = size_t{32} << 20;
-  size_t max_image_pixels = 40'000'000;
+  // Queries waiting while one runs. The HTTP library's threads are few (8 on small machines), so
+  // without a bound, waiting queries would take every thread and /health would stop answering.
+  size_t max_waiting_queries = 4;
+  RequestLimits limits;
   LocalizeOptions localize;  // per-request defaults; requests may override K, N, seed, selection
   std::ostream* log = nullptr;  // one line per request when set
 };
@@ -37,9 +43,11 @@ class LocalizationServer {
 
   // Binds the socket and returns the port. InputError naming host and port when that fails.
   int bind();
-  // Answers requests until stop(); binds first when bind() was not called.
+  // Answers requests until stop(); binds first when bind() was not called. std::runtime_error
+  // when the socket fails for another reason than stop().
   void serve();
-  // From any thread: finishes the requests in flight, then serve() returns.
+  // From any thread, before or while serve() runs: finishes the requests in flight, then serve()
+  // returns (at once, when it had not started listening yet).
   void stop();
 
  private:
@@ -49,8 +57,11 @@ class LocalizationServer {
   std::string model_description_;
   std::unique_ptr<Http> http_;
   int bound_port_ = -1;
+  std::atomic<bool> stop_requested_{false};
+  std::atomic<bool> serving_{false};
   // One query at a time: each already uses every torch thread, and the model is shared.
   std::mutex localize_mutex_;
+  std::atomic<size_t> queries_in_flight_{0};  // running and waiting
 };
 
 }  // namespace ffloc

@@ -4,12 +4,15 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <limits>
+#include <optional>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/data/image_size.h"
 
 namespace ffloc {
 namespace {
@@ -20,7 +23,19 @@ const std::set<std::string>& knownFields() {
   return fields;
 }
 
+std::string knownFieldList() {
+  std::string list;
+  for (const std::string& field : knownFields()) list += (list.empty() ? "" : ", ") + field;
+  return list;
+}
+
+// Plain decimal only: strtod alone would also take leading blanks, hexadecimal and "inf".
+bool isDecimalText(const std::string& text) {
+  return !text.empty() && text.find_first_not_of("0123456789+-.eE") == std::string::npos;
+}
+
 double parseFiniteNumber(const std::string& field, const std::string& text) {
+  if (!isDecimalText(text)) throw InputError(field + ": expected a finite number, got '" + text + "'");
   const char* begin = text.c_str();
   char* end = nullptr;
   errno = 0;
@@ -35,7 +50,7 @@ long long parseInteger(const std::string& field, const std::string& text, long l
   char* end = nullptr;
   errno = 0;
   const long long value = std::strtoll(begin, &end, 10);
-  if (text.empty() || end != begin + text.size() || errno == ERANGE || value < min || value > max) {
+  if (!isDecimalText(text) || end != begin + text.size() || errno == ERANGE || value < min || value > max) {
     throw InputError(field + ": expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) +
                      "], got '" + text + "'");
   }
@@ -50,6 +65,7 @@ double requiredNumber(const std::map<std::string, std::string>& fields, const st
 
 std::vector<double> parseDistortion(const std::string& text) {
   std::vector<double> coefficients;
+  if (!text.empty() && text.back() == ',') throw InputError("distortion: trailing comma in '" + text + "'");
   std::stringstream stream(text);
   std::string item;
   while (std::getline(stream, item, ',')) coefficients.push_back(parseFiniteNumber("distortion", item));
@@ -60,8 +76,19 @@ std::vector<double> parseDistortion(const std::string& text) {
   return coefficients;
 }
 
+std::string pixelLimitError(const cv::Size& size, size_t max_image_pixels) {
+  return "image: " + std::to_string(size.width) + "x" + std::to_string(size.height) + " is more than the " +
+         std::to_string(max_image_pixels) + " pixels this server accepts";
+}
+
 cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
   if (bytes.empty()) throw InputError("image: the request carries no image");
+  if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max()))
+    throw InputError("image: " + std::to_string(bytes.size()) + " bytes is more than an image may have");
+  if (const std::optional<cv::Size> declared = encodedImageSize(bytes);
+      declared && static_cast<size_t>(declared->width) * static_cast<size_t>(declared->height) > max_image_pixels) {
+    throw InputError(pixelLimitError(*declared, max_image_pixels));
+  }
   const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
   cv::Mat bgr;
   try {
@@ -70,10 +97,7 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
     bgr.release();
   }
   if (bgr.empty()) throw InputError("image: " + std::to_string(bytes.size()) + " bytes that OpenCV cannot decode as an image");
-  if (static_cast<size_t>(bgr.total()) > max_image_pixels) {
-    throw InputError("image: " + std::to_string(bgr.cols) + "x" + std::to_string(bgr.rows) + " is more than the " +
-                     std::to_string(max_image_pixels) + " pixels this server accepts");
-  }
+  if (static_cast<size_t>(bgr.total()) > max_image_pixels) throw InputError(pixelLimitError(bgr.size(), max_image_pixels));
   cv::Mat rgb;
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
   return rgb;
@@ -82,11 +106,10 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
 }  // namespace
 
 LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
-                                     const LocalizeOptions& defaults, size_t max_image_pixels) {
+                                     const LocalizeOptions& defaults, const RequestLimits& limits) {
   for (const auto& [field, value] : fields) {
     if (!knownFields().count(field)) {
-      throw InputError(field + ": unknown field (known: fx, fy, cx, cy, distortion, name, top_k, features, seed, "
-                               "selection)");
+      throw InputError(field + ": unknown field (known: " + knownFieldList() + ")");
     }
   }
   LocalizeRequest request;
@@ -100,9 +123,9 @@ LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& f
   if (const auto it = fields.find("distortion"); it != fields.end()) request.intrinsics.distortion = parseDistortion(it->second);
   if (const auto it = fields.find("name"); it != fields.end() && !it->second.empty()) request.name = it->second;
   if (const auto it = fields.find("top_k"); it != fields.end())
-    request.options.top_k = static_cast<size_t>(parseInteger("top_k", it->second, 1, 1000));
+    request.options.top_k = static_cast<size_t>(parseInteger("top_k", it->second, 1, static_cast<long long>(limits.max_top_k)));
   if (const auto it = fields.find("features"); it != fields.end())
-    request.options.num_features = parseInteger("features", it->second, 1, 100000);
+    request.options.num_features = parseInteger("features", it->second, 1, limits.max_features);
   if (const auto it = fields.find("seed"); it != fields.end()) {
     request.options.seed = static_cast<uint64_t>(parseInteger("seed", it->second, 0, INT64_MAX));
     request.options.pnp.seed = request.options.seed;
@@ -115,7 +138,7 @@ LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& f
     }
   }
 
-  request.rgb = decodeRgb(image_bytes, max_image_pixels);
+  request.rgb = decodeRgb(image_bytes, limits.max_image_pixels);
   request.intrinsics.width = request.rgb.cols;
   request.intrinsics.height = request.rgb.rows;
   const Intrinsics& k = request.intrinsics;

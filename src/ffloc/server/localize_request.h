@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <string>
 
@@ -19,15 +20,25 @@ struct LocalizeRequest {
   LocalizeOptions options;     // the server's defaults with the request's overrides
 };
 
+// What one request may ask for: a server answers queries one at a time, so one request should
+// not hold it for minutes, nor decode into gigabytes.
+struct RequestLimits {
+  size_t max_image_pixels = 40'000'000;
+  size_t max_top_k = 100;
+  int64_t max_features = 20000;
+};
+
 // `fields` are the URL query parameters and form fields, `image_bytes` an encoded image (any
 // format OpenCV reads: JPEG, PNG, TIFF, ...). Fields:
 //   fx, fy, cx, cy   required, pixels of the sent image
 //   distortion       optional, OpenCV order k1,k2,p1,p2[,k3[,k4,k5,k6]]
 //   name             optional label
 //   top_k, features, seed, selection   optional overrides of `defaults`
-// InputError naming the field for a missing, malformed or unknown field, and naming "image" for
-// bytes that do not decode or an image of more than `max_image_pixels`.
+// InputError naming the field for a missing, malformed, unknown or out-of-limits field, and
+// naming "image" for bytes that do not decode or an image over the pixel limit (refused from
+// the PNG or JPEG header, before decoding, where the header tells). The image is decoded as
+// `ffloc localize` reads files: OpenCV applies a JPEG's EXIF orientation.
 LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
-                                     const LocalizeOptions& defaults, size_t max_image_pixels);
+                                     const LocalizeOptions& defaults, const RequestLimits& limits = {});
 
 }  // namespace ffloc

@@ -1,5 +1,10 @@
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -39,14 +44,40 @@ std::map<std::string, std::string> pinholeFields() {
   return {{"fx", "100"}, {"fy", "101"}, {"cx", "31.5"}, {"cy", "23.5"}};
 }
 
+RequestLimits pixelLimit(size_t max_image_pixels) {
+  RequestLimits limits;
+  limits.max_image_pixels = max_image_pixels;
+  return limits;
+}
+
 std::string requestErrorOf(const std::map<std::string, std::string>& fields, const std::string& image,
-                           size_t max_pixels = 1 << 20) {
+                           const RequestLimits& limits = {}) {
   try {
-    parseLocalizeRequest(fields, image, LocalizeOptions{}, max_pixels);
+    parseLocalizeRequest(fields, image, LocalizeOptions{}, limits);
   } catch (const InputError& e) {
     return e.what();
   }
   return "";
+}
+
+// Sends `request` as it is on a new connection and returns what comes back until the server
+// closes it (or 20 s pass).
+std::string rawExchange(int port, const std::string& request) {
+  const int socket_fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in address = {};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string answer;
+  if (connect(socket_fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
+      send(socket_fd, request.data(), request.size(), 0) == static_cast<ssize_t>(request.size())) {
+    timeval timeout = {20, 0};
+    setsockopt(socket_fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+    char buffer[4096];
+    for (ssize_t got; (got = recv(socket_fd, buffer, sizeof(buffer), 0)) > 0;) answer.append(buffer, got);
+  }
+  close(socket_fd);
+  return answer;
 }
 
 TEST(LocalizeRequest, ReadsIntrinsicsOverridesAndTheImageInRgbOrder) {
@@ -61,7 +92,7 @@ TEST(LocalizeRequest, ReadsIntrinsicsOverridesAndTheImageInRgbOrder) {
   fields["selection"] = "uniform";
   LocalizeOptions defaults;
   defaults.top_k = 10;
-  const LocalizeRequest request = parseLocalizeRequest(fields, pngBytes(rgb), defaults, 1 << 20);
+  const LocalizeRequest request = parseLocalizeRequest(fields, pngBytes(rgb), defaults);
 
   EXPECT_EQ(request.name, "door.png");
   EXPECT_DOUBLE_EQ(request.intrinsics.fx, 100);
@@ -79,7 +110,7 @@ TEST(LocalizeRequest, ReadsIntrinsicsOverridesAndTheImageInRgbOrder) {
   ASSERT_EQ(request.rgb.size(), rgb.size());
   EXPECT_EQ(request.rgb.at<cv::Vec3b>(5, 7), cv::Vec3b(255, 0, 0));
 
-  const LocalizeRequest plain = parseLocalizeRequest(pinholeFields(), pngBytes(rgb), defaults, 1 << 20);
+  const LocalizeRequest plain = parseLocalizeRequest(pinholeFields(), pngBytes(rgb), defaults);
   EXPECT_EQ(plain.options.top_k, 10u);
   EXPECT_EQ(plain.name, "query");
   EXPECT_TRUE(plain.intrinsics.distortion.empty());
@@ -95,7 +126,9 @@ TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
       {"cx", "1e9", "cx, cy:"},   {"cy", "-5", "cx, cy:"},      {"top_k", "0", "top_k:"},
       {"top_k", "2.5", "top_k:"}, {"features", "", "features:"}, {"seed", "-1", "seed:"},
       {"topk", "3", "topk:"},     {"distortion", "0.1,0.2", "distortion:"},
-      {"distortion", "a,b,c,d", "distortion:"}, {"selection", "best", "selection:"},
+      {"distortion", "a,b,c,d", "distortion:"}, {"distortion", "0,0,0,0,", "distortion:"},
+      {"selection", "best", "selection:"},      {"fx", " 100", "fx:"},         {"fx", "0x64", "fx:"},
+      {"top_k", "101", "top_k:"},               {"features", "20001", "features:"},
   };
   for (const Case& c : cases) {
     auto fields = pinholeFields();
@@ -108,8 +141,11 @@ TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
   EXPECT_EQ(requestErrorOf(missing, image).rfind("cy: missing", 0), 0u);
   EXPECT_EQ(requestErrorOf(pinholeFields(), "").rfind("image:", 0), 0u);
   EXPECT_EQ(requestErrorOf(pinholeFields(), "not an image at all").rfind("image:", 0), 0u);
-  EXPECT_EQ(requestErrorOf(pinholeFields(), image, 64 * 48 - 1).rfind("image:", 0), 0u);
-  EXPECT_EQ(requestErrorOf(pinholeFields(), image, 64 * 48), "");
+  EXPECT_EQ(requestErrorOf(pinholeFields(), image, pixelLimit(64 * 48 - 1)).rfind("image: 64x48 is more", 0), 0u);
+  EXPECT_EQ(requestErrorOf(pinholeFields(), image, pixelLimit(64 * 48)), "");
+  // A PNG header announcing 30000x30000 is refused from the header, before decoding allocates.
+  std::string huge = "\x89PNG\r\n\x1a\n" + std::string("\0\0\0\x0dIHDR", 8) + std::string("\0\0\x75\x30\0\0\x75\x30", 8);
+  EXPECT_EQ(requestErrorOf(pinholeFields(), huge).rfind("image: 30000x30000 is more", 0), 0u);
 }
 
 // The server against the library it fronts: a synthetic scene, a random tiny model (its pose is
@@ -149,6 +185,7 @@ class ServerTest : public ::testing::Test {
   void SetUp() override {
     options_.port = 0;
     options_.max_body_bytes = size_t{2} << 20;
+    options_.max_waiting_queries = 2;
     options_.localize.top_k = 4;
     options_.localize.num_features = 300;
     options_.localize.long_side = kLongSide;
@@ -160,6 +197,7 @@ class ServerTest : public ::testing::Test {
     const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
     while (!client_->Get("/health") && std::chrono::steady_clock::now() < deadline)
       std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    ASSERT_TRUE(client_->Get("/health")) << "the server did not answer within 20 s";
   }
 
   void TearDown() override {
@@ -249,6 +287,58 @@ TEST_F(ServerTest, LocalizeAnswersWhatTheLibraryComputes) {
   }
 }
 
+TEST_F(ServerTest, RequestsOverrideTheDefaults) {
+  const auto answer = client_->Post(
+      ("/localize?top_k=2&features=100&selection=uniform&" + intrinsicsParameters()).c_str(), queryFileBytes(),
+      "image/png");
+  ASSERT_TRUE(answer);
+  ASSERT_EQ(answer->status, 200) << answer->body;
+  LocalizeOptions options = options_.localize;
+  options.top_k = 2;
+  options.num_features = 100;
+  options.selection = ImageSelection::kUniform;
+  const LocalizationResult direct =
+      localizer_->localize(readImageRgb(query().image_path), query().intrinsics, query().name, options);
+  EXPECT_EQ(body(answer)["selected"].size(), 2u);
+  EXPECT_EQ(body(answer)["selected"], localizationJson("q", direct, localizer_->map())["selected"]);
+  EXPECT_EQ(body(answer)["inliers"], direct.pnp.inliers);
+}
+
+// More simultaneous queries than may wait: the surplus is told to retry, the others answered,
+// and /health answers meanwhile.
+TEST_F(ServerTest, QueriesBeyondTheWaitingLimitAreBusy) {
+  constexpr int kQueries = 6;  // one runs, max_waiting_queries (2) wait, 3 or more refused
+  std::vector<int> statuses(kQueries, 0);
+  std::vector<std::thread> senders;
+  const std::string path = "/localize?" + intrinsicsParameters();
+  const std::string image = queryFileBytes();
+  for (int i = 0; i < kQueries; ++i) {
+    senders.emplace_back([&, i] {
+      httplib::Client client("127.0.0.1", port_);
+      client.set_read_timeout(300);
+      if (const auto reply = client.Post(path.c_str(), image, "image/png")) statuses[i] = reply->status;
+    });
+  }
+  for (std::thread& sender : senders) sender.join();
+  const auto busy = std::count(statuses.begin(), statuses.end(), 503);
+  const auto answered = std::count(statuses.begin(), statuses.end(), 200);
+  EXPECT_EQ(busy + answered, kQueries);
+  EXPECT_GE(answered, 1);
+  EXPECT_LE(answered, 1 + static_cast<long>(options_.max_waiting_queries));
+  const auto health = client_->Get("/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+}
+
+TEST_F(ServerTest, StopBeforeServeReturnsAtOnce) {
+  ServerOptions options = options_;
+  LocalizationServer early(*localizer_, options, "random tiny");
+  early.bind();
+  early.stop();
+  std::thread serving([&] { early.serve(); });
+  serving.join();  // hangs, and the test times out, if the early stop was lost
+}
+
 TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   const auto no_fx = client_->Post("/localize?fy=1&cx=1&cy=1", queryFileBytes(), "image/png");
   ASSERT_TRUE(no_fx);
@@ -262,11 +352,12 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
 
   // What curl --data-binary sends without -H: small bodies reach the handler, large ones stop at
   // the library's form limit; both say how to send an image instead.
-  for (const size_t size : {size_t{100}, size_t{100000}}) {
-    const auto form_encoded = client_->Post(("/localize?" + intrinsicsParameters()).c_str(), queryFileBytes().substr(0, size),
+  for (const auto& [size, status] : {std::pair<size_t, int>{100, 400}, {100000, 413}}) {
+    const auto form_encoded = client_->Post(("/localize?" + intrinsicsParameters()).c_str(),
+                                            std::string(queryFileBytes() + std::string(size, 'x')).substr(0, size),
                                             "application/x-www-form-urlencoded");
     ASSERT_TRUE(form_encoded);
-    EXPECT_TRUE(form_encoded->status == 400 || form_encoded->status == 413);
+    EXPECT_EQ(form_encoded->status, status);
     EXPECT_NE(body(form_encoded)["error"].get<std::string>().find("Content-Type: image/jpeg"), std::string::npos)
         << form_encoded->body;
   }
@@ -295,6 +386,21 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   ASSERT_TRUE(bad_field);
   EXPECT_EQ(bad_field->status, 400);
   EXPECT_NE(body(bad_field)["error"].get<std::string>().find("unknown field"), std::string::npos);
+
+  const auto two_images = client_->Post(("/localize?" + intrinsicsParameters()).c_str(),
+                                        httplib::MultipartFormDataItems{{"image", queryFileBytes(), "a.png", "image/png"},
+                                                                        {"image", queryFileBytes(), "b.png", "image/png"}});
+  ASSERT_TRUE(two_images);
+  EXPECT_EQ(two_images->status, 400);
+  EXPECT_EQ(body(two_images)["error"], "image: given more than once");
+
+  // Chunked: no Content-Length, so the body limit could not hold; refused before reading. Sent
+  // by hand, as a client sending a body the server does not read may fail before the answer.
+  const std::string chunked = rawExchange(port_, "POST /localize?" + intrinsicsParameters() +
+                                                     " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\nTransfer-Encoding: chunked\r\n"
+                                                     "Content-Type: image/png\r\n\r\n");
+  EXPECT_EQ(chunked.rfind("HTTP/1.1 411", 0), 0u) << chunked;
+  EXPECT_NE(chunked.find("Content-Length header"), std::string::npos) << chunked;
 
   const auto unknown = client_->Get("/localise");
   ASSERT_TRUE(unknown);
