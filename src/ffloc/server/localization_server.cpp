@@ -103,7 +103,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
   httplib::Server& server = http_->server;
   server.set_payload_max_length(options_.max_body_bytes);
   // Without it, small answers wait on Nagle's algorithm: 28 ms per GET /health over loopback
-  // instead of 0.5 ms (bench/server_bench.cpp).
+  // instead of 0.5 ms, both with the machine loaded (docs/server.md, "Overhead").
   server.set_tcp_nodelay(true);
   // SO_REUSEADDR so a restart can take the port at once, but not the library's default
   // SO_REUSEPORT, with which a second server on the same port binds silently and the kernel
