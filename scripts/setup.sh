@@ -6,22 +6,38 @@ set -euo pipefail
 packages=(
   build-essential cmake ccache pkg-config
   libtorch-dev libopenblas0-pthread
-  libopencv-dev libeigen3-dev nlohmann-json3-dev libcli11-dev libcpp-httplib-dev
+  libopencv-dev libeigen3-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
+# Without these the build still succeeds and leaves out what needs them (CMake says which).
+optional_packages=(
+  libcpp-httplib-dev  # the HTTP server, ffloc serve
+)
 
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
+not_installed() {
+  local p
+  for p in "$@"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || echo "$p"
+  done
+}
+mapfile -t missing < <(not_installed "${packages[@]}")
+mapfile -t missing_optional < <(not_installed "${optional_packages[@]}")
 
+sudo_cmd=()
+[ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+if ((${#missing[@]} + ${#missing_optional[@]})); then
+  "${sudo_cmd[@]}" apt-get update -qq || echo "setup: apt-get update failed; trying the install anyway"
+fi
 if ((${#missing[@]})); then
   echo "setup: installing ${missing[*]}"
-  sudo_cmd=()
-  [ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
-  "${sudo_cmd[@]}" apt-get update -qq
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
-else
+fi
+if ((${#missing_optional[@]})); then
+  echo "setup: installing ${missing_optional[*]} (optional)"
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing_optional[@]}" ||
+    echo "setup: could not install ${missing_optional[*]}; building without what needs them"
+fi
+if ! ((${#missing[@]} + ${#missing_optional[@]})); then
   echo "setup: all Debian packages present"
 fi
 
