@@ -7,16 +7,15 @@
 
 #include <nlohmann/json.hpp>
 
+#include "command_model.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/io/image.h"
-#include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/localization_json.h"
 #include "ffloc/pipeline/localizer.h"
 #include "ffloc/pipeline/model_loader.h"
-#include "ffloc/pipeline/model_options.h"
 #include "ffloc/pipeline/scene_ply.h"
 
 namespace ffloc::cli {
@@ -139,11 +138,7 @@ void runLocalize(const LocalizeArguments& args) {
     queries = readQueryList(args.image_list, fallback);
   }
 
-  const int threads = setTorchThreadCount(args.threads);
-  ModelLoadOptions load_options;
-  load_options.dtype = parseNetworkDtype(args.dtype);
-  const LoadedModel model = loadModel(args.model, load_options);
-  std::cerr << "model: " << model.description << " (" << threads << " threads, " << args.dtype << ")\n";
+  const LoadedModel model = loadCommandModel(args.model, args.dtype, args.threads);
   const Localizer localizer(*model.model, readMapFile(args.map_path, model.id));
   const MapFile& map = localizer.map();
   std::cerr << "map: " << map.images.size() << " images; K = " << options.top_k << ", N = " << options.num_features

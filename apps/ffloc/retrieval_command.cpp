@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "command_model.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
@@ -16,10 +17,8 @@
 #include "ffloc/data/dataset.h"
 #include "ffloc/io/image.h"
 #include "ffloc/io/map_file.h"
-#include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/pipeline/model_loader.h"
-#include "ffloc/pipeline/model_options.h"
 #include "ffloc/pipeline/query_descriptor.h"
 #include "ffloc/retrieval/image_selection.h"
 #include "ffloc/retrieval/retrieval_recall.h"
@@ -90,11 +89,7 @@ void runRetrieval(const RetrievalArguments& args) {
   if (!json_folder.empty() && !std::filesystem::is_directory(json_folder))
     throwInputError(args.json_path, 0, "--json: folder " + json_folder.string() + " does not exist");
 
-  const int threads = setTorchThreadCount(args.threads);
-  ModelLoadOptions load_options;
-  load_options.dtype = parseNetworkDtype(args.dtype);
-  const LoadedModel model = loadModel(args.model, load_options);
-  std::cerr << "model: " << model.description << " (" << threads << " threads, " << args.dtype << ")\n";
+  const LoadedModel model = loadCommandModel(args.model, args.dtype, args.threads);
   const MapFile map = readMapFile(args.map_path, model.id);
   const int64_t enc_dim = model.model->config().dust3r.enc_dim;
   if (map.images.empty()) throwInputError(args.map_path, 0, "map holds no images");

@@ -9,12 +9,11 @@
 #include <stdexcept>
 #include <thread>
 
+#include "command_model.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
-#include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/localizer.h"
 #include "ffloc/pipeline/model_loader.h"
-#include "ffloc/pipeline/model_options.h"
 #include "ffloc/server/localization_server.h"
 
 namespace ffloc::cli {
@@ -101,11 +100,7 @@ void runServe(const ServeArguments& args) {
   if (args.features > 0) options.localize.num_features = args.features;
   options.log = &std::cerr;
 
-  const int threads = setTorchThreadCount(args.threads);
-  ModelLoadOptions load_options;
-  load_options.dtype = parseNetworkDtype(args.dtype);
-  const LoadedModel model = loadModel(args.model, load_options);
-  std::cerr << "model: " << model.description << " (" << threads << " threads, " << args.dtype << ")\n";
+  const LoadedModel model = loadCommandModel(args.model, args.dtype, args.threads);
   const Localizer localizer(*model.model, readMapFile(args.map_path, model.id));
   std::cerr << "map: " << args.map_path << ", " << localizer.map().images.size() << " images; K = "
             << options.localize.top_k << ", N = " << options.localize.num_features << " unless a request says\n";
