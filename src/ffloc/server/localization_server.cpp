@@ -1,9 +1,9 @@
 #include "ffloc/server/localization_server.h"
 
 #include <chrono>
+#include <map>
 #include <stdexcept>
 #include <thread>
-#include <map>
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
@@ -23,17 +23,6 @@ struct LocalizationServer::Http {
 namespace {
 
 constexpr const char* kJson = "application/json";
-
-std::string reasonPhrase(int status) {
-  switch (status) {
-    case 400: return "bad request";
-    case 404: return "not found";
-    case 411: return "length required";
-    case 503: return "busy";
-    case 413: return "payload too large";
-    default: return "HTTP " + std::to_string(status);
-  }
-}
 
 // Request text (a name, an unknown field) reaches answers and may not be UTF-8: replace rather
 // than throw.
@@ -66,10 +55,23 @@ bool isUrlEncodedForm(const httplib::Request& request) {
   return request.get_header_value("Content-Type").rfind("application/x-www-form-urlencoded", 0) == 0;
 }
 
-constexpr const char* kSendImageAs =
-    "send the image as the body with Content-Type image/jpeg, image/png or application/octet-stream "
-    "(curl: -H 'Content-Type: image/jpeg' --data-binary @query.jpg), or as the 'image' part of a multipart form "
-    "(curl: -F image=@query.jpg)";
+const std::string kUrlEncodedFormError =
+    "image: body is a URL-encoded form; send the image as the body with Content-Type image/jpeg, image/png or "
+    "application/octet-stream (curl: -H 'Content-Type: image/jpeg' --data-binary @query.jpg), or as the 'image' "
+    "part of a multipart form (curl: -F image=@query.jpg)";
+
+// The message for an error status the HTTP library set itself, with no body.
+std::string libraryErrorMessage(const httplib::Request& request, int status, size_t max_body_bytes) {
+  switch (status) {
+    case 400: return "bad request: the HTTP library could not parse the request (malformed headers or multipart form)";
+    case 404:
+      return "not found: " + request.method + " " + request.path + " (known: GET /health, GET /map, POST /localize)";
+    case 413:
+      if (isUrlEncodedForm(request)) return "payload too large: " + kUrlEncodedFormError;
+      return "payload too large: the body is over the server's limit of " + std::to_string(max_body_bytes) + " bytes";
+    default: return "HTTP " + std::to_string(status);
+  }
+}
 
 const std::string& imageBytes(const httplib::Request& request) {
   if (!request.is_multipart_form_data()) return request.body;
@@ -164,7 +166,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     }
     LocalizeRequest query;
     try {
-      if (isUrlEncodedForm(request)) throw InputError(std::string("image: body is a URL-encoded form; ") + kSendImageAs);
+      if (isUrlEncodedForm(request)) throw InputError(kUrlEncodedFormError);
       query = parseLocalizeRequest(requestFields(request), imageBytes(request), options_.localize, options_.limits);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
@@ -187,19 +189,8 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
 
   // Every status >= 400, ours and the library's (404, 413, ...), answers JSON and is logged.
   server.set_error_handler([this, log](const httplib::Request& request, httplib::Response& response) {
-    if (response.body.empty()) {
-      std::string message = reasonPhrase(response.status);
-      if (response.status == 400) {
-        message += ": the HTTP library could not parse the request (malformed headers or multipart form)";
-      } else if (response.status == 413 && isUrlEncodedForm(request)) {
-        message += ": image: body is a URL-encoded form; " + std::string(kSendImageAs);
-      } else if (response.status == 413) {
-        message += ": the body is over the server's limit of " + std::to_string(options_.max_body_bytes) + " bytes";
-      }
-      if (response.status == 404)
-        message += ": " + request.method + " " + request.path + " (known: GET /health, GET /map, POST /localize)";
-      replyError(response, response.status, message);
-    }
+    if (response.body.empty())
+      replyError(response, response.status, libraryErrorMessage(request, response.status, options_.max_body_bytes));
     const nlohmann::json body = nlohmann::json::parse(response.body, nullptr, false);
     const std::string message = body.is_object() && body.contains("error") ? body["error"].get<std::string>() : "";
     log(request.method + " " + request.path + " " + std::to_string(response.status) + " " + message);
