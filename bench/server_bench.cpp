@@ -13,6 +13,7 @@
 #include "ffloc/data/synthetic/synthetic.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/torch_threads.h"
+#include "ffloc/pipeline/fastforward_localizer.h"
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/server/localization_server.h"
 #include "ffloc/server/localize_request.h"
@@ -74,7 +75,7 @@ struct ServedScene {
     mapping.long_side = 256;
     MapFile map = emptyMap(model, true);
     addToMap(map, model, scene, {0, 1, 2, 3, 4, 5}, mapping);
-    localizer = std::make_unique<Localizer>(*model.model, std::move(map));
+    localizer = std::make_unique<FastForwardLocalizer>(*model.model, std::move(map));
     options.top_k = 4;
     options.num_features = 300;
     options.long_side = 256;

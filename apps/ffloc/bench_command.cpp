@@ -455,7 +455,7 @@ void runBenchModel(const BenchModelArguments& args) {
 
 }  // namespace
 
-void registerBenchCommand(CLI::App& app) {
+void registerBenchCommand(CLI::App& app, CommandRun& run) {
   CLI::App* bench = app.add_subcommand("bench", "Timings of the network on this machine");
   bench->require_subcommand(1);
   auto args = std::make_shared<BenchModelArguments>();
@@ -481,9 +481,11 @@ void registerBenchCommand(CLI::App& app) {
                   "Python reference timing file (default: $FFLOC_SHARED_DIR/fixtures/dust3r/"
                   "python_reference_timing.txt when it exists)");
   cmd->add_option("--seed", args->seed, "Seed of the random weights and inputs")->capture_default_str();
-  cmd->callback([args] {
-    runBenchModel(*args);
-    exitCode() = 0;
+  cmd->callback([args, &run] {
+    run = [args] {
+      runBenchModel(*args);
+      return 0;
+    };
   });
 }
 

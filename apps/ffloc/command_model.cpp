@@ -2,17 +2,25 @@
 
 #include <iostream>
 
+#include "ffloc/core/error.h"
+#include "ffloc/model/model_options.h"
 #include "ffloc/model/torch_threads.h"
-#include "ffloc/pipeline/model_options.h"
 
 namespace ffloc::cli {
 
-LoadedModel loadCommandModel(const std::string& model, const std::string& dtype, int threads) {
-  const int used_threads = setTorchThreadCount(threads);
+void addModelOptions(CLI::App& command, ModelArguments& args, const std::string& model_help) {
+  command.add_option("--model", args.model, model_help)->capture_default_str();
+  command.add_option("--dtype", args.dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head)")
+      ->capture_default_str();
+  command.add_option("--threads", args.threads, "libtorch threads (0 = all cores)")->capture_default_str();
+}
+
+LoadedModel loadCommandModel(const ModelArguments& args) {
+  const int used_threads = setTorchThreadCount(args.threads);
   ModelLoadOptions options;
-  options.dtype = parseNetworkDtype(dtype);
-  LoadedModel loaded = loadModel(model, options);
-  std::cerr << "model: " << loaded.description << " (" << used_threads << " threads, " << dtype << ")\n";
+  options.dtype = parseNetworkDtype(args.dtype);
+  LoadedModel loaded = loadModel(args.model, options);
+  std::cerr << "model: " << loaded.description << " (" << used_threads << " threads, " << args.dtype << ")\n";
   return loaded;
 }
 

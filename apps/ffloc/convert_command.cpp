@@ -27,7 +27,7 @@ void runConvert(const ConvertArguments& args) {
 
 }  // namespace
 
-void registerConvertCommand(CLI::App& app) {
+void registerConvertCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<ConvertArguments>();
   CLI::App* cmd = app.add_subcommand(
       "convert",
@@ -35,14 +35,18 @@ void registerConvertCommand(CLI::App& app) {
       "safetensors file) to safetensors in the Hugging Face hub layout: names in order, aliases "
       "stored once, metadata format=pt and source=<input file>.");
   cmd->add_option("--input", args->input, "Checkpoint (.pth) or safetensors file to read")
-      ->required()
-      ->check(CLI::ExistingFile);
+      ->required();
   cmd->add_option("--output", args->output, "safetensors file to write (atomically)")->required();
   cmd->add_option("--dtype", args->dtype,
                   "Store floating-point tensors as f32, f16 or bf16 (default: keep each tensor's "
                   "dtype); integer tensors are never cast");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
-  cmd->callback([args] { runConvert(*args); });
+  cmd->callback([args, &run] {
+    run = [args] {
+      runConvert(*args);
+      return 0;
+    };
+  });
 }
 
 }  // namespace ffloc::cli

@@ -3,19 +3,24 @@
 #include <memory>
 #include <sstream>
 
+#include "command_options.h"
 #include "commands.h"
+#include "ffloc/classical/classical_localizer.h"
+#include "ffloc/classical/classical_mapper.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/oracle_depth_source.h"
 #include "ffloc/eval/report.h"
+#include "ffloc/eval/scene_ply.h"
 #include "ffloc/eval/sift_baseline_source.h"
 #ifdef FFLOC_WITH_TORCH
-#include "ffloc/model/torch_threads.h"
-#include "ffloc/pipeline/fastforward_source.h"
-#include "ffloc/pipeline/model_options.h"
-#include "ffloc/pipeline/scene_ply.h"
+#include "command_model.h"
+#include "ffloc/pipeline/fastforward_localizer.h"
+#include "ffloc/pipeline/map_localizer.h"
+#include "ffloc/pipeline/mapper.h"
 #endif
 
 namespace ffloc::cli {
@@ -24,25 +29,24 @@ namespace {
 struct EvalArguments {
   std::vector<std::string> datasets;
   std::string format = "auto";
-  std::string methods = "oracle-depth";
+  std::string methods;  // empty: classical, or only the map with --map
   std::string json_path, csv_path, markdown_path;
-  std::string solver = "lo-ransac";
   double outliers = 0.0;
   double noise_px = 0.0;
   double point_noise = 0.0;
   int stride = 4;
   size_t max_queries = 0;
-  uint64_t seed = 0;
   double inlier_threshold_px = PnpOptions().inlier_threshold_px;
   float confidence_threshold = PnpOptions().confidence_threshold;
   size_t max_correspondences = PnpOptions().max_correspondences;
   size_t min_correspondences = PnpOptions().min_correspondences;
-  std::string model = "default", map_path, dtype = "f32";
-  std::string selection = "retrieval";
-  size_t top_k = 10;        // the paper's indoor setting
-  int64_t features = 1500;
+  QueryArguments query;
+#ifdef FFLOC_WITH_TORCH
+  ModelArguments model;
+#endif
+  std::string map_path;
   std::string poses_path, ply_path;
-  int threads = 0;
+  bool no_depth = false;
   bool quiet = false;
 };
 
@@ -56,19 +60,15 @@ std::vector<std::string> splitList(const std::string& text) {
 }
 
 #ifdef FFLOC_WITH_TORCH
-// Loaded once and shared by the sources of every dataset.
-std::shared_ptr<const LoadedModel> sharedModel(const EvalArguments& args) {
-  static std::shared_ptr<const LoadedModel> model;
-  if (!model) {
-    setTorchThreadCount(args.threads);
-    ModelLoadOptions options;
-    options.dtype = parseNetworkDtype(args.dtype);
-    model = std::make_shared<const LoadedModel>(loadModel(args.model, options));
-  }
-  return model;
+// Loaded once and shared by the methods of every dataset.
+const LoadedModel& sharedModel(const EvalArguments& args) {
+  static std::unique_ptr<const LoadedModel> model;
+  if (!model) model = std::make_unique<const LoadedModel>(loadCommandModel(args.model));
+  return *model;
 }
 #endif
 
+// The methods that answer through a CoordinateSource; the others go through a Localizer.
 std::unique_ptr<CoordinateSource> makeSource(const std::string& method, const EvalArguments& args) {
   if (method == "oracle-depth") {
     OracleDepthOptions options;
@@ -76,52 +76,86 @@ std::unique_ptr<CoordinateSource> makeSource(const std::string& method, const Ev
     options.pixel_noise_px = args.noise_px;
     options.point_noise = args.point_noise;
     options.stride = args.stride;
-    options.seed = args.seed;
+    options.seed = args.query.seed;
     return std::make_unique<OracleDepthSource>(options);
   }
   if (method == "sift-baseline") {
     SiftBaselineOptions options;
-    options.seed = args.seed;
+    options.seed = args.query.seed;
     return std::make_unique<SiftBaselineSource>(options);
+  }
+  return nullptr;
+}
+
+// A map of the scene's mapping split in memory, for the methods that localize with one.
+std::unique_ptr<Localizer> makeInMemoryLocalizer(const std::string& method, const Scene& scene, const EvalArguments& args) {
+  if (method == "classical") {
+    ClassicalMappingOptions options;
+    options.use_depth = !args.no_depth;
+    options.quiet = args.quiet;
+    ClassicalMap map = emptyClassicalMap(scene.metric, options);
+    addToClassicalMap(map, scene, scene.mappingIndices(), options);
+    return std::make_unique<ClassicalLocalizer>(std::move(map));
   }
 #ifdef FFLOC_WITH_TORCH
   if (method == "fastforward") {
-    FastForwardSourceOptions options;
-    options.localize.top_k = args.top_k;
-    options.localize.num_features = args.features;
-    options.localize.seed = args.seed;
-    options.localize.selection = parseImageSelection(args.selection);
-    options.map_path = args.map_path;
-    options.mapping.quiet = args.quiet;
-    return std::make_unique<FastForwardSource>(sharedModel(args), options);
+    const LoadedModel& model = sharedModel(args);
+    MappingOptions options;
+    options.quiet = args.quiet;
+    options.vlad = parseFastForwardRetrieval(args.query.retrieval) == FastForwardRetrieval::kVlad;
+    MapFile map = emptyMap(model, scene.metric);
+    addToMap(map, model, scene, scene.mappingIndices(), options);
+    return std::make_unique<FastForwardLocalizer>(*model.model, std::move(map));
   }
 #endif
-  throw InputError("--methods: unknown method '" + method + "' (known: oracle-depth, sift-baseline, fastforward)");
+  throw InputError("--methods: unknown method '" + method + "' (known: oracle-depth, sift-baseline, classical" +
+#ifdef FFLOC_WITH_TORCH
+                   ", fastforward" +
+#endif
+                   ")");
 }
 
-void runEval(const EvalArguments& args) {
+int runEval(const EvalArguments& args) {
+#ifdef FFLOC_WITH_TORCH
+  setLibraryThreadCount(args.model.threads);
+#endif
   std::vector<std::string> methods = splitList(args.methods);
-  if (methods.empty()) throw InputError("--methods: empty list");
+  if (methods.empty() && args.map_path.empty()) methods = {"classical"};
   if (args.outliers < 0 || args.outliers > 1) throw InputError("--outliers: must be in [0, 1]");
   if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
-  if (!args.poses_path.empty() && (methods.size() != 1 || args.datasets.size() != 1))
+  for (size_t i = 0; i < args.datasets.size(); ++i)
+    for (size_t j = 0; j < i; ++j)
+      if (std::filesystem::weakly_canonical(args.datasets[i]) == std::filesystem::weakly_canonical(args.datasets[j]))
+        throw InputError("--dataset: '" + args.datasets[i] + "' is given twice");
+  const size_t rows = methods.size() + (args.map_path.empty() ? 0 : 1);
+  if (!args.poses_path.empty() && (rows != 1 || args.datasets.size() != 1))
     throw InputError("--poses: needs exactly one dataset and one method");
   if (!args.ply_path.empty() && args.datasets.size() != 1) throw InputError("--ply: needs exactly one dataset");
-#ifdef FFLOC_WITH_TORCH
-  // The PLY shows one method's poses: fastforward's when it runs (with its predicted points).
-  const bool has_fastforward = std::find(methods.begin(), methods.end(), "fastforward") != methods.end();
-  const std::string ply_method = has_fastforward ? "fastforward" : methods.front();
-#endif
+  const LocalizeOptions localize = localizeOptions(args.query);
 
   EvaluationOptions options;
-  options.pnp.solver = parsePnpSolver(args.solver);
-  options.pnp.seed = args.seed;
+  options.pnp = localize.pnp;
   options.pnp.inlier_threshold_px = args.inlier_threshold_px;
   options.pnp.confidence_threshold = args.confidence_threshold;
   options.pnp.max_correspondences = args.max_correspondences;
   options.pnp.min_correspondences = args.min_correspondences;
+  options.verdict = localize.verdict;
   options.max_queries = args.max_queries;
   options.quiet = args.quiet;
+  {
+    LocalizeOptions checked = localize;
+    checked.pnp = options.pnp;
+    try {
+      checked.check();
+    } catch (const InputError& e) {
+      throw InputError(withFlagName(e.what()));
+    }
+  }
+
+  // The PLY shows one method's poses (and, for a localizer, the last query's points): the map's
+  // when there is one, else fastforward's when it runs, else the first method's.
+  std::string ply_method = methods.empty() ? "" : methods.front();
+  if (std::find(methods.begin(), methods.end(), "fastforward") != methods.end()) ply_method = "fastforward";
 
   std::vector<FrameResult> all_frames;
   std::vector<MethodSummary> summaries;
@@ -129,21 +163,37 @@ void runEval(const EvalArguments& args) {
   for (const std::string& dataset : args.datasets) {
     const Scene scene = loadDataset(dataset, args.format);
     if (!scene.metric) non_metric.push_back(scene.name);
-    for (const std::string& method : methods) {
-      auto source = makeSource(method, args);
-      const std::vector<FrameResult> frames = evaluate(scene, *source, options);
+    auto record = [&](const std::vector<FrameResult>& frames, const std::string& method, const Correspondences* points) {
       summaries.push_back(summarize(frames));
       all_frames.insert(all_frames.end(), frames.begin(), frames.end());
-#ifdef FFLOC_WITH_TORCH
       if (!args.ply_path.empty() && method == ply_method) {
-        // FastForward adds the predicted points of the last query.
-        const auto* fastforward = dynamic_cast<const FastForwardSource*>(source.get());
-        evaluationPly(scene, frames, fastforward ? &fastforward->lastPrediction().correspondences : nullptr,
-                      options.pnp.confidence_threshold)
-            .write(args.ply_path);
+        evaluationPly(scene, frames, points, options.pnp.confidence_threshold).write(args.ply_path);
         std::cerr << "wrote " << args.ply_path << "\n";
       }
+    };
+    Correspondences last_points;
+    const LocalizationObserver keep_points = [&](const Frame&, const LocalizationResult& result) {
+      last_points = result.correspondences;
+    };
+    for (const std::string& method : methods) {
+      if (auto source = makeSource(method, args)) {
+        record(evaluate(scene, *source, options), method, nullptr);
+        continue;
+      }
+      const std::unique_ptr<Localizer> localizer = makeInMemoryLocalizer(method, scene, args);
+      record(evaluateLocalizer(scene, *localizer, method, localize, options, keep_points), method, &last_points);
+    }
+    if (!args.map_path.empty()) {
+#ifdef FFLOC_WITH_TORCH
+      const MapLocalizer opened = openMapLocalizer(args.map_path, [&] { return loadCommandModel(args.model); });
+      const Localizer& localizer = *opened.localizer;
+#else
+      const ClassicalLocalizer localizer(readClassicalMap(args.map_path));
 #endif
+      const std::string label = std::string(toString(localizer.method())) + "@map";
+      if (ply_method.empty()) ply_method = label;
+      record(evaluateLocalizer(scene, localizer, label, localize, options, keep_points), label, &last_points);
+      methods.push_back(label);
     }
   }
 
@@ -175,11 +225,12 @@ void runEval(const EvalArguments& args) {
     writeTextFile(args.poses_path, hlocPoseList(all_frames));
     std::cerr << "wrote " << args.poses_path << "\n";
   }
+  return 0;
 }
 
 }  // namespace
 
-void registerEvalCommand(CLI::App& app) {
+void registerEvalCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<EvalArguments>();
   CLI::App* cmd = app.add_subcommand(
       "eval", "Localise every query frame of one or more datasets with one or more methods, and report pose "
@@ -192,7 +243,15 @@ void registerEvalCommand(CLI::App& app) {
         for (const auto& f : datasetFormats()) s += (s.empty() ? "" : ", ") + f;
         return s;
       }())->capture_default_str();
-  cmd->add_option("--methods", args->methods, "Comma-separated coordinate sources: oracle-depth, sift-baseline, fastforward")->capture_default_str();
+  cmd->add_option("--methods", args->methods,
+                 "Comma-separated: classical (the default), sift-baseline, oracle-depth"
+#ifdef FFLOC_WITH_TORCH
+                 ", fastforward"
+#endif
+                 "; classical and fastforward build their map of the mapping split in memory");
+  cmd->add_option("--map", args->map_path,
+                  "Also evaluate this map file from 'ffloc map' (any method), exactly as 'ffloc localize' runs it; "
+                  "its row is named <method>@map");
   cmd->add_option("--json", args->json_path,
                   "Write the summary JSON here; the per-frame CSV (<stem>.frames.csv) and the markdown table "
                   "(<stem>.md) go beside it unless --csv/--markdown say otherwise");
@@ -207,7 +266,6 @@ void registerEvalCommand(CLI::App& app) {
   cmd->add_option("--stride", args->stride, "oracle-depth: use every n-th pixel of the depth map")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--solver", args->solver, "PnP-RANSAC solver: lo-ransac or opencv-usac")->capture_default_str();
   cmd->add_option("--inlier-threshold", args->inlier_threshold_px, "RANSAC inlier threshold (px)")
       ->capture_default_str();
   cmd->add_option("--confidence-threshold", args->confidence_threshold,
@@ -221,23 +279,18 @@ void registerEvalCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-queries", args->max_queries, "Evaluate at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "Seed for sampling, noise and RANSAC")->capture_default_str();
+  addQueryOptions(*cmd, args->query);
+  cmd->add_flag("--no-depth", args->no_depth, "classical: triangulate every point, even where frames have depth");
   cmd->add_option("--poses", args->poses_path, "Write the estimated poses as an hloc pose list (one dataset and method)");
 #ifdef FFLOC_WITH_TORCH
-  cmd->add_option("--model", args->model, "fastforward: weights (see 'ffloc map --help')")->capture_default_str();
-  cmd->add_option("--map", args->map_path, "fastforward: a map from 'ffloc map' (default: map the mapping split in memory)");
-  cmd->add_option("--top-k", args->top_k, "fastforward: mapping images per query")->capture_default_str();
-  cmd->add_option("--features", args->features, "fastforward: map tokens per query")->capture_default_str();
-  cmd->add_option("--selection", args->selection, "fastforward: retrieval, uniform or random")->capture_default_str();
-  cmd->add_option("--dtype", args->dtype, "fastforward: network precision f32, or bf16 (encoder, decoder and DPT head)")
-      ->capture_default_str();
-  cmd->add_option("--threads", args->threads, "fastforward: libtorch threads (0 = all cores)")->capture_default_str();
-  cmd->add_option("--ply", args->ply_path,
-                  "Write a PLY (one dataset; fastforward's poses when it runs, else the first method's): mapping cameras grey, ground truth green, estimates blue, "
-                  "fastforward's predicted points of the last query red");
+  addModelOptions(*cmd, args->model, "fastforward: weights (see 'ffloc map --help')");
 #endif
+  cmd->add_option("--ply", args->ply_path,
+                  "Write a PLY (one dataset; the map's poses, else fastforward's when it runs, else the first "
+                  "method's): mapping frames grey, ground truth green, estimates blue, and for a localizer its last "
+                  "query's points red");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
-  cmd->callback([args] { runEval(*args); });
+  cmd->callback([args, &run] { run = [args] { return runEval(*args); }; });
 }
 
 }  // namespace ffloc::cli

@@ -8,34 +8,28 @@
 #include <nlohmann/json.hpp>
 
 #include "command_model.h"
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/threads.h"
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/io/image.h"
-#include "ffloc/pipeline/localization_json.h"
-#include "ffloc/pipeline/localizer.h"
-#include "ffloc/pipeline/model_loader.h"
-#include "ffloc/pipeline/scene_ply.h"
+#include "ffloc/localization/localization_json.h"
+#include "ffloc/pipeline/map_localizer.h"
+#include "ffloc/eval/scene_ply.h"
 
 namespace ffloc::cli {
 namespace {
 
 struct LocalizeArguments {
   std::string map_path;
-  std::string model = "default";
+  ModelArguments model;
+  QueryArguments query;
   std::string image;
   std::string image_list;
   std::string intrinsics;
-  std::string preset = "indoor";
-  size_t top_k = 0;        // 0: the preset's
-  int64_t features = 0;    // 0: the preset's
-  uint64_t seed = 0;
-  std::string selection = "retrieval";
-  std::string solver = "lo-ransac";
-  std::string dtype = "f32";
   std::string poses_path, ply_path;
-  int threads = 0;
   bool json = false;
 };
 
@@ -53,8 +47,8 @@ Intrinsics parseIntrinsics(const std::string& text, const std::string& where) {
   std::istringstream stream(spaced);
   Intrinsics k;
   std::string extra;
-  if (!(stream >> k.fx >> k.fy >> k.cx >> k.cy) || (stream >> extra) || !(k.fx > 0 && k.fy > 0))
-    throw InputError(where + ": intrinsics must be four numbers fx,fy,cx,cy with fx, fy > 0, got '" + text + "'");
+  if (!(stream >> k.fx >> k.fy >> k.cx >> k.cy) || (stream >> extra))
+    throw InputError(where + ": intrinsics must be four numbers fx,fy,cx,cy, got '" + text + "'");
   return k;
 }
 
@@ -95,8 +89,11 @@ void printText(const nlohmann::json& r) {
     std::cout << ": " << r["error"].get<std::string>() << "\n";
     return;
   }
-  std::cout << ", " << r["inliers"] << " inliers of " << r["pnp_correspondences"] << " (confidence "
-            << std::setprecision(3) << r["confidence"].get<double>() << ")\n";
+  if (r.contains("reason")) std::cout << " (" << r["reason"].get<std::string>() << ")";
+  const auto& e = r["evidence"];
+  std::cout << ", " << r["method"].get<std::string>() << ", " << r["inliers"] << " inliers of "
+            << r["pnp_correspondences"] << " (ratio " << std::setprecision(3) << e["inlier_ratio"].get<double>()
+            << ", spread " << e["inlier_spread"].get<double>() << ")\n";
   if (r.contains("camera_to_world")) {
     std::cout << "  camera_to_world:\n" << std::setprecision(6);
     for (const auto& row : r["camera_to_world"]) {
@@ -114,59 +111,56 @@ void printText(const nlohmann::json& r) {
   std::cout << "  selected:";
   for (const auto& name : r["selected"]) std::cout << " " << name.get<std::string>();
   std::cout << "\n  time (ms):" << std::fixed << std::setprecision(1);
-  for (const char* stage : {"preprocessing", "retrieval", "encoding", "decoding", "pnp", "total"})
+  for (const char* stage : {"preprocessing", "features", "retrieval", "matching", "pnp", "verification", "total"})
     std::cout << " " << stage << " " << r["timings_ms"][stage].get<double>();
   std::cout << std::defaultfloat << "\n";
 }
 
-void runLocalize(const LocalizeArguments& args) {
+int runLocalize(const LocalizeArguments& args) {
+  setLibraryThreadCount(args.model.threads);
   if (args.image.empty() == args.image_list.empty()) throw InputError("give exactly one of --image and --images");
-  LocalizeOptions options = LocalizeOptions::preset(args.preset);
-  if (args.top_k > 0) options.top_k = args.top_k;
-  if (args.features > 0) options.num_features = args.features;
-  options.seed = args.seed;
-  options.selection = parseImageSelection(args.selection);
-  options.pnp.solver = parsePnpSolver(args.solver);
-  options.pnp.seed = args.seed;
+  const LocalizeOptions options = localizeOptions(args.query);
 
   const Intrinsics fallback = args.intrinsics.empty() ? Intrinsics{} : parseIntrinsics(args.intrinsics, "--intrinsics");
   std::vector<Query> queries;
   if (!args.image.empty()) {
-    if (fallback.fx <= 0) throwInputError(args.image, 0, "query intrinsics missing: pass --intrinsics fx,fy,cx,cy");
+    if (args.intrinsics.empty()) throwInputError(args.image, 0, "query intrinsics missing: pass --intrinsics fx,fy,cx,cy");
     queries.push_back({args.image, args.image, fallback});
   } else {
     queries = readQueryList(args.image_list, fallback);
   }
 
-  const LoadedModel model = loadCommandModel(args.model, args.dtype, args.threads);
-  const Localizer localizer(*model.model, readMapFile(args.map_path, model.id));
-  const MapFile& map = localizer.map();
-  std::cerr << "map: " << map.images.size() << " images; K = " << options.top_k << ", N = " << options.num_features
-            << ", selection " << toString(options.selection) << "\n";
+  const MapLocalizer opened = openMapLocalizer(args.map_path, [&] { return loadCommandModel(args.model); });
+  const Localizer& localizer = *opened.localizer;
+  std::cerr << "map: " << opened.description << "; K = " << options.top_k;
+  if (localizer.method() == LocalizationMethod::kFastForward)
+    std::cerr << ", N = " << options.num_features << ", selection " << toString(options.selection) << ", retrieval "
+              << toString(options.retrieval);
+  std::cerr << "\n";
 
   nlohmann::json results = nlohmann::json::array();
   std::vector<FrameResult> poses;
   PlyWriter ply;
   std::vector<std::pair<Pose, Intrinsics>> estimated_cameras;
-  bool any_input_error = false, any_failure = false;
+  bool any_input_error = false, any_not_localized = false;
   for (size_t q = 0; q < queries.size(); ++q) {
     const Query& query = queries[q];
     nlohmann::json r;
     try {
       const LocalizationResult result = localizer.localize(readImageRgb(query.path), query.intrinsics, query.name, options);
-      r = localizationJson(query.name, result, map);
+      r = localizationJson(query.name, result, localizer);
       FrameResult frame;
       frame.frame = query.name;
       frame.status = result.pnp.status;
+      frame.verdict = result.verdict.status;
       frame.estimate = result.pnp.camera_to_world;
       frame.inliers = result.pnp.inliers;
       poses.push_back(frame);
-      any_failure |= !result.pnp.ok();
+      any_not_localized |= !result.localized();
       if (q == 0 && !args.ply_path.empty()) {
-        addPredictedPoints(ply, result.prediction.correspondences, options.pnp.confidence_threshold, 50000,
-                           PlyWriter::kRed);
+        addPredictedPoints(ply, result.correspondences, options.pnp.confidence_threshold, 50000, PlyWriter::kRed);
       }
-      if (result.pnp.ok()) estimated_cameras.emplace_back(result.pnp.camera_to_world, result.prediction.camera);
+      if (result.pnp.ok()) estimated_cameras.emplace_back(result.pnp.camera_to_world, result.camera);
     } catch (const InputError& e) {
       if (queries.size() == 1) throw;
       r = {{"name", query.name}, {"status", "error"}, {"error", e.what()}};
@@ -175,7 +169,7 @@ void runLocalize(const LocalizeArguments& args) {
     if (!args.json) printText(r);
     results.push_back(r);
   }
-  if (args.json) std::cout << (queries.size() == 1 ? results[0] : results).dump(2) << "\n";
+  if (args.json) std::cout << jsonText(queries.size() == 1 ? results[0] : results, 2) << "\n";
 
   if (!args.poses_path.empty()) {
     writeTextFile(args.poses_path, hlocPoseList(poses));
@@ -183,47 +177,39 @@ void runLocalize(const LocalizeArguments& args) {
   }
   if (!args.ply_path.empty()) {
     std::vector<Pose> cameras;
-    for (const MapImage& image : map.images) cameras.push_back(image.camera_to_world);
+    for (const MapCamera& camera : localizer.cameras()) cameras.push_back(camera.camera_to_world);
     const double size = cameraGlyphSize(cameras);
-    for (const MapImage& image : map.images) ply.addCamera(image.camera_to_world, image.intrinsics, size, PlyWriter::kGrey);
+    for (const MapCamera& camera : localizer.cameras())
+      ply.addCamera(camera.camera_to_world, camera.intrinsics, size, PlyWriter::kGrey);
     for (const auto& [pose, camera] : estimated_cameras) ply.addCamera(pose, camera, size, PlyWriter::kBlue);
     ply.write(args.ply_path);
     std::cerr << "wrote " << args.ply_path << "\n";
   }
-  exitCode() = any_input_error ? 2 : (any_failure ? 1 : 0);
+  return any_input_error ? 2 : (any_not_localized ? 1 : 0);
 }
 
 }  // namespace
 
-void registerLocalizeCommand(CLI::App& app) {
+void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<LocalizeArguments>();
   CLI::App* cmd = app.add_subcommand(
       "localize",
-      "Localise query images against a map from 'ffloc map': select K mapping images, sample N of their tokens, "
-      "predict the query's 3D coordinates in one forward pass, then PnP-RANSAC. Exit code 1 when a query could not "
-      "be localised, 2 for bad input.");
+      "Localise query images against a map from 'ffloc map', with the method the map was built with. Every answer "
+      "has a status: localized (use the pose), uncertain (a pose is given, but the evidence is weak) or failed. Exit "
+      "code 0 when every query is localized, 1 otherwise, 2 for bad input.");
   cmd->add_option("--map", args->map_path, "Map file from 'ffloc map'")->required();
-  cmd->add_option("--model", args->model, "The model the map was built with (same forms as for 'ffloc map')")
-      ->capture_default_str();
+  addModelOptions(*cmd, args->model, "fastforward maps: the model the map was built with (as for 'ffloc map')");
+  addQueryOptions(*cmd, args->query);
   cmd->add_option("--image", args->image, "Query image");
   cmd->add_option("--images", args->image_list,
                   "Text file, one query per line: image path (relative to the file) [fx fy cx cy]");
   cmd->add_option("--intrinsics", args->intrinsics, "Query pinhole intrinsics fx,fy,cx,cy in pixels of the image");
-  cmd->add_option("--preset", args->preset, "indoor (K=10, N=1500) or outdoor (K=20, N=3000)")->capture_default_str();
-  cmd->add_option("--top-k", args->top_k, "Mapping images per query (overrides the preset)");
-  cmd->add_option("--features", args->features, "Map tokens per query (overrides the preset)");
-  cmd->add_option("--seed", args->seed, "Seed of the token sampling, random selection and RANSAC")->capture_default_str();
-  cmd->add_option("--selection", args->selection, "Mapping image selection: retrieval, uniform or random")
-      ->capture_default_str();
-  cmd->add_option("--solver", args->solver, "PnP-RANSAC solver: lo-ransac or opencv-usac")->capture_default_str();
-  cmd->add_option("--dtype", args->dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head)")->capture_default_str();
-  cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--poses", args->poses_path, "Write the estimated poses as an hloc pose list");
   cmd->add_option("--ply", args->ply_path,
-                  "Write a PLY: mapping cameras (grey), estimated query cameras (blue), the first query's predicted "
-                  "points with confidence >= 1.5 (red)");
+                  "Write a PLY: mapping cameras (grey), estimated query cameras (blue), the first query's "
+                  "correspondences' points with confidence >= 1.5 (red)");
   cmd->add_flag("--json", args->json, "Print JSON (an object for one query, an array for a list)");
-  cmd->callback([args] { runLocalize(*args); });
+  cmd->callback([args, &run] { run = [args] { return runLocalize(*args); }; });
 }
 
 }  // namespace ffloc::cli

@@ -18,7 +18,7 @@
 #include "ffloc/io/image.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/pipeline/mapper.h"
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/query_descriptor.h"
 #include "ffloc/retrieval/image_selection.h"
 #include "ffloc/retrieval/retrieval_recall.h"
@@ -28,14 +28,12 @@ namespace {
 
 struct RetrievalArguments {
   std::string map_path;
-  std::string model = "default";
+  ModelArguments model;
   std::string dataset;
   std::string format = "auto";
   std::vector<size_t> top_k = {1, 5, 10, 20};
   size_t max_queries = 0;
   uint64_t seed = 0;
-  std::string dtype = "f32";
-  int threads = 0;
   std::string json_path;
   bool quiet = false;
 };
@@ -89,7 +87,7 @@ void runRetrieval(const RetrievalArguments& args) {
   if (!json_folder.empty() && !std::filesystem::is_directory(json_folder))
     throwInputError(args.json_path, 0, "--json: folder " + json_folder.string() + " does not exist");
 
-  const LoadedModel model = loadCommandModel(args.model, args.dtype, args.threads);
+  const LoadedModel model = loadCommandModel(args.model);
   const MapFile map = readMapFile(args.map_path, model.id);
   const int64_t enc_dim = model.model->config().dust3r.enc_dim;
   if (map.images.empty()) throwInputError(args.map_path, 0, "map holds no images");
@@ -170,7 +168,7 @@ void runRetrieval(const RetrievalArguments& args) {
 
 }  // namespace
 
-void registerRetrievalCommand(CLI::App& app) {
+void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<RetrievalArguments>();
   CLI::App* cmd = app.add_subcommand(
       "retrieval",
@@ -178,19 +176,21 @@ void registerRetrievalCommand(CLI::App& app) {
       "images selected by global-descriptor retrieval (and, for reference, by uniform and random selection) contain "
       "the mapping camera nearest to the query's ground-truth pose; also the median rank of that camera.");
   cmd->add_option("--map", args->map_path, "Map file from 'ffloc map' built from this dataset")->required();
-  cmd->add_option("--model", args->model, "The model the map was built with (same forms as for 'ffloc map')")
-      ->capture_default_str();
+  addModelOptions(*cmd, args->model, "The model the map was built with (same forms as for 'ffloc map')");
   cmd->add_option("--dataset", args->dataset, "Dataset folder; its query split is measured")->required();
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
   cmd->add_option("--top-k", args->top_k, "Comma-separated K values")->delimiter(',')->capture_default_str();
   cmd->add_option("--max-queries", args->max_queries, "Measure at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the random selection")->capture_default_str();
-  cmd->add_option("--dtype", args->dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head)")->capture_default_str();
-  cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--json", args->json_path, "Write the recall table and per-query ranks as JSON here");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
-  cmd->callback([args] { runRetrieval(*args); });
+  cmd->callback([args, &run] {
+    run = [args] {
+      runRetrieval(*args);
+      return 0;
+    };
+  });
 }
 
 }  // namespace ffloc::cli

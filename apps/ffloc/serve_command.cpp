@@ -10,10 +10,12 @@
 #include <thread>
 
 #include "command_model.h"
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
-#include "ffloc/pipeline/localizer.h"
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/core/threads.h"
+#include "ffloc/pipeline/map_localizer.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/server/localization_server.h"
 
 namespace ffloc::cli {
@@ -21,14 +23,10 @@ namespace {
 
 struct ServeArguments {
   std::string map_path;
-  std::string model = "default";
+  ModelArguments model;
+  QueryArguments query;
   std::string host = "127.0.0.1";
   int port = 8080;
-  std::string preset = "indoor";
-  size_t top_k = 0;      // 0: the preset's
-  int64_t features = 0;  // 0: the preset's
-  std::string dtype = "f32";
-  int threads = 0;
   size_t max_body_mb = 32;
   size_t max_waiting = 4;
 };
@@ -87,7 +85,8 @@ class StopOnSignal {
   std::thread waiter_;
 };
 
-void runServe(const ServeArguments& args) {
+int runServe(const ServeArguments& args) {
+  setLibraryThreadCount(args.model.threads);
   ServerOptions options;
   options.host = args.host;
   options.port = args.port;
@@ -95,54 +94,46 @@ void runServe(const ServeArguments& args) {
   options.max_waiting_queries = args.max_waiting;
   // Formats whose header parseLocalizeRequest cannot read are bounded by OpenCV's own limit.
   setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(options.limits.max_image_pixels).c_str(), /*overwrite=*/0);
-  options.localize = LocalizeOptions::preset(args.preset);
-  if (args.top_k > 0) options.localize.top_k = args.top_k;
-  if (args.features > 0) options.localize.num_features = args.features;
+  options.localize = localizeOptions(args.query);
   options.log = &std::cerr;
 
-  const LoadedModel model = loadCommandModel(args.model, args.dtype, args.threads);
-  const Localizer localizer(*model.model, readMapFile(args.map_path, model.id));
-  std::cerr << "map: " << args.map_path << ", " << localizer.map().images.size() << " images; K = "
-            << options.localize.top_k << ", N = " << options.localize.num_features << " unless a request says\n";
+  const MapLocalizer opened = openMapLocalizer(args.map_path, [&] { return loadCommandModel(args.model); });
+  std::cerr << "map: " << args.map_path << ", " << opened.description << "; K = " << options.localize.top_k;
+  if (opened.model) std::cerr << ", N = " << options.localize.num_features;
+  std::cerr << " unless a request says\n";
 
-  LocalizationServer server(localizer, options, model.description);
+  LocalizationServer server(*opened.localizer, options, opened.model ? opened.model->description : opened.description);
   const int port = server.bind();
   StopOnSignal stop_on_signal(server);
   std::cerr << "listening on http://" << args.host << ":" << port
             << " (GET /health, GET /map, POST /localize; Ctrl-C stops)\n";
   server.serve();
   std::cerr << "stopped\n";
+  return 0;
 }
 
 }  // namespace
 
-void registerServeCommand(CLI::App& app) {
+void registerServeCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<ServeArguments>();
   CLI::App* cmd = app.add_subcommand(
       "serve",
       "Serve a map over HTTP: the model and the map are loaded once, then each POST /localize (an image and its "
       "intrinsics) answers the pose as 'ffloc localize --json' prints it (docs/server.md).");
   cmd->add_option("--map", args->map_path, "Map file from 'ffloc map'")->required();
-  cmd->add_option("--model", args->model, "The model the map was built with (same forms as for 'ffloc map')")
-      ->capture_default_str();
+  addModelOptions(*cmd, args->model, "fastforward maps: the model the map was built with (as for 'ffloc map')");
+  addQueryOptions(*cmd, args->query);
   cmd->add_option("--host", args->host, "Address to listen on (0.0.0.0: every interface)")->capture_default_str();
   cmd->add_option("--port", args->port, "TCP port (0: any free one, printed at start)")
       ->check(CLI::Range(0, 65535))
       ->capture_default_str();
-  cmd->add_option("--preset", args->preset, "Request defaults: indoor (K=10, N=1500) or outdoor (K=20, N=3000)")
-      ->capture_default_str();
-  cmd->add_option("--top-k", args->top_k, "Default mapping images per query (overrides the preset)");
-  cmd->add_option("--features", args->features, "Default map tokens per query (overrides the preset)");
-  cmd->add_option("--dtype", args->dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head)")
-      ->capture_default_str();
-  cmd->add_option("--threads", args->threads, "libtorch threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--max-body-mb", args->max_body_mb, "Largest request body accepted, in MiB")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
   cmd->add_option("--max-waiting", args->max_waiting,
                   "Queries that may wait while one runs; more are answered 503 (busy)")
       ->capture_default_str();
-  cmd->callback([args] { runServe(*args); });
+  cmd->callback([args, &run] { run = [args] { return runServe(*args); }; });
 }
 
 }  // namespace ffloc::cli

@@ -62,7 +62,7 @@ void runSynth(const SynthArguments& args) {
 
 }  // namespace
 
-void registerSynthCommand(CLI::App& app) {
+void registerSynthCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<SynthArguments>();
   args->options.quiet = false;
   args->options.threads = 0;
@@ -95,13 +95,11 @@ void registerSynthCommand(CLI::App& app) {
                   "Render threads (0: all cores); output does not depend on it")
       ->capture_default_str();
   cmd->add_flag("--quiet", args->options.quiet, "No progress output");
-  cmd->callback([args]() {
-    try {
+  cmd->callback([args, &run] {
+    run = [args] {
       runSynth(*args);
-    } catch (const InputError& e) {
-      std::cerr << "error: " << e.what() << "\n";
-      exitCode() = 2;
-    }
+      return 0;
+    };
   });
 }
 

@@ -169,7 +169,7 @@ void runTrain(const TrainArguments& args) {
 
 }  // namespace
 
-void registerTrainCommand(CLI::App& app) {
+void registerTrainCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<TrainArguments>();
   CLI::App* cmd = app.add_subcommand("train", "Train FastForward on posed RGB-D datasets (docs/training.md)");
   cmd->add_option("--config", args->config, "Training settings (JSON; see docs/training.md)");
@@ -188,13 +188,11 @@ void registerTrainCommand(CLI::App& app) {
   cmd->add_option("--model", args->model, "Initial weights (overrides the config): checkpoint or random:<preset>");
   cmd->add_option("--threads", args->threads, "libtorch threads, 0 = all cores (overrides the config)");
   cmd->add_flag("--quiet", args->quiet, "No progress output");
-  cmd->callback([args]() {
-    try {
+  cmd->callback([args, &run] {
+    run = [args] {
       runTrain(*args);
-    } catch (const InputError& e) {
-      std::cerr << "error: " << e.what() << "\n";
-      exitCode() = 2;
-    }
+      return 0;
+    };
   });
 }
 

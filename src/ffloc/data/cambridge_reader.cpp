@@ -2,7 +2,7 @@
 #include <numeric>
 
 #include "ffloc/core/error.h"
-#include "ffloc/data/image_size.h"
+#include "ffloc/io/image_size.h"
 #include "ffloc/data/readers.h"
 #include "ffloc/data/text_file.h"
 

@@ -2,10 +2,36 @@
 
 #include <cmath>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "ffloc/core/error.h"
 
 namespace ffloc {
+namespace {
+
+// z-depth is the same for two cameras that share a pose, so registering depth to colour is a
+// resampling: each colour pixel looks up the depth pixel on its ray (nearest, so that no depth is
+// invented across an edge).
+cv::Mat1f toColourGrid(const cv::Mat1f& depth, const Intrinsics& depth_camera, const Intrinsics& colour) {
+  const Intrinsics pinhole = colour.undistorted();
+  std::vector<Eigen::Vector2d> pixels;
+  pixels.reserve(static_cast<size_t>(colour.width) * colour.height);
+  for (int y = 0; y < colour.height; ++y)
+    for (int x = 0; x < colour.width; ++x) pixels.emplace_back(x, y);
+  if (!colour.distortion.empty()) pixels = undistortPixels(colour, pixels);
+  cv::Mat1f map_x(colour.height, colour.width), map_y(colour.height, colour.width);
+  for (int y = 0, i = 0; y < colour.height; ++y)
+    for (int x = 0; x < colour.width; ++x, ++i) {
+      const double rx = (pixels[i].x() - pinhole.cx) / pinhole.fx, ry = (pixels[i].y() - pinhole.cy) / pinhole.fy;
+      map_x(y, x) = static_cast<float>(depth_camera.fx * rx + depth_camera.cx);
+      map_y(y, x) = static_cast<float>(depth_camera.fy * ry + depth_camera.cy);
+    }
+  cv::Mat1f registered;
+  cv::remap(depth, registered, map_x, map_y, cv::INTER_NEAREST, cv::BORDER_CONSTANT, 0.0);
+  return registered;
+}
+
+}  // namespace
 
 cv::Mat1f readDepthMetres(const Frame& frame) {
   if (!frame.depth) throwInputError(frame.name, 0, "frame has no depth map");
@@ -18,12 +44,12 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
     throwInputError(file, 0, "depth image has " + std::to_string(stored.channels()) + " channels, expected 1");
   if (stored.depth() == CV_8U || stored.depth() == CV_8S)
     throwInputError(file, 0, "depth image is 8-bit; expected a 16-bit PNG or a 32-bit float TIFF");
-  const Intrinsics& camera = frame.intrinsics;
+  const Intrinsics& camera = source.camera ? *source.camera : frame.intrinsics;
   if (stored.cols != camera.width || stored.rows != camera.height)
     throwInputError(file, 0,
-                    "depth image is " + std::to_string(stored.cols) + "x" + std::to_string(stored.rows) +
-                        " but the frame's image is " + std::to_string(camera.width) + "x" +
-                        std::to_string(camera.height));
+                    "depth image is " + std::to_string(stored.cols) + "x" + std::to_string(stored.rows) + " but " +
+                        (source.camera ? "its depth camera is " : "the frame's image is ") +
+                        std::to_string(camera.width) + "x" + std::to_string(camera.height));
 
   cv::Mat1d values;
   stored.convertTo(values, CV_64F);
@@ -38,7 +64,7 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
       out[x] = invalid ? 0.0f : static_cast<float>(v * source.scale);
     }
   }
-  return depth;
+  return source.camera ? toColourGrid(depth, *source.camera, frame.intrinsics) : depth;
 }
 
 void writeDepth(const cv::Mat1f& depth, const std::filesystem::path& path) {

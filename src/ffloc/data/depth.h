@@ -9,7 +9,8 @@ namespace ffloc {
 
 // The frame's depth map in scene units (metres for metric scenes): a 16-bit PNG or a 32-bit
 // float TIFF, times DepthSource::scale; invalid stored values, NaN and non-positive depths
-// become 0. Throws InputError (naming the file) when the frame has no depth, the file is
+// become 0. With a separate depth camera (DepthSource::camera) the result is resampled into the
+// frame's own pixel grid. Throws InputError (naming the file) when the frame has no depth, the file is
 // missing or unreadable, or its size differs from the frame's intrinsics.
 cv::Mat1f readDepthMetres(const Frame& frame);
 

@@ -8,7 +8,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/text_file_writer.h"
-#include "ffloc/data/json_fields.h"
+#include "ffloc/io/json_fields.h"
 #include "ffloc/data/pose_check.h"
 
 namespace ffloc {
@@ -111,6 +111,13 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
       if (entry.has("depth_scale")) depth.scale = entry.number("depth_scale");
       if (!(depth.scale > 0) || !std::isfinite(depth.scale)) entry.fail("depth_scale", "must be positive");
       if (entry.has("depth_invalid")) depth.invalid_values = entry.numbers("depth_invalid");
+      if (entry.has("depth_camera")) {
+        const auto depth_camera = cameras.find(entry.string("depth_camera"));
+        if (depth_camera == cameras.end())
+          entry.fail("depth_camera", "unknown camera id '" + entry.string("depth_camera") + "'");
+        if (!depth_camera->second.distortion.empty()) entry.fail("depth_camera", "must be a pinhole camera (no distortion)");
+        depth.camera = depth_camera->second;
+      }
       frame.depth = depth;
     }
     frame.split = parseSplit(entry);
@@ -123,20 +130,25 @@ void writeManifest(const Scene& scene, const std::filesystem::path& manifest_jso
   const auto folder = std::filesystem::absolute(manifest_json).lexically_normal().parent_path();
   std::vector<Intrinsics> cameras;
   json frames = json::array();
-  for (const Frame& frame : scene.frames) {
+  auto cameraId = [&](const Intrinsics& intrinsics) {
     size_t camera = 0;
-    while (camera < cameras.size() && !sameIntrinsics(cameras[camera], frame.intrinsics)) ++camera;
-    if (camera == cameras.size()) cameras.push_back(frame.intrinsics);
+    while (camera < cameras.size() && !sameIntrinsics(cameras[camera], intrinsics)) ++camera;
+    if (camera == cameras.size()) cameras.push_back(intrinsics);
+    return std::to_string(camera);
+  };
+  for (const Frame& frame : scene.frames) {
+    const std::string camera = cameraId(frame.intrinsics);
 
     json entry;
     entry["image"] = relativeTo(frame.image_path, folder);
     if (entry["image"].get<std::string>() != frame.name) entry["name"] = frame.name;
-    entry["camera"] = std::to_string(camera);
+    entry["camera"] = camera;
     entry["camera_to_world"] = matrixJson(frame.camera_to_world.matrix());
     if (frame.depth) {
       entry["depth"] = relativeTo(frame.depth->path, folder);
       entry["depth_scale"] = frame.depth->scale;
       entry["depth_invalid"] = frame.depth->invalid_values;
+      if (frame.depth->camera) entry["depth_camera"] = cameraId(*frame.depth->camera);
     }
     entry["split"] = toString(frame.split);
     frames.push_back(std::move(entry));

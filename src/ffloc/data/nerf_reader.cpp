@@ -1,8 +1,8 @@
 #include <cmath>
 
 #include "ffloc/core/error.h"
-#include "ffloc/data/image_size.h"
-#include "ffloc/data/json_fields.h"
+#include "ffloc/io/image_size.h"
+#include "ffloc/io/json_fields.h"
 #include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
 

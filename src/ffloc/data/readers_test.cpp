@@ -67,9 +67,13 @@ TEST(SevenScenes, RedkitchenDepthReprojectsBetweenNeighbours) {
   EXPECT_EQ(first.name, "frame-000000.color.jpg");
   EXPECT_EQ(first.intrinsics.width, 640);
   EXPECT_EQ(first.intrinsics.height, 480);
-  EXPECT_EQ(first.intrinsics.fx, 585.0);
+  // 7-Scenes' published intrinsics are the depth camera's; colour gets 525 px (DSAC*, ACE).
+  EXPECT_EQ(first.intrinsics.fx, 525.0);
   EXPECT_EQ(first.intrinsics.cx, 320.0);
   ASSERT_TRUE(first.depth.has_value());
+  ASSERT_TRUE(first.depth->camera.has_value());
+  EXPECT_EQ(first.depth->camera->fx, 585.0);
+  EXPECT_EQ(first.depth->camera->width, 640);
   EXPECT_EQ(first.split, Split::kMapping);
   EXPECT_EQ(scene.frames[frameIndex(scene, "frame-000600.color.jpg")].split, Split::kQuery);
 
@@ -112,7 +116,8 @@ TEST(SevenScenes, StairsSequenceLayoutAndSplit) {
   for (const Frame& frame : scene.frames) {
     const bool train = frame.name.rfind("seq-02/", 0) == 0 || frame.name.rfind("seq-03/", 0) == 0;
     EXPECT_EQ(frame.split, train ? Split::kMapping : Split::kQuery) << frame.name;
-    EXPECT_EQ(frame.intrinsics.fx, 585.0);
+    EXPECT_EQ(frame.intrinsics.fx, 525.0);
+    EXPECT_EQ(frame.depth->camera->fx, 585.0);
     EXPECT_EQ(frame.intrinsics.width, 640);
   }
   for (const std::string seq : {"seq-01", "seq-02", "seq-03", "seq-04"}) {

@@ -22,6 +22,10 @@ struct DepthSource {
   // Stored values that mean "no depth" (7-Scenes: 0 and 65535). NaN and non-positive values
   // are always invalid.
   std::vector<double> invalid_values = {0.0, 65535.0};
+  // The depth camera's pinhole intrinsics, when they are not the colour image's (an RGB-D
+  // sensor whose depth is not registered to colour; same pose assumed): readDepthMetres then
+  // resamples the depth into the colour image's pixel grid.
+  std::optional<Intrinsics> camera;
 };
 
 // One posed image. Every reader produces these; everything else consumes them.

@@ -39,6 +39,8 @@ inline void expectSameFrame(const Frame& a, const Frame& b) {
     EXPECT_EQ(a.depth->path, b.depth->path);
     EXPECT_EQ(a.depth->scale, b.depth->scale);
     EXPECT_EQ(a.depth->invalid_values, b.depth->invalid_values);
+    ASSERT_EQ(a.depth->camera.has_value(), b.depth->camera.has_value());
+    if (a.depth->camera) expectSameIntrinsics(*a.depth->camera, *b.depth->camera);
   }
   EXPECT_EQ(a.split, b.split);
 }

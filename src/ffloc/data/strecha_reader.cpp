@@ -1,7 +1,7 @@
 #include <algorithm>
 
 #include "ffloc/core/error.h"
-#include "ffloc/data/image_size.h"
+#include "ffloc/io/image_size.h"
 #include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
 #include "ffloc/data/text_file.h"

@@ -175,8 +175,9 @@ TEST(OracleDepth, SevenScenesWithOutliersIsAccurateWithBothSolvers) {
     EXPECT_EQ(s.failed, 0) << toString(solver);
     EXPECT_GE(s.accuracy_percent[0], 100.0) << toString(solver);
     EXPECT_LT(s.median_translation, 0.01) << toString(solver);
-    // Nearly every true inlier of the 5000 used pairs is found (70% of them are inliers).
-    for (const FrameResult& f : frames) EXPECT_GT(f.inliers, 0.69 * 5000) << toString(solver) << " " << f.frame;
+    // Nearly every true inlier of the 5000 used pairs is found (70% of them are inliers; depth
+    // registered to colour puts a few of them a pixel off at depth edges).
+    for (const FrameResult& f : frames) EXPECT_GT(f.inliers, 0.68 * 5000) << toString(solver) << " " << f.frame;
   }
 }
 

@@ -6,6 +6,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/data/dataset.h"
+#include "ffloc/io/image.h"
 
 namespace ffloc {
 namespace {
@@ -20,6 +21,21 @@ std::vector<size_t> selectQueries(const Scene& scene, size_t max_queries) {
   std::vector<size_t> chosen;
   for (size_t k = 0; k < max_queries; ++k) chosen.push_back(all[k * all.size() / max_queries]);
   return chosen;
+}
+
+void score(FrameResult& r, const PnpResult& pose, const PoseVerdict& verdict) {
+  r.status = pose.status;
+  r.inliers = pose.inliers;
+  r.verdict = verdict.status;
+  r.evidence = verdict.evidence;
+  if (pose.ok()) {
+    r.estimate = pose.camera_to_world;
+    r.translation_error = translationError(r.estimate, r.truth);
+    r.rotation_error_deg = rotationErrorDeg(r.estimate, r.truth);
+  } else {
+    r.translation_error = std::numeric_limits<double>::infinity();
+    r.rotation_error_deg = std::numeric_limits<double>::infinity();
+  }
 }
 
 }  // namespace
@@ -48,16 +64,49 @@ std::vector<FrameResult> evaluate(const Scene& scene, CoordinateSource& source, 
     pnp.seed = options.pnp.seed + queries[q];
     const PnpResult pose = estimatePose(pairs, frame.intrinsics.undistorted(), pnp);
     r.pnp_seconds = pose.seconds;
-    r.status = pose.status;
-    r.inliers = pose.inliers;
-    if (pose.ok()) {
-      r.estimate = pose.camera_to_world;
-      r.translation_error = translationError(r.estimate, r.truth);
-      r.rotation_error_deg = rotationErrorDeg(r.estimate, r.truth);
-    } else {
-      r.translation_error = std::numeric_limits<double>::infinity();
-      r.rotation_error_deg = std::numeric_limits<double>::infinity();
-    }
+    const auto verification_start = std::chrono::steady_clock::now();
+    const PnpResult second = pose.ok() ? halfSampleEstimate(pairs, frame.intrinsics.undistorted(), pnp) : PnpResult{};
+    r.source_seconds += secondsSince(verification_start);
+    const PoseVerdict verdict = judgePose(
+        measureEvidence(pairs, frame.intrinsics.undistorted(), pose, pnp, pose.ok() ? &second : nullptr), pose,
+        scene.metric, options.verdict);
+    score(r, pose, verdict);
+    results.push_back(r);
+    progress.update(q + 1);
+  }
+  progress.finish();
+  return results;
+}
+
+std::vector<FrameResult> evaluateLocalizer(const Scene& scene, const Localizer& localizer, const std::string& method,
+                                           const LocalizeOptions& localize, const EvaluationOptions& options,
+                                           const LocalizationObserver& on_result) {
+  requireSplits(scene);
+  if (localizer.metric() != scene.metric)
+    throw InputError(scene.root.string() + ": the map is " + (localizer.metric() ? "metric" : "not metric") +
+                     " and the dataset is " + (scene.metric ? "metric" : "not metric") + ": not the same scene");
+  const std::vector<size_t> queries = selectQueries(scene, options.max_queries);
+  std::vector<FrameResult> results;
+  ProgressBar progress(scene.name + " " + method, queries.size(), options.quiet);
+  for (size_t q = 0; q < queries.size(); ++q) {
+    const Frame& frame = scene.frames[queries[q]];
+    FrameResult r;
+    r.dataset = scene.name;
+    r.method = method;
+    r.frame = frame.name;
+    r.truth = frame.camera_to_world;
+    LocalizeOptions query_options = localize;
+    query_options.pnp = options.pnp;
+    query_options.pnp.seed = options.pnp.seed + queries[q];
+    query_options.verdict = options.verdict;
+    const auto start = std::chrono::steady_clock::now();
+    const LocalizationResult result =
+        localizer.localize(readImageRgb(frame.image_path), frame.intrinsics, frame.name, query_options);
+    r.pnp_seconds = result.pnp.seconds;
+    r.source_seconds = secondsSince(start) - r.pnp_seconds;
+    r.correspondences = static_cast<int>(result.correspondences.size());
+    score(r, result.pnp, result.verdict);
+    if (on_result) on_result(frame, result);
     results.push_back(r);
     progress.update(q + 1);
   }

@@ -5,12 +5,14 @@
 
 #include "ffloc/eval/coordinate_source.h"
 #include "ffloc/eval/metrics.h"
+#include "ffloc/localization/localizer.h"
 #include "ffloc/pose/pnp.h"
 
 namespace ffloc {
 
 struct EvaluationOptions {
   PnpOptions pnp;
+  VerdictOptions verdict;
   size_t max_queries = 0;  // 0 = every query frame; otherwise evenly spaced queries
   bool quiet = false;      // no progress bar
 };
@@ -19,5 +21,14 @@ struct EvaluationOptions {
 // against the ground truth. Throws InputError when the scene has no query or no mapping frame.
 std::vector<FrameResult> evaluate(const Scene& scene, CoordinateSource& source,
                                   const EvaluationOptions& options = {});
+
+// The same through a Localizer, exactly as `ffloc localize` runs a query: each query frame's
+// image and intrinsics go in, the pose and verdict come out. `localize` supplies the query
+// options; options.pnp and options.verdict replace its own, and the RANSAC seed is offset per
+// frame as above. `on_result`, when set, sees every result.
+using LocalizationObserver = std::function<void(const Frame&, const LocalizationResult&)>;
+std::vector<FrameResult> evaluateLocalizer(const Scene& scene, const Localizer& localizer, const std::string& method,
+                                           const LocalizeOptions& localize, const EvaluationOptions& options = {},
+                                           const LocalizationObserver& on_result = nullptr);
 
 }  // namespace ffloc

@@ -17,6 +17,8 @@ const std::array<AccuracyThreshold, 5>& accuracyThresholds() {
   return thresholds;
 }
 
+const AccuracyThreshold& verdictThreshold() { return accuracyThresholds()[4]; }
+
 double median(std::vector<double> values) {
   if (values.empty()) return 0;
   const size_t middle = (values.size() - 1) / 2;
@@ -51,6 +53,11 @@ MethodSummary summarize(const std::vector<FrameResult>& frames) {
     latency_ms.push_back(f.totalSeconds() * 1000.0);
     for (size_t k = 0; k < accuracyThresholds().size(); ++k)
       if (te <= accuracyThresholds()[k].translation && re <= accuracyThresholds()[k].rotation_deg) ++hits[k];
+    const bool within = te <= verdictThreshold().translation && re <= verdictThreshold().rotation_deg;
+    const bool localized = f.verdict == PoseStatus::kLocalized;
+    s.localized += localized;
+    s.localized_correct += localized && within;
+    s.correct += within;
   }
   s.median_translation = median(t);
   s.median_rotation_deg = median(r);

@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "ffloc/geometry/pose.h"
+#include "ffloc/localization/verdict.h"
 #include "ffloc/pose/pnp.h"
 
 namespace ffloc {
@@ -21,8 +22,10 @@ struct FrameResult {
   double rotation_error_deg = 0;  // +inf when the frame failed
   int correspondences = 0;  // produced by the coordinate source
   int inliers = 0;
-  double source_seconds = 0;  // producing the correspondences
+  double source_seconds = 0;  // producing the correspondences (and the verdict's second estimate)
   double pnp_seconds = 0;
+  PoseStatus verdict = PoseStatus::kFailed;
+  PoseEvidence evidence;
 
   bool succeeded() const { return status == PnpStatus::kSuccess; }
   double totalSeconds() const { return source_seconds + pnp_seconds; }
@@ -48,7 +51,16 @@ struct MethodSummary {
   std::array<double, 5> accuracy_percent{};  // per accuracyThresholds()
   double latency_median_ms = 0;
   double latency_p90_ms = 0;
+  // The verdict against the truth, at the (25 cm, 5 deg) threshold: how many frames were marked
+  // localized, how many of those are within it (precision = localized_correct / localized), and
+  // how many frames with a pose are within it whatever their mark (recall's denominator).
+  int localized = 0;
+  int localized_correct = 0;
+  int correct = 0;
 };
+
+// The threshold the verdict's precision and recall are measured at: (25 cm, 5 deg).
+const AccuracyThreshold& verdictThreshold();
 
 // Failed frames count as infinite error in the medians and as misses in the accuracies.
 MethodSummary summarize(const std::vector<FrameResult>& frames);

@@ -35,7 +35,14 @@ nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries) {
                        {"median_t", finiteOrNull(s.median_translation)},
                        {"median_r_deg", finiteOrNull(s.median_rotation_deg)},
                        {"acc", acc},
-                       {"latency_ms", {{"median", s.latency_median_ms}, {"p90", s.latency_p90_ms}}}});
+                       {"latency_ms", {{"median", s.latency_median_ms}, {"p90", s.latency_p90_ms}}},
+                       {"verdict", {{"localized", s.localized},
+                                    {"localized_correct", s.localized_correct},
+                                    {"correct", s.correct},
+                                    {"precision", s.localized > 0 ? nlohmann::json(100.0 * s.localized_correct / s.localized)
+                                                                  : nlohmann::json()},
+                                    {"recall", s.correct > 0 ? nlohmann::json(100.0 * s.localized_correct / s.correct)
+                                                             : nlohmann::json()}}}});
   }
   return {{"results", results}};
 }
@@ -43,15 +50,19 @@ nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries) {
 std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric) {
   std::ostringstream out;
   out << "| dataset | method | frames | failed | median t | median r (deg) | 5cm,5deg | 10cm,10deg | "
-         "20cm,20deg | 10cm,1deg | 25cm,5deg | latency median (ms) | latency p90 (ms) |\n";
-  out << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+         "20cm,20deg | 10cm,1deg | 25cm,5deg | latency median (ms) | latency p90 (ms) | localized | "
+         "precision | recall |\n";
+  out << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const MethodSummary& s : summaries) {
     const bool metric = std::find(non_metric.begin(), non_metric.end(), s.dataset) == non_metric.end();
     out << "| " << s.dataset << (metric ? "" : " (units not metric)") << " | " << s.method << " | " << s.frames
         << " | " << s.failed << " | " << formatNumber(s.median_translation, 4) << (metric ? " m" : "") << " | "
         << formatNumber(s.median_rotation_deg, 3);
     for (double a : s.accuracy_percent) out << " | " << formatNumber(a, 1) << "%";
-    out << " | " << formatNumber(s.latency_median_ms, 1) << " | " << formatNumber(s.latency_p90_ms, 1) << " |\n";
+    out << " | " << formatNumber(s.latency_median_ms, 1) << " | " << formatNumber(s.latency_p90_ms, 1) << " | "
+        << s.localized << " | "
+        << (s.localized > 0 ? formatNumber(100.0 * s.localized_correct / s.localized, 1) + "%" : "-") << " | "
+        << (s.correct > 0 ? formatNumber(100.0 * s.localized_correct / s.correct, 1) + "%" : "-") << " |\n";
   }
   return out.str();
 }
@@ -60,7 +71,8 @@ std::string perFrameCsv(const std::vector<FrameResult>& frames) {
   std::ostringstream out;
   out.precision(9);
   out << "dataset,method,frame,status,translation_error,rotation_error_deg,correspondences,inliers,"
-         "source_ms,pnp_ms,qw,qx,qy,qz,tx,ty,tz\n";
+         "source_ms,pnp_ms,qw,qx,qy,qz,tx,ty,tz,verdict,inlier_ratio,inlier_spread,agreement_translation,"
+         "agreement_rotation_deg,agreement_distance\n";
   for (const FrameResult& f : frames) {
     out << f.dataset << "," << f.method << "," << f.frame << "," << toString(f.status) << ","
         << formatNumber(f.translation_error, 6) << "," << formatNumber(f.rotation_error_deg, 6) << ","
@@ -73,7 +85,10 @@ std::string perFrameCsv(const std::vector<FrameResult>& frames) {
     } else {
       out << ",,,,,,,";
     }
-    out << "\n";
+    const PoseEvidence& e = f.evidence;
+    out << "," << toString(f.verdict) << "," << e.inlier_ratio << "," << e.inlier_spread << ","
+        << formatNumber(e.agreement_translation, 6) << "," << formatNumber(e.agreement_rotation_deg, 6) << ","
+        << formatNumber(e.agreement_distance, 6) << "\n";
   }
   return out.str();
 }

@@ -7,6 +7,9 @@
 #include <string>
 #include <vector>
 
+#include "ffloc/classical/descriptor_matching.h"
+#include "ffloc/classical/sift_features.h"
+#include "ffloc/classical/vlad.h"
 #include "ffloc/eval/coordinate_source.h"
 #include "ffloc/geometry/triangulation.h"
 
@@ -22,21 +25,14 @@ namespace ffloc {
 // triangulated from the mapping poses. Points are made per query, so no global map (and no
 // track merging) is needed.
 struct SiftBaselineOptions {
-  // Images are shrunk (never enlarged) so the long side is at most this many pixels before
-  // detection; keypoints are mapped back to the original undistorted grid.
-  int max_image_size = 1600;
-  int max_features = 8000;          // per image, strongest first
-  double contrast_threshold = 0.02;  // SIFT's; lower than OpenCV's 0.04 to keep weak indoor texture
+  SiftOptions sift = {1600, 8000};  // the settings its numbers in docs/sift_baseline.md were measured with
+  MatchingOptions matching;
+  VladOptions vocabulary;
   // Mapping frames matched per query (the paper's indoor setting uses 10); every mapping frame
   // when the scene has no more than this.
   int retrieval_top_k = 10;
   // Mapping frames each mapping frame is matched with in prepare(), the most similar first.
   int map_neighbours = 6;
-  int vocabulary_size = 64;  // VLAD visual words, k-means on mapping descriptors
-  int vocabulary_training_descriptors = 40000;
-  float ratio = 0.8f;  // Lowe's ratio test on RootSIFT distances
-  int flann_trees = 4;
-  int flann_checks = 64;
   // Triangulation checks; the reprojection threshold is in working-resolution pixels, so it
   // means the same at any image size.
   double max_reprojection_error_px = 4.0;
@@ -44,18 +40,6 @@ struct SiftBaselineOptions {
   size_t max_track_views = 16;  // longer tracks are cut, direct query matches kept first
   uint64_t seed = 0;
 };
-
-// Features of one image. Pixels are in the original image's undistorted pixel grid.
-struct SiftFeatures {
-  std::vector<Eigen::Vector2d> pixels;
-  cv::Mat descriptors;  // RootSIFT, CV_32F, one row per keypoint, unit L2 norm
-  double working_scale = 1;  // working-resolution pixels per original pixel
-};
-
-// Detects SIFT on `frame`'s image (shrunk to the working resolution) and maps the keypoints to
-// its undistorted pixels. Throws InputError naming the frame when the image size disagrees with
-// its intrinsics.
-SiftFeatures extractSiftFeatures(const Frame& frame, const SiftBaselineOptions& options = {});
 
 // Confidence of a pair: 1 + the number of mapping views its point was triangulated from, so
 // every pair (>= 3) passes the paper's tau = 1.5 and a higher --confidence-threshold keeps only
@@ -75,17 +59,17 @@ class SiftBaselineSource : public CoordinateSource {
 
  private:
   struct MappingFrame;
-  struct Vocabulary;
 
   void ensurePrepared(const Scene& scene);
   std::vector<size_t> rank(const Eigen::VectorXf& global) const;
   Eigen::VectorXf describe(const SiftFeatures& features) const;
   void linkMappingFrames();
+  MatchingOptions matchingOptions() const;
 
   SiftBaselineOptions options_;
   const Scene* prepared_scene_ = nullptr;
   std::vector<MappingFrame> mapping_;
-  std::unique_ptr<Vocabulary> vocabulary_;
+  VladVocabulary vocabulary_;
 };
 
 }  // namespace ffloc

@@ -15,8 +15,8 @@ namespace {
 // Small enough for a quick test, large enough for the Strecha facades.
 SiftBaselineOptions fastOptions() {
   SiftBaselineOptions options;
-  options.max_image_size = 1024;
-  options.max_features = 4000;
+  options.sift.max_image_size = 1024;
+  options.sift.max_features = 4000;
   return options;
 }
 
@@ -56,8 +56,8 @@ TEST(SiftBaseline, RetrievalRanksEveryMappingFrameAndMatchesOnlyTopK) {
   FFLOC_REQUIRE_SHARED(dir, "data/strecha_fountain_p11");
   const Scene scene = loadDataset(dir);
   SiftBaselineOptions options = fastOptions();
-  options.max_image_size = 640;
-  options.max_features = 1500;
+  options.sift.max_image_size = 640;
+  options.sift.max_features = 1500;
   options.retrieval_top_k = 3;
   SiftBaselineSource source(options);
   source.prepare(scene);

@@ -2,24 +2,23 @@
 
 #include <cstdio>
 #include <cstring>
+#include <tuple>
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/hash.h"
 #include "ffloc/io/tensor_archive.h"
 
 namespace ffloc {
 namespace {
 
-constexpr const char* kMetadataKey = "ffloc_map";
+constexpr const char* kMetadataKey = kMapMetadataKey;
+constexpr const char* kMethod = "fastforward";
 constexpr const char* kDescriptorsTensor = "descriptors";
+constexpr const char* kVladVocabularyTensor = "vlad_vocabulary";
+constexpr const char* kVladDescriptorsTensor = "vlad_descriptors";
 
 std::string tokensTensorName(size_t index) { return "tokens." + std::to_string(index); }
-
-std::string hex64(uint64_t value) {
-  char buffer[17];
-  std::snprintf(buffer, sizeof(buffer), "%016llx", static_cast<unsigned long long>(value));
-  return buffer;
-}
 
 nlohmann::json poseJson(const Pose& pose) {
   nlohmann::json rows = nlohmann::json::array();
@@ -54,14 +53,6 @@ Pose poseFromJson(const nlohmann::json& rows, const std::string& where) {
 }
 
 }  // namespace
-
-uint64_t fnv1a64(const uint8_t* data, size_t size, uint64_t hash) {
-  for (size_t i = 0; i < size; ++i) {
-    hash ^= data[i];
-    hash *= 0x100000001b3ULL;
-  }
-  return hash;
-}
 
 void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
   if (map.token_dim <= 0) throw InputError(path.string() + ": map: token dimension must be positive");
@@ -103,6 +94,30 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
                                       {"width", g.width}, {"height", g.height}}},
                       {"grid", {image.grid_rows, image.grid_cols}}});
   }
+  std::vector<float> vlad_descriptors;
+  const size_t vlad_dim = map.vlad_centres.size();
+  if (vlad_dim % 128 != 0) throw InputError(path.string() + ": map: VLAD vocabulary is not words x 128");
+  for (const MapImage& image : map.images) {
+    if (image.vlad_descriptor.size() != vlad_dim)
+      throw InputError(path.string() + ": map image '" + image.name + "': VLAD descriptor of length " +
+                       std::to_string(image.vlad_descriptor.size()) + ", expected " + std::to_string(vlad_dim));
+    vlad_descriptors.insert(vlad_descriptors.end(), image.vlad_descriptor.begin(), image.vlad_descriptor.end());
+  }
+  if (vlad_dim > 0) {
+    for (auto [name, values, rows, cols] :
+         {std::tuple<const char*, const std::vector<float>*, size_t, size_t>{kVladVocabularyTensor, &map.vlad_centres,
+                                                                            vlad_dim / 128, 128},
+          {kVladDescriptorsTensor, &vlad_descriptors, map.images.size(), vlad_dim}}) {
+      TensorView view;
+      view.name = name;
+      view.dtype = DType::kF32;
+      view.shape = {static_cast<int64_t>(rows), static_cast<int64_t>(cols)};
+      view.data = reinterpret_cast<const uint8_t*>(values->data());
+      view.nbytes = values->size() * sizeof(float);
+      checksums[view.name] = hex64(fnv1a64(view.data, view.nbytes));
+      tensors.push_back(view);
+    }
+  }
   TensorView descriptor_view;
   descriptor_view.name = kDescriptorsTensor;
   descriptor_view.dtype = DType::kF32;
@@ -112,13 +127,39 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
   checksums[descriptor_view.name] = hex64(fnv1a64(descriptor_view.data, descriptor_view.nbytes));
   tensors.push_back(descriptor_view);
 
-  const nlohmann::json metadata = {{"version", MapFile::kVersion}, {"model_id", map.model_id},
+  const nlohmann::json metadata = {{"method", kMethod}, {"version", MapFile::kVersion}, {"model_id", map.model_id},
                                    {"token_dim", map.token_dim},   {"metric", map.metric},
                                    {"images", images},             {"checksums", checksums}};
   writeSafetensors(path, tensors, {{kMetadataKey, metadata.dump()}});
 }
 
+MapHeader readMapHeader(const std::filesystem::path& path) {
+  const auto archive = openSafetensors(path);
+  const std::string file = path.string();
+  const auto entry = archive->metadata().find(kMetadataKey);
+  if (entry == archive->metadata().end())
+    throwInputError(file, 0, "not an ffloc map (no '" + std::string(kMetadataKey) + "' metadata)");
+  nlohmann::json metadata;
+  try {
+    metadata = nlohmann::json::parse(entry->second);
+  } catch (const nlohmann::json::exception& e) {
+    throwInputError(file, 0, std::string("map metadata is not valid JSON: ") + e.what());
+  }
+  MapHeader header;
+  // Maps written before there was more than one method say nothing of it.
+  header.method = metadata.contains("method") ? field<std::string>(metadata, "method", file + ": map") : kMethod;
+  const nlohmann::json& version = metadata.contains("version") ? metadata["version"] : nlohmann::json();
+  if (!version.is_number_integer() || version.get<int64_t>() < 0 || version.get<int64_t>() > 1000000)
+    throwInputError(file, 0, "map field 'version' must be a small non-negative integer");
+  header.version = static_cast<int>(version.get<int64_t>());
+  return header;
+}
+
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {
+  const MapHeader header = readMapHeader(path);
+  if (header.method != kMethod)
+    throwInputError(path.string(), 0, "map was built with the " + header.method +
+                                          " method, not fastforward (localize it with the method it was built with)");
   const auto archive = openSafetensors(path);
   const std::string file = path.string();
   const auto entry = archive->metadata().find(kMetadataKey);
@@ -131,7 +172,7 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     throwInputError(file, 0, std::string("map metadata is not valid JSON: ") + e.what());
   }
   const std::string where = file + ": map";
-  const int version = field<int>(metadata, "version", where);
+  const int version = header.version;
   if (version != MapFile::kVersion)
     throwInputError(file, 0, "map version " + std::to_string(version) + " is not supported (this build reads version " +
                                  std::to_string(MapFile::kVersion) + ")");
@@ -163,6 +204,22 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     throwInputError(file, 0, "tensor 'descriptors' has shape " + descriptors.shapeString() + ", expected (" +
                                  std::to_string(images.size()) + ", D) F32");
   const size_t descriptor_dim = static_cast<size_t>(descriptors.shape[1]);
+  const float* vlad = nullptr;
+  size_t vlad_dim = 0;
+  if (archive->contains(kVladVocabularyTensor)) {
+    const TensorView& centres = verified(kVladVocabularyTensor);
+    if (centres.dtype != DType::kF32 || centres.shape.size() != 2 || centres.shape[1] != 128 || centres.shape[0] < 1)
+      throwInputError(file, 0, "tensor 'vlad_vocabulary' has shape " + centres.shapeString() + ", expected (words, 128) F32");
+    map.vlad_centres.resize(centres.nbytes / sizeof(float));
+    std::memcpy(map.vlad_centres.data(), centres.data, centres.nbytes);
+    vlad_dim = map.vlad_centres.size();
+    const TensorView& per_image = verified(kVladDescriptorsTensor);
+    if (per_image.dtype != DType::kF32 ||
+        per_image.shape != std::vector<int64_t>{static_cast<int64_t>(images.size()), static_cast<int64_t>(vlad_dim)})
+      throwInputError(file, 0, "tensor 'vlad_descriptors' has shape " + per_image.shapeString() + ", expected (" +
+                                   std::to_string(images.size()) + ", " + std::to_string(vlad_dim) + ") F32");
+    vlad = reinterpret_cast<const float*>(per_image.data);
+  }
 
   for (size_t i = 0; i < images.size(); ++i) {
     const nlohmann::json& j = images[i];
@@ -203,6 +260,7 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     image.descriptor.resize(descriptor_dim);
     std::memcpy(image.descriptor.data(), descriptors.data + i * descriptor_dim * sizeof(float),
                 descriptor_dim * sizeof(float));
+    if (vlad) image.vlad_descriptor.assign(vlad + i * vlad_dim, vlad + (i + 1) * vlad_dim);
     map.images.push_back(std::move(image));
   }
   return map;

@@ -21,6 +21,7 @@ struct MapImage {
   int grid_rows = 0, grid_cols = 0;  // token grid; tokens = grid_rows * grid_cols
   std::vector<uint16_t> tokens;      // fp16 bits, row-major (token, channel)
   std::vector<float> descriptor;     // global descriptor for retrieval
+  std::vector<float> vlad_descriptor;  // the classical one, when the map has a VLAD vocabulary
 
   size_t tokenCount() const { return static_cast<size_t>(grid_rows) * grid_cols; }
 };
@@ -34,8 +35,22 @@ struct MapFile {
   std::string model_id;  // identity of the weights that produced the tokens
   int token_dim = 0;
   bool metric = true;
+  // Optional (ffloc map --vlad): the classical VLAD vocabulary, words x 128 row-major, so that
+  // FastForward can select its K images by classical retrieval. Empty: none.
+  std::vector<float> vlad_centres;
   std::vector<MapImage> images;
 };
+
+// What every map file says of itself, whatever its method: the method that built it and the
+// version of that method's map format. InputError naming the file when it is not an ffloc map.
+struct MapHeader {
+  std::string method;  // "fastforward" or "classical"
+  int version = 0;
+};
+MapHeader readMapHeader(const std::filesystem::path& path);
+
+// The container's metadata key that holds a map's JSON description.
+inline constexpr const char* kMapMetadataKey = "ffloc_map";
 
 // Atomic: written to a temporary file beside `path`, then renamed, so an interrupted write
 // never damages an existing map. InputError naming the image for inconsistent sizes.
@@ -44,8 +59,5 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path);
 // Validates the container, the version, every checksum and every size. When expected_model_id is
 // non-empty and differs from the map's, InputError says which model built the map.
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id = "");
-
-// FNV-1a, 64 bits: cheap, and enough to detect a corrupted or truncated byte range.
-uint64_t fnv1a64(const uint8_t* data, size_t size, uint64_t seed = 0xcbf29ce484222325ULL);
 
 }  // namespace ffloc

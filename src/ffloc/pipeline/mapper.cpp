@@ -4,8 +4,11 @@
 
 #include <chrono>
 #include <cstring>
+#include <map>
 #include <set>
 
+#include "ffloc/classical/sift_features.h"
+#include "ffloc/classical/vlad.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/pipeline/prepared_image.h"
@@ -74,8 +77,50 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
     progress.update(i + 1);
   }
   progress.finish();
+  if (options.vlad || !map.vlad_centres.empty()) addVladRetrieval(map, scene, options.quiet);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return report;
+}
+
+void addVladRetrieval(MapFile& map, const Scene& scene, bool quiet) {
+  const bool appending = !map.vlad_centres.empty();
+  if (!appending && !map.images.empty() && !map.images.front().vlad_descriptor.empty())
+    throw InputError("map: has VLAD descriptors but no vocabulary");
+  std::vector<size_t> missing;
+  for (size_t i = 0; i < map.images.size(); ++i)
+    if (map.images[i].vlad_descriptor.empty()) missing.push_back(i);
+  if (appending && missing.size() == map.images.size()) return;
+  if (!appending && missing.size() != map.images.size())
+    throw InputError("map: was built without --vlad; rebuild it with --vlad to add VLAD retrieval");
+
+  std::map<std::string, const Frame*> frames;
+  for (const Frame& frame : scene.frames) frames[frame.name] = &frame;
+  std::vector<cv::Mat> descriptors(missing.size());
+  ProgressBar progress("VLAD features", missing.size(), quiet);
+  for (size_t m = 0; m < missing.size(); ++m) {
+    const auto frame = frames.find(map.images[missing[m]].name);
+    if (frame == frames.end())
+      throw InputError("map image '" + map.images[missing[m]].name + "': not in the dataset, so no VLAD descriptor");
+    descriptors[m] = extractSiftFeatures(*frame->second).descriptors;
+    progress.update(m + 1);
+  }
+  progress.finish();
+  VladVocabulary vocabulary;
+  if (appending) {
+    VladVocabulary::RowMatrixXf centres =
+        Eigen::Map<const VladVocabulary::RowMatrixXf>(map.vlad_centres.data(), map.vlad_centres.size() / 128, 128);
+    vocabulary = VladVocabulary(std::move(centres));
+  } else {
+    std::vector<const cv::Mat*> training;
+    for (const cv::Mat& d : descriptors) training.push_back(&d);
+    vocabulary = VladVocabulary::train(training);
+    if (vocabulary.empty()) throw InputError(scene.root.string() + ": no mapping image has SIFT features for VLAD");
+    map.vlad_centres.assign(vocabulary.centres().data(), vocabulary.centres().data() + vocabulary.centres().size());
+  }
+  for (size_t m = 0; m < missing.size(); ++m) {
+    const Eigen::VectorXf v = vocabulary.describe(descriptors[m]);
+    map.images[missing[m]].vlad_descriptor.assign(v.data(), v.data() + v.size());
+  }
 }
 
 }  // namespace ffloc

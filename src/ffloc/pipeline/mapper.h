@@ -5,7 +5,7 @@
 
 #include "ffloc/data/scene.h"
 #include "ffloc/io/map_file.h"
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/retrieval/global_descriptor.h"
 
 namespace ffloc {
@@ -18,6 +18,9 @@ struct MappingOptions {
   // model). Tests use less for speed.
   int long_side = 0;
   GlobalDescriptorOptions descriptor;
+  // Also store the classical VLAD descriptor of every image (SIFT with the default SiftOptions),
+  // so that queries may select their K images by classical retrieval.
+  bool vlad = false;
   bool quiet = false;  // no progress bar
 };
 
@@ -38,5 +41,10 @@ MapFile emptyMap(const LoadedModel& model, bool metric);
 // another model, with another token width, or in other units (metric vs not).
 MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scene, const std::vector<size_t>& frames,
                        const MappingOptions& options = {});
+
+// Gives every image of `map` that has none a VLAD descriptor (from the scene frame of the same
+// name), training the vocabulary when the map has none yet. InputError when an image is not in
+// the scene, or when the map was built without VLAD and already holds images.
+void addVladRetrieval(MapFile& map, const Scene& scene, bool quiet);
 
 }  // namespace ffloc

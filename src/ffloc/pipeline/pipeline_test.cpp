@@ -18,10 +18,9 @@
 #include "ffloc/data/dataset.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/torch_threads.h"
-#include "ffloc/pipeline/fastforward_source.h"
-#include "ffloc/pipeline/localizer.h"
+#include "ffloc/pipeline/fastforward_localizer.h"
 #include "ffloc/pipeline/mapper.h"
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/prepared_image.h"
 
 namespace ffloc {
@@ -152,15 +151,16 @@ TEST(Pipeline, MapRoundTripAppendAndRefusals) {
   EXPECT_FALSE(inputErrorOf([&] { readMapFile(corrupted); }).empty());
 
   // A map with no images, a bad query.
-  EXPECT_NE(inputErrorOf([&] { Localizer(*model.model, emptyMap(model, true)); }).find("no images"), std::string::npos);
-  const Localizer localizer(*model.model, reread);
+  EXPECT_NE(inputErrorOf([&] { FastForwardLocalizer(*model.model, emptyMap(model, true)); }).find("no images"),
+            std::string::npos);
+  const FastForwardLocalizer localizer(*model.model, reread);
   const cv::Mat rgb = readImageRgb(scene.frames[5].image_path);
   Intrinsics no_focal = scene.frames[5].intrinsics;
   no_focal.fx = 0;
-  EXPECT_NE(inputErrorOf([&] { localizer.predict(rgb, no_focal, "q", {}); }).find("intrinsics"), std::string::npos);
+  EXPECT_NE(inputErrorOf([&] { localizer.localize(rgb, no_focal, "q", {}); }).find("fx"), std::string::npos);
   Intrinsics wrong_size = scene.frames[5].intrinsics;
   wrong_size.width = 640;
-  EXPECT_NE(inputErrorOf([&] { localizer.predict(rgb, wrong_size, "q", {}); }).find("640"), std::string::npos);
+  EXPECT_NE(inputErrorOf([&] { localizer.localize(rgb, wrong_size, "q", {}); }).find("640"), std::string::npos);
   EXPECT_NE(inputErrorOf([&] { readImageRgb(dir / "missing.png"); }).find("missing.png"), std::string::npos);
   fs::remove_all(dir);
 }
@@ -194,10 +194,10 @@ TEST(Pipeline, PredictionsAreSimilarityEquivariantAndLocalizeRuns) {
   options.long_side = kLongSide;
   const Frame& query = scene.frames[6];
   const cv::Mat rgb = readImageRgb(query.image_path);
-  const Localizer original(*model.model, map);
-  const Localizer transformed(*model.model, moved);
-  const QueryPrediction a = original.predict(rgb, query.intrinsics, query.name, options);
-  const QueryPrediction b = transformed.predict(rgb, query.intrinsics, query.name, options);
+  const FastForwardLocalizer original(*model.model, map);
+  const FastForwardLocalizer transformed(*model.model, moved);
+  const QueryPrediction a = original.predictCoordinates(rgb, query.intrinsics, query.name, options);
+  const QueryPrediction b = transformed.predictCoordinates(rgb, query.intrinsics, query.name, options);
 
   ASSERT_EQ(a.selected, b.selected);
   EXPECT_EQ(a.selected.size(), 4u);
@@ -226,13 +226,14 @@ TEST(Pipeline, PredictionsAreSimilarityEquivariantAndLocalizeRuns) {
 
   // The full localisation: random weights give a meaningless pose, but every stage runs.
   const LocalizationResult result = original.localize(rgb, query.intrinsics, query.name, options);
-  EXPECT_GT(result.prediction.timings.encoding, 0);
-  EXPECT_GT(result.prediction.timings.decoding, 0);
-  EXPECT_GT(result.prediction.timings.retrieval, 0);
-  EXPECT_GT(result.prediction.timings.pnp, 0);
+  EXPECT_GT(result.timings.features, 0);
+  EXPECT_GT(result.timings.matching, 0);
+  EXPECT_GT(result.timings.retrieval, 0);
+  EXPECT_GT(result.timings.pnp, 0);
+  EXPECT_GT(result.timings.verification, 0);  // the second reference's prediction
   EXPECT_GT(result.pnp.used_correspondences, 0);
-  EXPECT_GE(result.confidence(), 0);
-  EXPECT_LE(result.confidence(), 1);
+  EXPECT_GE(result.verdict.evidence.inlier_ratio, 0);
+  EXPECT_LE(result.verdict.evidence.inlier_ratio, 1);
   fs::remove_all(dir);
 }
 
@@ -254,18 +255,22 @@ TEST(Pipeline, FixtureModelOnRedkitchen) {
   for (size_t i = 0; i < mapping.size(); ++i)
     if (i % 10 != 0) scene.frames[mapping[i]].split = Split::kUnassigned;
 
-  FastForwardSourceOptions options;
-  options.mapping.quiet = true;
-  options.mapping.long_side = kLongSide;
-  options.localize.top_k = 3;
-  options.localize.long_side = kLongSide;
-  FastForwardSource source(model, options);
-  source.prepare(scene);
-  EXPECT_EQ(source.localizer().map().images.size(), (mapping.size() + 9) / 10);
+  MappingOptions mapping_options;
+  mapping_options.quiet = true;
+  mapping_options.long_side = kLongSide;
+  MapFile map = emptyMap(*model, scene.metric);
+  addToMap(map, *model, scene, scene.mappingIndices(), mapping_options);
+  const FastForwardLocalizer localizer(*model->model, std::move(map));
+  EXPECT_EQ(localizer.map().images.size(), (mapping.size() + 9) / 10);
+  LocalizeOptions options;
+  options.top_k = 3;
+  options.long_side = kLongSide;
   const Frame& query = scene.frames[queries[0]];
-  const Correspondences pairs = source.correspondences(scene, queries[0]);
+  const QueryPrediction prediction =
+      localizer.predictCoordinates(readImageRgb(query.image_path), query.intrinsics, query.name, options);
+  const Correspondences& pairs = prediction.correspondences;
   EXPECT_EQ(pairs.size(), 256u * 192u);
-  EXPECT_EQ(source.lastPrediction().selected.size(), 3u);
+  EXPECT_EQ(prediction.selected.size(), 3u);
   const PnpResult pose = estimatePose(pairs, query.intrinsics.undistorted());
   EXPECT_GT(pose.used_correspondences, 0);
   EXPECT_EQ(pose.status == PnpStatus::kSuccess, pose.ok());

@@ -10,9 +10,9 @@
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/torch_threads.h"
-#include "ffloc/pipeline/localizer.h"
+#include "ffloc/pipeline/fastforward_localizer.h"
 #include "ffloc/pipeline/mapper.h"
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/query_descriptor.h"
 #include "ffloc/retrieval/image_selection.h"
 #include "ffloc/retrieval/retrieval_recall.h"
@@ -103,8 +103,8 @@ TEST(QueryDescriptor, AMappingImageAsQueryRetrievesItselfFirst) {
   options.num_features = 64;
   const Frame& probe = scene.frames[3];
   const cv::Mat rgb = readImageRgb(probe.image_path);
-  const Localizer localizer(*model.model, map);
-  EXPECT_EQ(localizer.predict(rgb, probe.intrinsics, probe.name, options).selected,
+  const FastForwardLocalizer localizer(*model.model, map);
+  EXPECT_EQ(localizer.predictCoordinates(rgb, probe.intrinsics, probe.name, options).selected,
             topKBySimilarity(database, queryDescriptor(*model.model, rgb, probe.intrinsics, probe.name, kLongSide),
                              map.images.size()));
 }

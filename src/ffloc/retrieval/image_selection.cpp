@@ -23,7 +23,7 @@ ImageSelection parseImageSelection(const std::string& name) {
   if (name == "retrieval") return ImageSelection::kRetrieval;
   if (name == "uniform") return ImageSelection::kUniform;
   if (name == "random") return ImageSelection::kRandom;
-  throw InputError("image selection: unknown strategy '" + name + "' (known: retrieval, uniform, random)");
+  throw InputError("selection: unknown strategy '" + name + "' (known: retrieval, uniform, random)");
 }
 
 std::vector<size_t> topKBySimilarity(const std::vector<std::vector<float>>& database,

@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
-#include "ffloc/pipeline/localization_json.h"
+#include "ffloc/localization/localization_json.h"
 #include "ffloc/server/localize_request.h"
 
 // Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
@@ -26,10 +26,6 @@ constexpr const char* kJson = "application/json";
 
 // Request text (a name, an unknown field) reaches answers and may not be UTF-8: replace rather
 // than throw.
-std::string jsonText(const nlohmann::json& value) {
-  return value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
-}
-
 void replyError(httplib::Response& response, int status, const std::string& message) {
   response.status = status;
   response.set_content(jsonText({{"error", message}}), kJson);
@@ -124,20 +120,21 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
   server.Get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
     const nlohmann::json body = {{"status", "ok"},
                                  {"model", model_description_},
-                                 {"map_images", localizer_.map().images.size()}};
+                                 {"method", toString(localizer_.method())},
+                                 {"map_images", localizer_.cameras().size()}};
     response.set_content(jsonText(body), kJson);
     log(request.method + " " + request.path + " 200");
   });
 
   server.Get("/map", [this, log](const httplib::Request& request, httplib::Response& response) {
-    const MapFile& map = localizer_.map();
     nlohmann::json names = nlohmann::json::array();
-    for (const MapImage& image : map.images) names.push_back(image.name);
+    for (const MapCamera& camera : localizer_.cameras()) names.push_back(camera.name);
     const nlohmann::json body = {
-        {"images", map.images.size()},
+        {"method", toString(localizer_.method())},
+        {"images", localizer_.cameras().size()},
         {"names", names},
-        {"metric", map.metric},
-        {"model_id", map.model_id},
+        {"metric", localizer_.metric()},
+        {"model_id", localizer_.modelId()},
         {"defaults",
          {{"top_k", options_.localize.top_k},
           {"features", options_.localize.num_features},
@@ -176,7 +173,7 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     try {
       std::lock_guard<std::mutex> lock(localize_mutex_);
       const LocalizationResult result = localizer_.localize(query.rgb, query.intrinsics, query.name, query.options);
-      body = localizationJson(query.name, result, localizer_.map());
+      body = localizationJson(query.name, result, localizer_);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
       return;

@@ -7,7 +7,7 @@
 #include <ostream>
 #include <string>
 
-#include "ffloc/pipeline/localizer.h"
+#include "ffloc/localization/localizer.h"
 #include "ffloc/server/localize_request.h"
 
 namespace ffloc {

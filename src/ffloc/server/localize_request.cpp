@@ -12,7 +12,7 @@
 #include <sstream>
 
 #include "ffloc/core/error.h"
-#include "ffloc/data/image_size.h"
+#include "ffloc/io/image_size.h"
 
 namespace ffloc {
 namespace {
@@ -118,8 +118,6 @@ LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& f
   request.intrinsics.fy = requiredNumber(fields, "fy");
   request.intrinsics.cx = requiredNumber(fields, "cx");
   request.intrinsics.cy = requiredNumber(fields, "cy");
-  if (!(request.intrinsics.fx > 0)) throw InputError("fx: must be positive");
-  if (!(request.intrinsics.fy > 0)) throw InputError("fy: must be positive");
   if (const auto it = fields.find("distortion"); it != fields.end()) request.intrinsics.distortion = parseDistortion(it->second);
   if (const auto it = fields.find("name"); it != fields.end() && !it->second.empty()) request.name = it->second;
   if (const auto it = fields.find("top_k"); it != fields.end())
@@ -130,24 +128,13 @@ LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& f
     request.options.seed = static_cast<uint64_t>(parseInteger("seed", it->second, 0, INT64_MAX));
     request.options.pnp.seed = request.options.seed;
   }
-  if (const auto it = fields.find("selection"); it != fields.end()) {
-    try {
-      request.options.selection = parseImageSelection(it->second);
-    } catch (const InputError& e) {
-      throw InputError(std::string("selection: ") + e.what());
-    }
-  }
+  if (const auto it = fields.find("selection"); it != fields.end()) request.options.selection = parseImageSelection(it->second);
 
   request.rgb = decodeRgb(image_bytes, limits.max_image_pixels);
   request.intrinsics.width = request.rgb.cols;
   request.intrinsics.height = request.rgb.rows;
-  const Intrinsics& k = request.intrinsics;
-  if (k.cx < 0 || k.cx > k.width || k.cy < 0 || k.cy > k.height) {
-    std::ostringstream what;
-    what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << k.width << "x"
-         << k.height << " image (intrinsics must be in pixels of the image sent)";
-    throw InputError(what.str());
-  }
+  checkQueryIntrinsics(request.intrinsics, request.rgb.cols, request.rgb.rows);
+  request.options.check();
   return request;
 }
 

@@ -8,7 +8,7 @@
 #include <opencv2/core.hpp>
 
 #include "ffloc/geometry/camera.h"
-#include "ffloc/pipeline/localizer.h"
+#include "ffloc/localization/localizer.h"
 
 namespace ffloc {
 

@@ -19,7 +19,8 @@
 #include "ffloc/data/synthetic/synthetic.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/torch_threads.h"
-#include "ffloc/pipeline/localization_json.h"
+#include "ffloc/localization/localization_json.h"
+#include "ffloc/pipeline/fastforward_localizer.h"
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/server/localization_server.h"
 #include "ffloc/server/localize_request.h"
@@ -171,7 +172,7 @@ class ServerTest : public ::testing::Test {
     for (size_t i = 0; i < scene_->frames.size(); ++i)
       if (scene_->frames[i].split == Split::kMapping) mapping_frames.push_back(i);
     addToMap(map, *model_, *scene_, mapping_frames, mapping);
-    localizer_ = new Localizer(*model_->model, std::move(map));
+    localizer_ = new FastForwardLocalizer(*model_->model, std::move(map));
   }
 
   static void TearDownTestSuite() {
@@ -228,7 +229,7 @@ class ServerTest : public ::testing::Test {
   static inline fs::path* dir_ = nullptr;
   static inline Scene* scene_ = nullptr;
   static inline LoadedModel* model_ = nullptr;
-  static inline Localizer* localizer_ = nullptr;
+  static inline FastForwardLocalizer* localizer_ = nullptr;
   ServerOptions options_;
   std::unique_ptr<LocalizationServer> server_;
   int port_ = 0;
@@ -247,7 +248,7 @@ TEST_F(ServerTest, HealthAndMapDescribeWhatIsServed) {
   ASSERT_TRUE(map);
   EXPECT_EQ(map->status, 200);
   EXPECT_EQ(body(map)["images"], 6);
-  EXPECT_EQ(body(map)["names"][0], localizer_->map().images[0].name);
+  EXPECT_EQ(body(map)["names"][0], localizer_->cameras()[0].name);
   EXPECT_EQ(body(map)["model_id"], model_->id);
   EXPECT_EQ(body(map)["defaults"]["top_k"], 4);
 }
@@ -257,7 +258,7 @@ TEST_F(ServerTest, LocalizeAnswersWhatTheLibraryComputes) {
   options.seed = options.pnp.seed = 9;
   const LocalizationResult direct =
       localizer_->localize(readImageRgb(query().image_path), query().intrinsics, query().name, options);
-  const nlohmann::json expected = localizationJson("q", direct, localizer_->map());
+  const nlohmann::json expected = localizationJson("q", direct, *localizer_);
   // Deterministic: this seed's scene and model give a pose, so the answers' poses are compared.
   ASSERT_TRUE(direct.pnp.ok()) << toString(direct.pnp.status);
 
@@ -300,7 +301,7 @@ TEST_F(ServerTest, RequestsOverrideTheDefaults) {
   const LocalizationResult direct =
       localizer_->localize(readImageRgb(query().image_path), query().intrinsics, query().name, options);
   EXPECT_EQ(body(answer)["selected"].size(), 2u);
-  EXPECT_EQ(body(answer)["selected"], localizationJson("q", direct, localizer_->map())["selected"]);
+  EXPECT_EQ(body(answer)["selected"], localizationJson("q", direct, *localizer_)["selected"]);
   EXPECT_EQ(body(answer)["inliers"], direct.pnp.inliers);
 }
 

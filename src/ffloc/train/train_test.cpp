@@ -17,7 +17,7 @@
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/data/synthetic/synthetic.h"
 #include "ffloc/model/image_tensor.h"
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/train/adamw.h"
 #include "ffloc/train/autocast.h"
 #include "ffloc/train/confidence_loss.h"

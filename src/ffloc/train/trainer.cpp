@@ -11,7 +11,7 @@
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/torch_threads.h"
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/pose/pnp.h"
 #include "ffloc/train/autocast.h"
 #include "ffloc/train/confidence_loss.h"

@@ -4,7 +4,7 @@
 #include <map>
 
 #include "ffloc/core/error.h"
-#include "ffloc/data/json_fields.h"
+#include "ffloc/io/json_fields.h"
 
 namespace ffloc {
 

@@ -13,7 +13,7 @@ namespace ffloc {
 // schedule with a linear warm-up, peak learning rate 1e-4, frozen encoder) and DUSt3R's recipe
 // where it does not (alpha = 0.2, weight decay 0.05, betas (0.9, 0.95)).
 struct TrainingConfig {
-  // Initial weights, as `--model` elsewhere (pipeline/model_loader.h): a FastForward or DUSt3R
+  // Initial weights, as `--model` elsewhere (model/model_loader.h): a FastForward or DUSt3R
   // checkpoint, or "random:<preset>[:<seed>]".
   std::string model = "random:tiny";
   uint64_t model_seed = 0;  // the untrained layers of a DUSt3R initialisation

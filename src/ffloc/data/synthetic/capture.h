@@ -3,7 +3,7 @@
 #include <functional>
 #include <vector>
 
-#include "ffloc/data/synthetic/random.h"
+#include "ffloc/core/random.h"
 #include "ffloc/data/synthetic/world.h"
 #include "ffloc/geometry/camera.h"
 #include "ffloc/geometry/pose.h"

@@ -3,7 +3,7 @@
 #include <vector>
 
 #include "ffloc/data/synthetic/capture.h"
-#include "ffloc/data/synthetic/random.h"
+#include "ffloc/core/random.h"
 #include "ffloc/data/synthetic/world.h"
 
 namespace ffloc::synthetic {

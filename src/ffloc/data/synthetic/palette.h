@@ -1,7 +1,7 @@
 #pragma once
 
 #include "ffloc/data/synthetic/material.h"
-#include "ffloc/data/synthetic/random.h"
+#include "ffloc/core/random.h"
 
 namespace ffloc::synthetic {
 

@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "ffloc/data/synthetic/noise.h"
-#include "ffloc/data/synthetic/random.h"
+#include "ffloc/core/random.h"
 #include "ffloc/data/synthetic/ray_bundle.h"
 
 namespace ffloc::synthetic {

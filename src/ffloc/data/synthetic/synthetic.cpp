@@ -14,11 +14,10 @@
 #include "ffloc/data/depth.h"
 #include "ffloc/data/manifest.h"
 #include "ffloc/data/synthetic/det_math.h"
-#include "ffloc/data/synthetic/random.h"
+#include "ffloc/core/random.h"
 
 namespace ffloc {
 
-using synthetic::Rng;
 
 const char* toString(SceneKind kind) {
   switch (kind) {
@@ -55,7 +54,7 @@ void validate(const SyntheticOptions& o) {
 }
 
 uint64_t sceneSeed(uint64_t seed, int index) {
-  return synthetic::mix64(seed * 0x9e3779b97f4a7c15ULL + static_cast<uint64_t>(index) + 1);
+  return mix64(seed * 0x9e3779b97f4a7c15ULL + static_cast<uint64_t>(index) + 1);
 }
 
 int SyntheticScene::frameCount() const {
@@ -136,12 +135,12 @@ SyntheticScene planSyntheticScene(const SyntheticOptions& options) {
 synthetic::RenderedView renderSyntheticFrame(const SyntheticScene& scene, int frame) {
   synthetic::RenderOptions render;
   render.image_noise = scene.options.image_noise;
-  render.noise_seed = synthetic::mix64(scene.options.seed ^ (0x5eed0000ULL + frame));
+  render.noise_seed = mix64(scene.options.seed ^ (0x5eed0000ULL + frame));
   synthetic::RenderedView view =
       synthetic::renderView(scene.layout.world, scene.lighting(frame), scene.camera,
                             scene.pose(frame), render);
   if (scene.options.depth_noise > 0.0) {
-    Rng rng(synthetic::mix64(scene.options.seed ^ (0xde97000000ULL + frame)));
+    Rng rng(mix64(scene.options.seed ^ (0xde97000000ULL + frame)));
     for (int v = 0; v < view.depth.rows; ++v) {
       float* row = view.depth.ptr<float>(v);
       for (int u = 0; u < view.depth.cols; ++u)

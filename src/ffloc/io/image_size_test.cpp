@@ -1,4 +1,4 @@
-#include "ffloc/data/image_size.h"
+#include "ffloc/io/image_size.h"
 
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-#include "ffloc/pipeline/model_loader.h"
+#include "ffloc/model/model_loader.h"
 
 #include <ATen/core/Tensor.h>
 
@@ -11,7 +11,7 @@
 
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
-#include "ffloc/io/map_file.h"
+#include "ffloc/core/hash.h"
 #include "ffloc/model/parameter_table.h"
 
 namespace ffloc {
@@ -32,12 +32,6 @@ struct SplitMix64 {
 
 uint64_t hashString(const std::string& text, uint64_t seed = 0xcbf29ce484222325ULL) {
   return fnv1a64(reinterpret_cast<const uint8_t*>(text.data()), text.size(), seed);
-}
-
-std::string hex64(uint64_t value) {
-  char buffer[17];
-  std::snprintf(buffer, sizeof(buffer), "%016llx", static_cast<unsigned long long>(value));
-  return buffer;
 }
 
 std::string sizesName(const Dust3rConfig& c) {

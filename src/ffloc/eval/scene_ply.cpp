@@ -1,4 +1,4 @@
-#include "ffloc/pipeline/scene_ply.h"
+#include "ffloc/eval/scene_ply.h"
 
 #include <algorithm>
 #include <map>

@@ -1,4 +1,4 @@
-#include "ffloc/pipeline/model_options.h"
+#include "ffloc/model/model_options.h"
 
 #include "ffloc/core/error.h"
 

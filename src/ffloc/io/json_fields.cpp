@@ -1,4 +1,4 @@
-#include "ffloc/data/json_fields.h"
+#include "ffloc/io/json_fields.h"
 
 #include <fstream>
 

@@ -2,7 +2,7 @@
 
 #include <cstdint>
 
-namespace ffloc::synthetic {
+namespace ffloc {
 
 // SplitMix64 (Steele, Lea, Flood 2014), written out here rather than taken from <random>:
 // the standard distributions are implementation-defined, and scenes must be identical on
@@ -41,4 +41,4 @@ class Rng {
   uint64_t state_;
 };
 
-}  // namespace ffloc::synthetic
+}  // namespace ffloc

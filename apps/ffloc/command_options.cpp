@@ -1,0 +1,66 @@
+#include "command_options.h"
+
+#include <map>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc::cli {
+std::string withFlagName(const std::string& message) {
+  static const std::map<std::string, std::string> flags = {
+      {"top_k", "--top-k"},
+      {"num_features", "--features"},
+      {"preset", "--preset"},
+      {"selection", "--selection"},
+      {"retrieval", "--retrieval"},
+      {"method", "--method"},
+      {"pnp.inlier_threshold_px", "--inlier-threshold"},
+      {"pnp.confidence_threshold", "--confidence-threshold"},
+      {"pnp.max_correspondences", "--max-correspondences"},
+      {"max_image_size", "--max-image-size"},
+      {"max_features", "--max-features"}};
+  const size_t colon = message.find(':');
+  if (colon == std::string::npos) return message;
+  const auto flag = flags.find(message.substr(0, colon));
+  return flag == flags.end() ? message : flag->second + message.substr(colon);
+}
+
+void addQueryOptions(CLI::App& command, QueryArguments& args) {
+  command.add_option("--preset", args.preset, "indoor (K=10, N=1500) or outdoor (K=20, N=3000)")->capture_default_str();
+  args.top_k_option = command.add_option("--top-k", args.top_k, "Mapping images per query (overrides the preset)");
+  args.features_option =
+      command.add_option("--features", args.features, "fastforward: map tokens per query (overrides the preset)");
+  command.add_option("--seed", args.seed, "Seed of RANSAC, the token sampling and random selection")->capture_default_str();
+  command.add_option("--selection", args.selection, "fastforward: mapping image selection: retrieval, uniform or random")
+      ->capture_default_str();
+  command.add_option("--retrieval", args.retrieval,
+                     "fastforward: what retrieval ranks the mapping images by: encoder (pooled tokens) or vlad (the "
+                     "classical descriptor; the map must have been built with --vlad)")
+      ->capture_default_str();
+  command.add_option("--solver", args.solver, "PnP-RANSAC solver: lo-ransac or opencv-usac")->capture_default_str();
+  command.add_flag("--no-verify", args.no_verify,
+                   "fastforward: skip the second prediction behind the verdict (then a half-sample RANSAC estimate "
+                   "stands in; about half the latency)");
+}
+
+LocalizeOptions localizeOptions(const QueryArguments& args) {
+  try {
+    LocalizeOptions options = LocalizeOptions::preset(args.preset);
+    if (args.top_k_option && args.top_k_option->count() > 0) {
+      if (args.top_k <= 0) throw InputError("top_k: must be positive, got " + std::to_string(args.top_k));
+      options.top_k = static_cast<size_t>(args.top_k);
+    }
+    if (args.features_option && args.features_option->count() > 0) options.num_features = args.features;
+    options.seed = args.seed;
+    options.pnp.seed = args.seed;
+    options.selection = parseImageSelection(args.selection);
+    options.retrieval = parseFastForwardRetrieval(args.retrieval);
+    options.pnp.solver = parsePnpSolver(args.solver);
+    options.verify_with_second_reference = !args.no_verify;
+    options.check();
+    return options;
+  } catch (const InputError& e) {
+    throw InputError(withFlagName(e.what()));
+  }
+}
+
+}  // namespace ffloc::cli

@@ -1,0 +1,35 @@
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "ffloc/localization/localizer.h"
+
+namespace ffloc::cli {
+
+// The query options every localizing command shares (--preset, --top-k, --features, --seed,
+// --selection, --retrieval, --solver, --no-verify), declared once and turned into the
+// library's LocalizeOptions, whose check() names the library field; the error then names the
+// flag instead.
+struct QueryArguments {
+  std::string preset = "indoor";
+  int64_t top_k = 0;     // the preset's unless given
+  int64_t features = 0;  // the preset's unless given
+  const CLI::Option* top_k_option = nullptr;
+  const CLI::Option* features_option = nullptr;
+  uint64_t seed = 0;
+  std::string selection = "retrieval";
+  std::string retrieval = "encoder";
+  std::string solver = "lo-ransac";
+  bool no_verify = false;
+};
+void addQueryOptions(CLI::App& command, QueryArguments& args);
+LocalizeOptions localizeOptions(const QueryArguments& args);
+
+// An error message that starts with a library option field ("top_k: ...") with the field
+// replaced by its flag ("--top-k: ...").
+std::string withFlagName(const std::string& message);
+
+}  // namespace ffloc::cli

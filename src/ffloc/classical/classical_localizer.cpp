@@ -1,0 +1,68 @@
+#include "ffloc/classical/classical_localizer.h"
+
+#include <chrono>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
+
+}  // namespace
+
+ClassicalLocalizer::ClassicalLocalizer(ClassicalMap map) : map_(std::move(map)) {
+  if (map_.images.empty()) throw InputError("map: holds no images (build one with 'ffloc map --method classical')");
+  for (const ClassicalMapImage& image : map_.images) {
+    cameras_.push_back({image.name, image.camera_to_world, image.camera});
+    globals_.push_back(image.global_descriptor);
+    // Only keypoints with a point can give a correspondence: the others are left out of the
+    // search, which makes it 13 % (redkitchen) to 45 % (Strecha) smaller.
+    const cv::Mat all = dequantizeDescriptors(image.descriptors);
+    cv::Mat with_points;
+    std::vector<uint32_t> keypoints;
+    for (size_t k = 0; k < image.keypoints.size(); ++k) {
+      if (image.point_views[k] == 0) continue;
+      with_points.push_back(all.row(static_cast<int>(k)));
+      keypoints.push_back(static_cast<uint32_t>(k));
+    }
+    descriptors_.push_back(with_points);
+    searched_keypoints_.push_back(std::move(keypoints));
+  }
+}
+
+ClassicalLocalizer::~ClassicalLocalizer() = default;
+
+void ClassicalLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+                                 const LocalizeOptions& options, LocalizationResult& result,
+                                 std::optional<PnpResult>& /*second_estimate*/) const {
+  auto start = Clock::now();
+  const SiftFeatures query = extractSiftFeatures(rgb, intrinsics, name, map_.sift);
+  result.camera = intrinsics.undistorted();
+  result.timings.features = secondsSince(start);
+
+  start = Clock::now();
+  std::vector<size_t> ranked = rankBySimilarity(globals_, map_.vocabulary.describe(query.descriptors));
+  if (ranked.size() > options.top_k) ranked.resize(options.top_k);
+  result.selected = ranked;
+  result.timings.retrieval = secondsSince(start);
+
+  start = Clock::now();
+  std::vector<const cv::Mat*> selected;
+  for (size_t index : ranked) selected.push_back(&descriptors_[index]);
+  const std::vector<std::vector<std::pair<int, int>>> matches =
+      matchExactly(query.descriptors, selected, map_.ratio);
+  for (size_t r = 0; r < ranked.size(); ++r) {
+    const ClassicalMapImage& image = map_.images[ranked[r]];
+    for (const auto& [q, row] : matches[r]) {
+      const uint32_t k = searched_keypoints_[ranked[r]][row];
+      // More views behind a point, more trust: 1 + views passes the paper's tau = 1.5 always.
+      result.correspondences.add(query.pixels[q], image.points[k], 1.0f + image.point_views[k]);
+    }
+  }
+  result.timings.matching = secondsSince(start);
+}
+
+}  // namespace ffloc

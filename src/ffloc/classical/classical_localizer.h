@@ -1,0 +1,38 @@
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "ffloc/classical/classical_map.h"
+#include "ffloc/localization/localizer.h"
+
+namespace ffloc {
+
+// The classical method's queries: SIFT on the query, VLAD retrieval of the top-K mapping
+// images, ratio-test matching against them, and the matched keypoints' stored points. No
+// mapping image is read; their descriptors are decoded once, when the localizer is made.
+class ClassicalLocalizer : public Localizer {
+ public:
+  // InputError when the map has no images.
+  explicit ClassicalLocalizer(ClassicalMap map);
+  ~ClassicalLocalizer() override;
+
+  LocalizationMethod method() const override { return LocalizationMethod::kClassical; }
+  bool metric() const override { return map_.metric; }
+  const std::vector<MapCamera>& cameras() const override { return cameras_; }
+  const ClassicalMap& map() const { return map_; }
+
+ protected:
+  void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+               const LocalizeOptions& options, LocalizationResult& result,
+               std::optional<PnpResult>& second_estimate) const override;
+
+ private:
+  ClassicalMap map_;
+  std::vector<MapCamera> cameras_;
+  std::vector<Eigen::VectorXf> globals_;
+  std::vector<cv::Mat> descriptors_;  // CV_32F, decoded once: the keypoints that have a point
+  std::vector<std::vector<uint32_t>> searched_keypoints_;  // descriptors_ row -> keypoint
+};
+
+}  // namespace ffloc

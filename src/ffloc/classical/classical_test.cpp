@@ -1,0 +1,330 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <opencv2/imgcodecs.hpp>
+
+#include "ffloc/classical/classical_localizer.h"
+#include "ffloc/classical/classical_mapper.h"
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/data/depth.h"
+#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/eval/evaluator.h"
+#include "ffloc/io/image.h"
+#include "ffloc/io/map_file.h"
+#include "ffloc/localization/localization_json.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string inputErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// One rendered indoor scene shared by the tests: rendering is the slow part.
+class ClassicalTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(testing::makeTempDir("ffloc-classical"));
+    SyntheticOptions options;
+    options.seed = 31;
+    options.width = 320;
+    options.height = 240;
+    options.mapping_frames = 24;
+    options.query_frames = 6;
+    options.threads = 0;
+    scene_ = new Scene(generateSyntheticScene(options, *dir_ / "scene"));
+  }
+  static void TearDownTestSuite() {
+    fs::remove_all(*dir_);
+    delete scene_;
+    delete dir_;
+  }
+  static ClassicalMappingOptions quiet() {
+    ClassicalMappingOptions options;
+    options.quiet = true;
+    return options;
+  }
+  static ClassicalMap build(const std::vector<size_t>& frames, const ClassicalMappingOptions& options = quiet()) {
+    ClassicalMap map = emptyClassicalMap(scene_->metric, options);
+    addToClassicalMap(map, *scene_, frames, options);
+    return map;
+  }
+  static inline fs::path* dir_ = nullptr;
+  static inline Scene* scene_ = nullptr;
+};
+
+void expectSameImage(const ClassicalMapImage& a, const ClassicalMapImage& b, bool same_links = true) {
+  SCOPED_TRACE(a.name);
+  EXPECT_EQ(a.name, b.name);
+  EXPECT_TRUE(a.camera_to_world.matrix().isApprox(b.camera_to_world.matrix(), 1e-12));
+  EXPECT_EQ(a.camera.fx, b.camera.fx);
+  EXPECT_EQ(a.camera.width, b.camera.width);
+  ASSERT_EQ(a.keypoints.size(), b.keypoints.size());
+  for (size_t k = 0; k < a.keypoints.size(); ++k) ASSERT_LT((a.keypoints[k] - b.keypoints[k]).norm(), 1e-3);
+  EXPECT_EQ(cv::norm(a.descriptors, b.descriptors, cv::NORM_INF), 0.0);
+  EXPECT_EQ(a.point_views, b.point_views);
+  for (size_t k = 0; k < a.points.size(); ++k)
+    if (a.point_views[k] > 0) ASSERT_LT((a.points[k] - b.points[k]).norm(), 1e-5);  // float storage
+  if (same_links) {
+    ASSERT_EQ(a.links.size(), b.links.size());
+    for (size_t l = 0; l < a.links.size(); ++l) EXPECT_EQ(a.links[l].other_keypoint, b.links[l].other_keypoint);
+  }
+  EXPECT_LT((a.global_descriptor - b.global_descriptor).norm(), 1e-6);
+  EXPECT_EQ(a.depth_lifted, b.depth_lifted);
+}
+
+TEST_F(ClassicalTest, MapRoundTripsThroughItsFile) {
+  const ClassicalMap map = build(scene_->mappingIndices());
+  ASSERT_EQ(map.images.size(), scene_->mappingIndices().size());
+  size_t points = 0;
+  for (const ClassicalMapImage& image : map.images) {
+    EXPECT_TRUE(image.depth_lifted);  // synthetic frames have depth
+    points += image.pointCount();
+    EXPECT_FALSE(image.links.empty());
+  }
+  EXPECT_GT(points, 1000u);
+  const fs::path path = *dir_ / "round.ffmap";
+  writeClassicalMap(map, path);
+  EXPECT_EQ(readMapHeader(path).method, "classical");
+  const ClassicalMap reread = readClassicalMap(path);
+  EXPECT_EQ(reread.metric, map.metric);
+  EXPECT_EQ(reread.sift.max_image_size, map.sift.max_image_size);
+  EXPECT_EQ(reread.ratio, map.ratio);
+  EXPECT_TRUE(reread.vocabulary.centres().isApprox(map.vocabulary.centres()));
+  ASSERT_EQ(reread.images.size(), map.images.size());
+  for (size_t i = 0; i < map.images.size(); ++i) expectSameImage(map.images[i], reread.images[i]);
+}
+
+// Depth-lifted points are the scene's surface: they reproject onto their keypoint in their own
+// image (exactly) and agree with the rendered depth of another view.
+TEST_F(ClassicalTest, LiftedPointsLieOnTheSurface) {
+  const ClassicalMap map = build(scene_->mappingIndices());
+  const ClassicalMapImage& image = map.images[3];
+  const Pose world_to_camera = image.camera_to_world.inverse();
+  int checked = 0;
+  for (size_t k = 0; k < image.keypoints.size(); ++k) {
+    if (image.point_views[k] == 0) continue;
+    const Eigen::Vector3d c = world_to_camera * image.points[k];
+    const Eigen::Vector2d pixel(image.camera.fx * c.x() / c.z() + image.camera.cx, image.camera.fy * c.y() / c.z() + image.camera.cy);
+    ASSERT_LT((pixel - image.keypoints[k]).norm(), 1e-6);
+    ++checked;
+  }
+  EXPECT_GT(checked, 50);
+  // Seen from a linked image, a lifted point is as deep as that image's own depth map says at
+  // the linked keypoint (the rendered depth is exact; 2 % allows for a keypoint on an edge).
+  std::map<std::string, const Frame*> frames;
+  for (const Frame& frame : scene_->frames) frames[frame.name] = &frame;
+  int compared = 0, agreeing = 0;
+  for (const KeypointLink& link : image.links) {
+    if (image.point_views[link.keypoint] == 0) continue;
+    const ClassicalMapImage& other = map.images[link.other_image];
+    const cv::Mat1f depth = readDepthMetres(*frames.at(other.name));
+    const Eigen::Vector2d pixel = other.keypoints[link.other_keypoint];
+    const float stored = depth(static_cast<int>(std::lround(pixel.y())), static_cast<int>(std::lround(pixel.x())));
+    if (stored <= 0) continue;
+    const double seen = (other.camera_to_world.inverse() * image.points[link.keypoint]).z();
+    ++compared;
+    agreeing += std::abs(seen - stored) < 0.02 * stored;
+    if (compared == 200) break;
+  }
+  EXPECT_GT(compared, 50);
+  EXPECT_GT(agreeing, 0.8 * compared);
+}
+
+TEST_F(ClassicalTest, AppendKeepsEarlierImagesAndLinksTheNewOnes) {
+  const std::vector<size_t> mapping = scene_->mappingIndices();
+  const std::vector<size_t> first(mapping.begin(), mapping.begin() + 16), second(mapping.begin() + 16, mapping.end());
+  ClassicalMap map = build(first);
+  const ClassicalMap before = map;
+  const ClassicalMappingReport report = addToClassicalMap(map, *scene_, second, quiet());
+  EXPECT_EQ(report.added, second.size());
+  ASSERT_EQ(map.images.size(), mapping.size());
+  EXPECT_TRUE(map.vocabulary.centres().isApprox(before.vocabulary.centres()));  // kept
+  size_t links_to_new = 0;
+  for (size_t i = 0; i < first.size(); ++i) {
+    expectSameImage(before.images[i], map.images[i], /*same_links=*/false);
+    // Earlier links stay first and unchanged; new ones point at the new images.
+    for (size_t l = 0; l < before.images[i].links.size(); ++l)
+      EXPECT_EQ(map.images[i].links[l].other_image, before.images[i].links[l].other_image);
+    for (size_t l = before.images[i].links.size(); l < map.images[i].links.size(); ++l) {
+      EXPECT_GE(map.images[i].links[l].other_image, first.size());
+      ++links_to_new;
+    }
+  }
+  EXPECT_GT(links_to_new, 100u);
+  // Appending the same frames again adds nothing.
+  EXPECT_EQ(addToClassicalMap(map, *scene_, second, quiet()).skipped_duplicates, second.size());
+
+  const fs::path path = *dir_ / "appended.ffmap";
+  writeClassicalMap(map, path);
+  EXPECT_EQ(readClassicalMap(path).images.size(), mapping.size());
+}
+
+TEST_F(ClassicalTest, LocalizesQueriesThroughTheInterface) {
+  const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
+  const Localizer& any = localizer;
+  EXPECT_EQ(any.method(), LocalizationMethod::kClassical);
+  EXPECT_EQ(any.cameras().size(), scene_->mappingIndices().size());
+  int localized = 0;
+  for (size_t q : scene_->queryIndices()) {
+    const Frame& frame = scene_->frames[q];
+    const LocalizationResult result = any.localize(readImageRgb(frame.image_path), frame.intrinsics, frame.name, {});
+    ASSERT_EQ(result.selected.size(), 10u);
+    if (!result.localized()) continue;
+    ++localized;
+    // What "localized" promises: within (25 cm, 5 deg).
+    EXPECT_LT(translationError(result.pnp.camera_to_world, frame.camera_to_world), 0.25) << frame.name;
+    EXPECT_LT(rotationErrorDeg(result.pnp.camera_to_world, frame.camera_to_world), 5.0) << frame.name;
+    const nlohmann::json json = localizationJson(frame.name, result, any);
+    EXPECT_EQ(json["status"], "localized");
+    EXPECT_EQ(json["method"], "classical");
+    EXPECT_TRUE(json.contains("camera_to_world"));
+    EXPECT_EQ(json["selected"].size(), 10u);
+  }
+  EXPECT_GE(localized, 3);
+}
+
+// The classical map through the evaluation harness: exactly what a user runs.
+TEST_F(ClassicalTest, EvaluatesThroughTheHarness) {
+  const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
+  EvaluationOptions options;
+  options.quiet = true;
+  const std::vector<FrameResult> frames = evaluateLocalizer(*scene_, localizer, "classical", {}, options);
+  const MethodSummary summary = summarize(frames);
+  EXPECT_EQ(summary.frames, 6);
+  EXPECT_GE(summary.accuracy_percent[4], 50.0);  // 25 cm, 5 deg
+  EXPECT_GE(summary.localized, 3);
+  EXPECT_EQ(summary.localized_correct, summary.localized);
+}
+
+TEST_F(ClassicalTest, QueryWithoutMatchesFailsWithoutAPose) {
+  const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
+  const Frame& frame = scene_->frames[scene_->queryIndices()[0]];
+  const cv::Mat black(frame.intrinsics.height, frame.intrinsics.width, CV_8UC3, cv::Scalar::all(0));
+  const LocalizationResult result = localizer.localize(black, frame.intrinsics, "black", {});
+  EXPECT_EQ(result.verdict.status, PoseStatus::kFailed);
+  EXPECT_TRUE(result.correspondences.size() == 0);
+  EXPECT_FALSE(result.verdict.reason.empty());
+}
+
+TEST_F(ClassicalTest, BadQueriesAndOptionsNameTheField) {
+  const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
+  const Frame& frame = scene_->frames[scene_->queryIndices()[0]];
+  const cv::Mat rgb = readImageRgb(frame.image_path);
+  auto errorFor = [&](auto change, const LocalizeOptions& options = {}) {
+    Intrinsics k = frame.intrinsics;
+    change(k);
+    return inputErrorOf([&] { localizer.localize(rgb, k, "q", options); });
+  };
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.cx = 1e9; }).find("cx, cy"), std::string::npos);
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.cy = -3; }).find("cx, cy"), std::string::npos);
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.fx = 0; }).find("fx"), std::string::npos);
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.fy = -200; }).find("fy"), std::string::npos);
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.fx = 1e300; }).find("fx"), std::string::npos);
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.fx = std::numeric_limits<double>::quiet_NaN(); }).find("fx"), std::string::npos);
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.width = 640; }).find("width"), std::string::npos);
+  EXPECT_NE(errorFor([](Intrinsics& k) { k.distortion = {std::numeric_limits<double>::infinity(), 0, 0, 0}; }).find("distortion"),
+            std::string::npos);
+
+  auto optionError = [&](auto change) {
+    LocalizeOptions options;
+    change(options);
+    return errorFor([](Intrinsics&) {}, options);
+  };
+  EXPECT_NE(optionError([](LocalizeOptions& o) { o.top_k = 0; }).find("top_k"), std::string::npos);
+  EXPECT_NE(optionError([](LocalizeOptions& o) { o.num_features = -5; }).find("num_features"), std::string::npos);
+  EXPECT_NE(optionError([](LocalizeOptions& o) { o.pnp.inlier_threshold_px = std::nan(""); }).find("inlier_threshold_px"),
+            std::string::npos);
+  EXPECT_NE(optionError([](LocalizeOptions& o) { o.pnp.confidence_threshold = std::nanf(""); }).find("confidence_threshold"),
+            std::string::npos);
+  EXPECT_NE(optionError([](LocalizeOptions& o) { o.verdict.min_inlier_ratio = std::nan(""); }).find("min_inlier_ratio"),
+            std::string::npos);
+  EXPECT_NE(inputErrorOf([] { LocalizeOptions::preset("underwater"); }).find("preset"), std::string::npos);
+}
+
+TEST_F(ClassicalTest, BadMapsAreRefusedNamingTheFile) {
+  // Images without features.
+  const fs::path blank_dir = *dir_ / "blank";
+  fs::create_directories(blank_dir);
+  Scene blank = *scene_;
+  blank.root = blank_dir;
+  for (size_t i = 0; i < 4; ++i) {
+    Frame& frame = blank.frames[i];
+    frame.image_path = blank_dir / ("blank" + std::to_string(i) + ".png");
+    cv::imwrite(frame.image_path.string(),
+                cv::Mat(frame.intrinsics.height, frame.intrinsics.width, CV_8UC3, cv::Scalar::all(90)));
+  }
+  ClassicalMap empty = emptyClassicalMap(true, quiet());
+  EXPECT_NE(inputErrorOf([&] { addToClassicalMap(empty, blank, {0, 1, 2, 3}, quiet()); }).find("no mapping image has usable features"),
+            std::string::npos);
+  EXPECT_NE(inputErrorOf([] { ClassicalLocalizer{ClassicalMap{}}; }).find("no images"), std::string::npos);
+
+  // A map of another version, a corrupted one, another method's file, a non-map.
+  const ClassicalMap map = build({0, 1, 2, 3, 4, 5});
+  const fs::path path = *dir_ / "small.ffmap";
+  writeClassicalMap(map, path);
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  auto variant = [&](const std::string& name, const std::string& from, const std::string& to) {
+    std::string changed = bytes;
+    const size_t at = changed.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    changed.replace(at, from.size(), to);
+    const fs::path out = *dir_ / name;
+    std::ofstream(out, std::ios::binary) << changed;
+    return out;
+  };
+  const fs::path other_version = variant("v7.ffmap", "\\\"version\\\":1", "\\\"version\\\":7");
+  EXPECT_NE(inputErrorOf([&] { readClassicalMap(other_version); }).find("version 7 is not supported"), std::string::npos);
+  // Two digits of a pose changed: the metadata checksum catches it.
+  const size_t pose_at = bytes.find("camera_to_world") + 20;
+  std::string tampered = bytes;
+  tampered[pose_at] = tampered[pose_at] == '1' ? '2' : '1';
+  std::ofstream(*dir_ / "tampered.ffmap", std::ios::binary) << tampered;
+  EXPECT_NE(inputErrorOf([&] { readClassicalMap(*dir_ / "tampered.ffmap"); }).find("tampered.ffmap"), std::string::npos);
+  const fs::path other_method = variant("ff.ffmap", "\\\"method\\\":\\\"classical\\\"", "\\\"method\\\":\\\"fastforward\\\"");
+  EXPECT_NE(inputErrorOf([&] { readClassicalMap(other_method); }).find("fastforward method, not classical"), std::string::npos);
+  EXPECT_NE(inputErrorOf([&] { readMapFile(path); }).find("classical method, not fastforward"), std::string::npos);
+  std::ofstream(*dir_ / "text.ffmap") << "not a map";
+  EXPECT_NE(inputErrorOf([&] { readClassicalMap(*dir_ / "text.ffmap"); }).find("text.ffmap"), std::string::npos);
+}
+
+// A real query: the classical map of the redkitchen mapping split says "localized", with a
+// pose within (10 cm, 5 deg) of the ground truth.
+TEST(ClassicalRealData, RedkitchenQueryIsLocalized) {
+  FFLOC_REQUIRE_SHARED(dir, "data/7scenes_redkitchen");
+  Scene scene = loadDataset(dir);
+  // Every third mapping frame keeps the test short.
+  const std::vector<size_t> mapping = scene.mappingIndices();
+  std::vector<size_t> used;
+  for (size_t i = 0; i < mapping.size(); i += 3) used.push_back(mapping[i]);
+  ClassicalMappingOptions options;
+  options.quiet = true;
+  ClassicalMap map = emptyClassicalMap(true, options);
+  addToClassicalMap(map, scene, used, options);
+  const ClassicalLocalizer localizer(std::move(map));
+  const Frame& query = scene.frames[scene.queryIndices().back()];
+  const LocalizationResult result = localizer.localize(readImageRgb(query.image_path), query.intrinsics, query.name, {});
+  EXPECT_EQ(result.verdict.status, PoseStatus::kLocalized) << result.verdict.reason;
+  EXPECT_LT(translationError(result.pnp.camera_to_world, query.camera_to_world), 0.10);
+  EXPECT_LT(rotationErrorDeg(result.pnp.camera_to_world, query.camera_to_world), 5.0);
+}
+
+}  // namespace
+}  // namespace ffloc

@@ -1,0 +1,88 @@
+#include "ffloc/classical/sift_features.h"
+
+#include <cmath>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "ffloc/core/error.h"
+#include "ffloc/io/image.h"
+
+namespace ffloc {
+namespace {
+
+// RootSIFT (Arandjelovic & Zisserman 2012): L1-normalise, then square-root, so Euclidean
+// distance compares descriptors like the Hellinger kernel; it matches better than raw SIFT.
+void toRootSift(cv::Mat& descriptors) {
+  for (int r = 0; r < descriptors.rows; ++r) {
+    float* row = descriptors.ptr<float>(r);
+    double l1 = 0;
+    for (int c = 0; c < descriptors.cols; ++c) l1 += std::abs(row[c]);
+    const double inv = l1 > 0 ? 1.0 / l1 : 0.0;
+    for (int c = 0; c < descriptors.cols; ++c) row[c] = static_cast<float>(std::sqrt(std::abs(row[c]) * inv));
+  }
+}
+
+}  // namespace
+
+void SiftOptions::check() const {
+  if (max_image_size < 16) throw InputError("max_image_size: must be at least 16 pixels, got " + std::to_string(max_image_size));
+  if (max_features <= 0) throw InputError("max_features: must be positive, got " + std::to_string(max_features));
+  if (!(contrast_threshold > 0 && contrast_threshold < 1))
+    throw InputError("contrast_threshold: must be in (0, 1), got " + std::to_string(contrast_threshold));
+}
+
+SiftFeatures extractSiftFeatures(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& source,
+                                 const SiftOptions& options) {
+  options.check();
+  if (rgb.cols != intrinsics.width || rgb.rows != intrinsics.height)
+    throw InputError(source + ": image is " + std::to_string(rgb.cols) + "x" + std::to_string(rgb.rows) +
+                     " but its intrinsics are for " + std::to_string(intrinsics.width) + "x" +
+                     std::to_string(intrinsics.height));
+  cv::Mat gray;
+  cv::cvtColor(rgb, gray, cv::COLOR_RGB2GRAY);
+
+  SiftFeatures features;
+  const int long_side = std::max(gray.cols, gray.rows);
+  if (long_side > options.max_image_size) {
+    features.working_scale = static_cast<double>(options.max_image_size) / long_side;
+    cv::Mat small;
+    cv::resize(gray, small, cv::Size(), features.working_scale, features.working_scale, cv::INTER_AREA);
+    gray = small;
+  }
+
+  // Detection runs on the (possibly distorted) image; only keypoint positions are undistorted,
+  // which avoids resampling the image and keeps SIFT's sub-pixel localisation intact.
+  const cv::Ptr<cv::SIFT> sift = cv::SIFT::create(options.max_features, 3, options.contrast_threshold);
+  std::vector<cv::KeyPoint> keypoints;
+  sift->detectAndCompute(gray, cv::noArray(), keypoints, features.descriptors);
+  if (features.descriptors.empty()) features.descriptors = cv::Mat(0, 128, CV_32F);
+  if (features.descriptors.type() != CV_32F) features.descriptors.convertTo(features.descriptors, CV_32F);
+  toRootSift(features.descriptors);
+
+  // Working pixel -> original pixel, keeping pixel edges aligned (centres at integers).
+  const double sx = static_cast<double>(gray.cols) / rgb.cols, sy = static_cast<double>(gray.rows) / rgb.rows;
+  features.distorted_pixels.resize(keypoints.size());
+  for (size_t i = 0; i < keypoints.size(); ++i)
+    features.distorted_pixels[i] = {(keypoints[i].pt.x + 0.5) / sx - 0.5, (keypoints[i].pt.y + 0.5) / sy - 0.5};
+  features.pixels = undistortPixels(intrinsics, features.distorted_pixels);
+  return features;
+}
+
+SiftFeatures extractSiftFeatures(const Frame& frame, const SiftOptions& options) {
+  return extractSiftFeatures(readImageRgb(frame.image_path), frame.intrinsics,
+                             frame.image_path.string() + " (frame '" + frame.name + "')", options);
+}
+
+cv::Mat quantizeDescriptors(const cv::Mat& descriptors) {
+  cv::Mat quantized;
+  descriptors.convertTo(quantized, CV_8U, 255.0);  // saturating, rounded
+  return quantized;
+}
+
+cv::Mat dequantizeDescriptors(const cv::Mat& quantized) {
+  cv::Mat descriptors;
+  quantized.convertTo(descriptors, CV_32F, 1.0 / 255.0);
+  return descriptors;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,52 @@
+#include "ffloc/localization/localization_json.h"
+
+#include <cmath>
+
+namespace ffloc {
+namespace {
+
+// JSON has no infinity: a failed second estimate is null.
+nlohmann::json finiteOrNull(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+
+}  // namespace
+
+std::string jsonText(const nlohmann::json& value, int indent) {
+  return value.dump(indent, ' ', false, nlohmann::json::error_handler_t::replace);
+}
+
+nlohmann::json poseJson(const Pose& camera_to_world) {
+  nlohmann::json rows = nlohmann::json::array();
+  const Eigen::Matrix4d T = camera_to_world.matrix();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  const Pose world_to_camera = camera_to_world.inverse();
+  const Eigen::Quaterniond q = world_to_camera.quaternion();
+  return {{"camera_to_world", rows},
+          {"world_to_camera", {{"qwxyz", {q.w(), q.x(), q.y(), q.z()}},
+                               {"t", {world_to_camera.t.x(), world_to_camera.t.y(), world_to_camera.t.z()}}}}};
+}
+
+nlohmann::json localizationJson(const std::string& name, const LocalizationResult& result, const Localizer& localizer) {
+  const PoseVerdict& verdict = result.verdict;
+  nlohmann::json out = {{"name", name}, {"method", toString(localizer.method())}, {"status", toString(verdict.status)}};
+  if (!verdict.reason.empty()) out["reason"] = verdict.reason;
+  if (result.pnp.ok()) out.update(poseJson(result.pnp.camera_to_world));
+  const PoseEvidence& e = verdict.evidence;
+  out["inliers"] = e.inliers;
+  out["pnp_correspondences"] = e.used_correspondences;
+  out["evidence"] = {{"inlier_ratio", e.inlier_ratio},
+                     {"inlier_spread", e.inlier_spread},
+                     {"agreement_translation", e.agreement_translation < 0 ? nlohmann::json() : finiteOrNull(e.agreement_translation)},
+                     {"agreement_rotation_deg", e.agreement_rotation_deg < 0 ? nlohmann::json() : finiteOrNull(e.agreement_rotation_deg)},
+                     {"agreement_distance", e.agreement_distance < 0 ? nlohmann::json() : finiteOrNull(e.agreement_distance)}};
+  nlohmann::json selected = nlohmann::json::array();
+  for (size_t index : result.selected) selected.push_back(localizer.cameras().at(index).name);
+  out["selected"] = selected;
+  const QueryTimings& t = result.timings;
+  out["timings_ms"] = {{"preprocessing", 1e3 * t.preprocessing}, {"features", 1e3 * t.features},
+                       {"retrieval", 1e3 * t.retrieval},         {"matching", 1e3 * t.matching},
+                       {"pnp", 1e3 * t.pnp},                     {"verification", 1e3 * t.verification},
+                       {"total", 1e3 * t.total()}};
+  return out;
+}
+
+}  // namespace ffloc

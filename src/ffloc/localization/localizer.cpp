@@ -1,0 +1,108 @@
+#include "ffloc/localization/localizer.h"
+
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+const char* toString(LocalizationMethod method) {
+  return method == LocalizationMethod::kClassical ? "classical" : "fastforward";
+}
+
+LocalizationMethod parseLocalizationMethod(const std::string& name) {
+  if (name == "classical") return LocalizationMethod::kClassical;
+  if (name == "fastforward") return LocalizationMethod::kFastForward;
+  throw InputError("method: unknown method '" + name + "' (expected classical or fastforward)");
+}
+
+const char* toString(FastForwardRetrieval retrieval) {
+  return retrieval == FastForwardRetrieval::kVlad ? "vlad" : "encoder";
+}
+
+FastForwardRetrieval parseFastForwardRetrieval(const std::string& name) {
+  if (name == "encoder") return FastForwardRetrieval::kEncoder;
+  if (name == "vlad") return FastForwardRetrieval::kVlad;
+  throw InputError("retrieval: unknown retrieval '" + name + "' (expected encoder or vlad)");
+}
+
+LocalizeOptions LocalizeOptions::preset(const std::string& name) {
+  LocalizeOptions options;
+  if (name == "indoor") return options;
+  if (name == "outdoor") {
+    options.top_k = 20;
+    options.num_features = 3000;
+    return options;
+  }
+  throw InputError("preset: unknown preset '" + name + "' (expected indoor or outdoor)");
+}
+
+void LocalizeOptions::check() const {
+  if (top_k == 0) throw InputError("top_k: must be positive");
+  if (num_features <= 0) throw InputError("num_features: must be positive, got " + std::to_string(num_features));
+  if (long_side < 0) throw InputError("long_side: must not be negative");
+  if (!(pnp.confidence_threshold == pnp.confidence_threshold))
+    throw InputError("pnp.confidence_threshold: must be a number, got NaN");
+  if (!(pnp.inlier_threshold_px > 0 && std::isfinite(pnp.inlier_threshold_px)))
+    throw InputError("pnp.inlier_threshold_px: must be positive and finite");
+  if (pnp.max_correspondences < 4) throw InputError("pnp.max_correspondences: must be at least 4");
+  if (pnp.max_iterations <= 0) throw InputError("pnp.max_iterations: must be positive");
+  if (!(pnp.success_probability > 0 && pnp.success_probability < 1))
+    throw InputError("pnp.success_probability: must be in (0, 1)");
+  verdict.check();
+}
+
+void checkQueryIntrinsics(const Intrinsics& k, int width, int height) {
+  if ((k.width != 0 || k.height != 0) && (k.width != width || k.height != height))
+    throw InputError("width, height: the intrinsics are for a " + std::to_string(k.width) + "x" +
+                     std::to_string(k.height) + " image, but the image is " + std::to_string(width) + "x" +
+                     std::to_string(height));
+  const double absurd = 1000.0 * std::max(width, height);
+  auto focal = [&](const char* field, double value) {
+    if (!(std::isfinite(value) && value > 0 && value <= absurd)) {
+      std::ostringstream what;
+      what << field << ": focal length " << value << " px is not in (0, " << absurd << "] for a " << width << "x"
+           << height << " image";
+      throw InputError(what.str());
+    }
+  };
+  focal("fx", k.fx);
+  focal("fy", k.fy);
+  if (!(std::isfinite(k.cx) && std::isfinite(k.cy) && k.cx >= 0 && k.cx <= width && k.cy >= 0 && k.cy <= height)) {
+    std::ostringstream what;
+    what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << width << "x" << height
+         << " image (intrinsics must be in pixels of the image given)";
+    throw InputError(what.str());
+  }
+  for (double c : k.distortion)
+    if (!std::isfinite(c)) throw InputError("distortion: coefficients must be finite");
+}
+
+LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+                                       const LocalizeOptions& options) const {
+  options.check();
+  if (rgb.empty()) throw InputError(name + ": the image is empty");
+  checkQueryIntrinsics(intrinsics, rgb.cols, rgb.rows);
+  Intrinsics sized = intrinsics;
+  sized.width = rgb.cols;
+  sized.height = rgb.rows;
+
+  LocalizationResult result;
+  std::optional<PnpResult> second;
+  predict(rgb, sized, name, options, result, second);
+  result.pnp = estimatePose(result.correspondences, result.camera, options.pnp);
+  result.timings.pnp = result.pnp.seconds;
+  if (!second && result.pnp.ok()) {
+    const auto start = std::chrono::steady_clock::now();
+    second = halfSampleEstimate(result.correspondences, result.camera, options.pnp);
+    result.timings.verification += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  }
+  const PoseEvidence evidence =
+      measureEvidence(result.correspondences, result.camera, result.pnp, options.pnp, second ? &*second : nullptr);
+  result.verdict = judgePose(evidence, result.pnp, metric(), options.verdict);
+  return result;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,113 @@
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "ffloc/geometry/camera.h"
+#include "ffloc/geometry/pose.h"
+#include "ffloc/localization/verdict.h"
+#include "ffloc/pose/pnp.h"
+#include "ffloc/retrieval/global_descriptor.h"
+#include "ffloc/retrieval/image_selection.h"
+
+namespace ffloc {
+
+// How a map is turned into a pose. Each method writes its own kind of map (`ffloc map
+// --method`), and a map localizes with the method it was built with.
+enum class LocalizationMethod { kClassical, kFastForward };
+const char* toString(LocalizationMethod method);                     // "classical", "fastforward"
+LocalizationMethod parseLocalizationMethod(const std::string& name);  // InputError naming "method"
+
+// Where FastForward takes its K mapping images from: the global descriptor pooled from encoder
+// tokens, or the classical VLAD descriptor stored beside them.
+enum class FastForwardRetrieval { kEncoder, kVlad };
+const char* toString(FastForwardRetrieval retrieval);                     // "encoder", "vlad"
+FastForwardRetrieval parseFastForwardRetrieval(const std::string& name);  // InputError naming "retrieval"
+
+// One query's options. Fields marked with a method are read by that method only.
+struct LocalizeOptions {
+  size_t top_k = 10;  // K mapping images matched (classical) or behind the map representation
+  uint64_t seed = 0;  // RANSAC, token sampling, random image selection
+  PnpOptions pnp;
+  VerdictOptions verdict;
+
+  int64_t num_features = 1500;  // FastForward: N map tokens sampled from the K images
+  ImageSelection selection = ImageSelection::kRetrieval;           // FastForward
+  FastForwardRetrieval retrieval = FastForwardRetrieval::kEncoder;  // FastForward
+  int long_side = 0;                   // FastForward: of the preprocessed query, 0: the map's
+  GlobalDescriptorOptions descriptor;  // FastForward: must match the mapper's
+  // FastForward: predict a second time with the second-ranked image as the reference frame and
+  // compare the poses (the verdict's agreement test). Doubles the network time.
+  bool verify_with_second_reference = true;
+
+  // The paper's settings: "indoor" K = 10, N = 1500; "outdoor" K = 20, N = 3000. InputError
+  // naming "preset" for other names.
+  static LocalizeOptions preset(const std::string& name);
+  // InputError naming the field (top_k, num_features, pnp.inlier_threshold_px, ...) for a value
+  // out of range or NaN.
+  void check() const;
+};
+
+// Wall-clock seconds of each stage of one query.
+struct QueryTimings {
+  double preprocessing = 0;  // image reading aside: undistortion, resize, crop
+  double features = 0;       // the query's encoder pass or SIFT
+  double retrieval = 0;      // global descriptor and image selection
+  double matching = 0;       // map assembly, decoder and heads / descriptor matching, back to world
+  double pnp = 0;
+  double verification = 0;   // the second estimate behind the verdict
+  double total() const { return preprocessing + features + retrieval + matching + pnp + verification; }
+};
+
+// A mapping image as every method knows it.
+struct MapCamera {
+  std::string name;
+  Pose camera_to_world;
+  Intrinsics intrinsics;  // of the image the method works on
+};
+
+struct LocalizationResult {
+  // Pixels in `camera`'s grid (the undistorted full-size query), points in the world frame.
+  Correspondences correspondences;
+  Intrinsics camera;
+  std::vector<size_t> selected;  // map image indices, best first
+  QueryTimings timings;
+  PnpResult pnp;
+  PoseVerdict verdict;
+  bool localized() const { return verdict.status == PoseStatus::kLocalized; }
+};
+
+// The queries' side of a map, whatever the method. `localize` checks the options and the
+// query's intrinsics against the image (InputError naming the field), runs the method, then
+// PnP-RANSAC and the verdict.
+class Localizer {
+ public:
+  virtual ~Localizer() = default;
+  virtual LocalizationMethod method() const = 0;
+  virtual std::string modelId() const { return ""; }  // empty for methods without a network
+  virtual bool metric() const = 0;
+  virtual const std::vector<MapCamera>& cameras() const = 0;
+
+  LocalizationResult localize(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+                              const LocalizeOptions& options) const;
+
+ protected:
+  // Fills the correspondences, camera, selection and timings. `second_estimate` receives the
+  // method's own second estimate for the verdict's agreement test; left empty, a half-sample
+  // estimate (halfSampleEstimate) stands in.
+  virtual void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+                       const LocalizeOptions& options, LocalizationResult& result,
+                       std::optional<PnpResult>& second_estimate) const = 0;
+};
+
+// The checks a query's intrinsics must pass for a `width` x `height` image: the size they give
+// (when they give one) is the image's, finite focal lengths
+// in (0, 1000 * long side], the principal point inside the image, finite distortion.
+// InputError naming width, fx, fy, cx, cy or distortion.
+void checkQueryIntrinsics(const Intrinsics& intrinsics, int width, int height);
+
+}  // namespace ffloc

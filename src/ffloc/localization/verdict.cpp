@@ -1,0 +1,131 @@
+#include "ffloc/localization/verdict.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/random.h"
+#include "ffloc/pose/reprojection.h"
+
+namespace ffloc {
+namespace {
+
+void requireAtLeast(const char* field, double value, double lowest) {
+  if (!(value >= lowest))  // NaN fails too
+    throw InputError(std::string(field) + ": must be at least " + std::to_string(lowest) + ", got " +
+                     std::to_string(value));
+}
+
+}  // namespace
+
+const char* toString(PoseStatus status) {
+  switch (status) {
+    case PoseStatus::kLocalized:
+      return "localized";
+    case PoseStatus::kUncertain:
+      return "uncertain";
+    case PoseStatus::kFailed:
+      return "failed";
+  }
+  return "failed";
+}
+
+void VerdictOptions::check() const {
+  requireAtLeast("min_inliers", min_inliers, 0);
+  requireAtLeast("min_inlier_ratio", min_inlier_ratio, 0);
+  requireAtLeast("min_inlier_spread", min_inlier_spread, 0);
+  requireAtLeast("max_agreement_translation", max_agreement_translation, 0);
+  requireAtLeast("max_agreement_rotation_deg", max_agreement_rotation_deg, 0);
+  requireAtLeast("max_agreement_distance_m", max_agreement_distance_m, 0);
+  if (min_inlier_ratio > 1) throw InputError("min_inlier_ratio: must be at most 1");
+  if (min_inlier_spread > 1) throw InputError("min_inlier_spread: must be at most 1");
+}
+
+PoseEvidence measureEvidence(const Correspondences& correspondences, const Intrinsics& camera, const PnpResult& pose,
+                             const PnpOptions& pnp, const PnpResult* second_estimate) {
+  PoseEvidence evidence;
+  evidence.inliers = pose.inliers;
+  evidence.used_correspondences = pose.used_correspondences;
+  if (!pose.ok()) return evidence;
+  evidence.inlier_ratio = pose.used_correspondences > 0 ? static_cast<double>(pose.inliers) / pose.used_correspondences : 0;
+
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  for (size_t i = 0; i < correspondences.size(); ++i) {
+    if (!(correspondences.confidences[i] >= pnp.confidence_threshold)) continue;
+    pixels.push_back(correspondences.pixels[i]);
+    points.push_back(correspondences.points[i]);
+  }
+  const Pose world_to_camera = pose.camera_to_world.inverse();
+  const std::vector<int> inliers = findInliers(pixels, points, camera, world_to_camera, pnp.inlier_threshold_px);
+  constexpr int kGrid = 8;
+  bool occupied[kGrid][kGrid] = {};
+  std::vector<double> depths;
+  for (int i : inliers) {
+    const int gx = std::clamp(static_cast<int>(pixels[i].x() * kGrid / std::max(1, camera.width)), 0, kGrid - 1);
+    const int gy = std::clamp(static_cast<int>(pixels[i].y() * kGrid / std::max(1, camera.height)), 0, kGrid - 1);
+    occupied[gy][gx] = true;
+    depths.push_back((world_to_camera * points[i]).z());
+  }
+  int cells = 0;
+  for (const auto& row : occupied) cells += static_cast<int>(std::count(std::begin(row), std::end(row), true));
+  evidence.inlier_spread = static_cast<double>(cells) / (kGrid * kGrid);
+
+  if (second_estimate) {
+    if (second_estimate->ok()) {
+      double depth = 1;
+      if (!depths.empty()) {
+        std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+        depth = std::max(depths[depths.size() / 2], 1e-9);
+      }
+      evidence.agreement_distance = translationError(second_estimate->camera_to_world, pose.camera_to_world);
+      evidence.agreement_translation = evidence.agreement_distance / depth;
+      evidence.agreement_rotation_deg = rotationErrorDeg(second_estimate->camera_to_world, pose.camera_to_world);
+    } else {
+      evidence.agreement_translation = evidence.agreement_rotation_deg = evidence.agreement_distance =
+          std::numeric_limits<double>::infinity();
+    }
+  }
+  return evidence;
+}
+
+PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool metric, const VerdictOptions& options) {
+  PoseVerdict verdict;
+  verdict.evidence = evidence;
+  if (!pose.ok()) {
+    verdict.status = PoseStatus::kFailed;
+    verdict.reason = std::string("no pose: ") + toString(pose.status);
+    return verdict;
+  }
+  verdict.status = PoseStatus::kUncertain;
+  if (evidence.inliers < options.min_inliers)
+    verdict.reason = std::to_string(evidence.inliers) + " inliers, fewer than " + std::to_string(options.min_inliers);
+  else if (evidence.inlier_ratio < options.min_inlier_ratio)
+    verdict.reason = "inlier ratio below " + std::to_string(options.min_inlier_ratio);
+  else if (evidence.inlier_spread < options.min_inlier_spread)
+    verdict.reason = "inliers cover too little of the image";
+  else if (options.require_agreement && evidence.agreement_translation < 0)
+    verdict.reason = "no second estimate to compare with";
+  else if (evidence.agreement_translation >= 0 &&
+           !(evidence.agreement_translation <= options.max_agreement_translation &&
+             evidence.agreement_rotation_deg <= options.max_agreement_rotation_deg &&
+             (!metric || evidence.agreement_distance <= options.max_agreement_distance_m)))
+    verdict.reason = "a second estimate disagrees";
+  else
+    verdict.status = PoseStatus::kLocalized;
+  return verdict;
+}
+
+PnpResult halfSampleEstimate(const Correspondences& correspondences, const Intrinsics& camera, const PnpOptions& pnp) {
+  Rng rng(pnp.seed ^ 0x5ec0dULL);
+  Correspondences half;
+  half.reserve(correspondences.size() / 2 + 1);
+  for (size_t i = 0; i < correspondences.size(); ++i)
+    if (rng.chance(0.5)) half.add(correspondences.pixels[i], correspondences.points[i], correspondences.confidences[i]);
+  PnpOptions options = pnp;
+  options.seed = pnp.seed + 0x9e3779b9ULL;
+  options.min_correspondences = pnp.min_correspondences / 2;
+  return estimatePose(half, camera, options);
+}
+
+}  // namespace ffloc

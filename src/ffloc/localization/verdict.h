@@ -1,0 +1,65 @@
+#pragma once
+
+#include <string>
+
+#include "ffloc/geometry/camera.h"
+#include "ffloc/pose/correspondences.h"
+#include "ffloc/pose/pnp.h"
+
+namespace ffloc {
+
+// What a caller may do with a pose: use it (kLocalized), look at it with suspicion (kUncertain:
+// the pose is still given), or not have one (kFailed).
+enum class PoseStatus { kLocalized, kUncertain, kFailed };
+const char* toString(PoseStatus status);  // "localized", "uncertain", "failed"
+
+// The measurements behind a verdict, all of one query.
+struct PoseEvidence {
+  int inliers = 0;             // of the final pose, among the pairs PnP used
+  int used_correspondences = 0;
+  double inlier_ratio = 0;     // inliers / used_correspondences
+  // Fraction of the cells of an 8x8 grid over the image that hold an inlier: a pose held by
+  // one small patch of the image is poorly determined whatever the count.
+  double inlier_spread = 0;
+  // A second, independent estimate (another reference image, another half of the pairs): the
+  // distance between the two camera centres over the median inlier depth, and the angle
+  // between the two rotations. Negative when no second estimate was made or it failed.
+  double agreement_translation = -1;
+  double agreement_rotation_deg = -1;
+  double agreement_distance = -1;  // the same distance in scene units
+};
+
+// The rule (docs/verdict.md gives its calibration and measured precision and recall). A pose
+// is kLocalized when every test passes, kUncertain when PnP found one but a test fails.
+struct VerdictOptions {
+  int min_inliers = 40;
+  double min_inlier_ratio = 0.15;
+  double min_inlier_spread = 0.08;
+  // A second estimate that fails, or lands farther than this, makes the pose kUncertain.
+  double max_agreement_translation = 0.05;  // of the median inlier depth
+  double max_agreement_rotation_deg = 3.0;
+  // In metric maps also in metres: far from the camera a small fraction of the depth is already
+  // more than a caller can use.
+  double max_agreement_distance_m = 0.05;
+  bool require_agreement = true;
+
+  // InputError naming the field for a value out of range or NaN.
+  void check() const;
+};
+
+struct PoseVerdict {
+  PoseStatus status = PoseStatus::kFailed;
+  PoseEvidence evidence;
+  std::string reason;  // the first test that failed; empty for kLocalized
+};
+
+// Evidence of `pose` (the PnP result on `correspondences`, pixels in `camera`'s grid) and of an
+// optional second estimate, then the rule.
+PoseEvidence measureEvidence(const Correspondences& correspondences, const Intrinsics& camera, const PnpResult& pose,
+                             const PnpOptions& pnp, const PnpResult* second_estimate);
+PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool metric, const VerdictOptions& options);
+
+// A second estimate made from a disjoint random half of the pairs with another RANSAC seed.
+PnpResult halfSampleEstimate(const Correspondences& correspondences, const Intrinsics& camera, const PnpOptions& pnp);
+
+}  // namespace ffloc

@@ -1,0 +1,197 @@
+#include "ffloc/pipeline/fastforward_localizer.h"
+
+#include <ATen/core/Tensor.h>
+#include <ATen/ops/from_blob.h>
+#include <c10/core/InferenceMode.h>
+
+#include <chrono>
+#include <cmath>
+
+#include "ffloc/classical/sift_features.h"
+#include "ffloc/core/error.h"
+#include "ffloc/geometry/rays.h"
+#include "ffloc/model/ray_encoding.h"
+#include "ffloc/pipeline/prepared_image.h"
+#include "ffloc/pipeline/query_descriptor.h"
+
+namespace ffloc {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+struct EncodedQuery {
+  PreparedImage image;
+  Dust3rEncoding encoding;
+  std::vector<size_t> ranked;  // map images by retrieval, best first
+};
+
+FastForwardLocalizer::FastForwardLocalizer(const FastForwardModel& model, MapFile map) : model_(model), map_(std::move(map)) {
+  if (map_.images.empty()) throw InputError("map: holds no images (build one with 'ffloc map')");
+  const int64_t dim = model_.config().dust3r.enc_dim;
+  if (map_.token_dim != dim)
+    throw InputError("map: token width " + std::to_string(map_.token_dim) + " differs from the model's " +
+                     std::to_string(dim) + " (built with another model)");
+  const int patch = static_cast<int>(model_.config().dust3r.patch_size);
+  for (const MapImage& image : map_.images) {
+    if (image.grid_rows * patch != image.intrinsics.height || image.grid_cols * patch != image.intrinsics.width)
+      throw InputError("map image '" + image.name + "': token grid " + std::to_string(image.grid_rows) + "x" +
+                       std::to_string(image.grid_cols) + " does not match its " + std::to_string(image.intrinsics.width) +
+                       "x" + std::to_string(image.intrinsics.height) + " preprocessed image at patch size " +
+                       std::to_string(patch));
+    descriptors_.push_back(image.descriptor);
+    cameras_.push_back({image.name, image.camera_to_world, image.intrinsics});
+  }
+  if (!map_.vlad_centres.empty()) {
+    vlad_ = VladVocabulary(Eigen::Map<const VladVocabulary::RowMatrixXf>(map_.vlad_centres.data(),
+                                                                          map_.vlad_centres.size() / 128, 128));
+    for (const MapImage& image : map_.images)
+      vlad_descriptors_.push_back(Eigen::Map<const Eigen::VectorXf>(image.vlad_descriptor.data(), image.vlad_descriptor.size()));
+  }
+}
+
+FastForwardLocalizer::~FastForwardLocalizer() = default;
+
+std::vector<size_t> FastForwardLocalizer::selectImages(const std::vector<float>& query_descriptor,
+                                                       const LocalizeOptions& options,
+                                                       const std::vector<size_t>* vlad_ranking) const {
+  switch (options.selection) {
+    case ImageSelection::kRetrieval:
+      if (vlad_ranking) {
+        std::vector<size_t> top(*vlad_ranking);
+        if (top.size() > options.top_k) top.resize(options.top_k);
+        return top;
+      }
+      return topKBySimilarity(descriptors_, query_descriptor, options.top_k);
+    case ImageSelection::kUniform:
+      return uniformSelection(map_.images.size(), options.top_k);
+    case ImageSelection::kRandom:
+      return randomSelection(map_.images.size(), options.top_k, options.seed);
+  }
+  return {};
+}
+
+EncodedQuery FastForwardLocalizer::encode(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+                                          const LocalizeOptions& options, QueryTimings& timings) const {
+  auto start = Clock::now();
+  EncodedQuery query{prepareImage(rgb, intrinsics, name, preprocessOptionsFor(model_, options.long_side)), {}, {}};
+  timings.preprocessing = secondsSince(start);
+
+  start = Clock::now();
+  query.encoding = encodeImage(model_, query.image);
+  timings.features = secondsSince(start);
+
+  start = Clock::now();
+  const std::vector<float> descriptor = encodingDescriptor(query.encoding, options.descriptor);
+  if (options.retrieval == FastForwardRetrieval::kVlad) {
+    if (vlad_.empty()) throw InputError("retrieval: the map has no VLAD descriptors (build it with 'ffloc map --vlad')");
+    const std::vector<size_t> ranking =
+        rankBySimilarity(vlad_descriptors_, vlad_.describe(extractSiftFeatures(rgb, intrinsics, name).descriptors));
+    query.ranked = selectImages(descriptor, options, &ranking);
+  } else {
+    query.ranked = selectImages(descriptor, options);
+  }
+  timings.retrieval = secondsSince(start);
+  return query;
+}
+
+void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<size_t>& selected, uint64_t seed,
+                                  const LocalizeOptions& options, QueryPrediction& out) const {
+  out.camera = query.image.camera;
+  out.selected = selected;
+  out.correspondences = {};
+  std::vector<Pose> poses;
+  std::vector<std::string> names;
+  for (size_t index : selected) {
+    poses.push_back(map_.images[index].camera_to_world);
+    names.push_back(map_.images[index].name);
+  }
+  // The first image is P_0: the normalised frame is then centred where the query most likely is.
+  out.normalization = SceneNormalization::fromMappingPoses(poses, 0, names);
+
+  const int patch = static_cast<int>(model_.config().dust3r.patch_size);
+  const at::ScalarType dtype = model_.dust3r().backboneDtype();
+  std::vector<Dust3rEncoding> images;
+  std::vector<at::Tensor> rays;
+  std::vector<int64_t> tokens_per_image;
+  for (size_t index : selected) {
+    const MapImage& image = map_.images[index];
+    const int64_t count = static_cast<int64_t>(image.tokenCount());
+    Dust3rEncoding encoded;
+    encoded.tokens = at::from_blob(const_cast<uint16_t*>(image.tokens.data()), {1, count, map_.token_dim},
+                                   at::TensorOptions().dtype(at::kHalf))
+                         .to(dtype);
+    encoded.positions = patchPositions(1, image.grid_rows, image.grid_cols, at::kCPU);
+    encoded.height = static_cast<int64_t>(image.grid_rows) * patch;
+    encoded.width = static_cast<int64_t>(image.grid_cols) * patch;
+    images.push_back(std::move(encoded));
+    rays.push_back(rayTensor(patchRays(image.intrinsics, out.normalization.normalize(image.camera_to_world), patch)));
+    tokens_per_image.push_back(count);
+  }
+  const MapTokens map_tokens =
+      gatherMapTokens(images, rays, sampleMapTokenIndices(tokens_per_image, options.num_features, seed));
+  const FastForwardPrediction prediction = model_.forward(query.encoding, map_tokens);
+
+  const at::Tensor points = prediction.query.pts3d[0].to(at::kDouble).contiguous();  // (H, W, 3)
+  const at::Tensor confidence = prediction.query.conf[0].to(at::kFloat).contiguous();  // (H, W)
+  const int64_t height = points.size(0), width = points.size(1);
+  const double* xyz = points.data_ptr<double>();
+  const float* conf = confidence.data_ptr<float>();
+  const PreprocessGeometry& geometry = query.image.preprocessed.geometry;
+  out.correspondences.reserve(static_cast<size_t>(height * width));
+  for (int64_t y = 0; y < height; ++y) {
+    for (int64_t x = 0; x < width; ++x) {
+      const int64_t i = y * width + x;
+      const Eigen::Vector3d normalized(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+      if (!normalized.allFinite() || !std::isfinite(conf[i])) continue;
+      out.correspondences.add(geometry.toOriginal(Eigen::Vector2d(static_cast<double>(x), static_cast<double>(y))),
+                              out.normalization.toWorld(normalized), conf[i]);
+    }
+  }
+}
+
+QueryPrediction FastForwardLocalizer::predictCoordinates(const cv::Mat& rgb, const Intrinsics& intrinsics,
+                                                         const std::string& name, const LocalizeOptions& options) const {
+  options.check();
+  c10::InferenceMode inference;
+  QueryPrediction out;
+  const EncodedQuery query = encode(rgb, intrinsics, name, options, out.timings);
+  const auto start = Clock::now();
+  decode(query, query.ranked, options.seed, options, out);
+  out.timings.matching = secondsSince(start);
+  return out;
+}
+
+void FastForwardLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
+                                   const LocalizeOptions& options, LocalizationResult& result,
+                                   std::optional<PnpResult>& second_estimate) const {
+  c10::InferenceMode inference;
+  QueryPrediction prediction;
+  const EncodedQuery query = encode(rgb, intrinsics, name, options, prediction.timings);
+  auto start = Clock::now();
+  decode(query, query.ranked, options.seed, options, prediction);
+  prediction.timings.matching = secondsSince(start);
+  result.correspondences = std::move(prediction.correspondences);
+  result.camera = prediction.camera;
+  result.selected = prediction.selected;
+  result.timings = prediction.timings;
+
+  if (options.verify_with_second_reference && query.ranked.size() >= 2) {
+    start = Clock::now();
+    std::vector<size_t> swapped = query.ranked;
+    std::swap(swapped[0], swapped[1]);
+    QueryPrediction other;
+    decode(query, swapped, options.seed + 1, options, other);
+    PnpOptions pnp = options.pnp;
+    pnp.seed = options.pnp.seed + 1;
+    second_estimate = estimatePose(other.correspondences, other.camera, pnp);
+    result.timings.verification = secondsSince(start);
+  }
+}
+
+}  // namespace ffloc
