@@ -1,18 +1,39 @@
 #include "ffloc/data/depth.h"
 
 #include <cmath>
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/error.h"
 
 namespace ffloc {
+namespace {
+
+// kapture's .depth: raw little-endian float32, row-major, the frame's width x height.
+cv::Mat readRawFloatDepth(const std::filesystem::path& path, const Intrinsics& camera) {
+  const auto bytes = std::filesystem::file_size(path);
+  const auto expected = static_cast<std::uintmax_t>(camera.width) * camera.height * sizeof(float);
+  if (bytes != expected)
+    throwInputError(path.string(), 0,
+                    "raw depth file has " + std::to_string(bytes) + " bytes but the frame's image is " +
+                        std::to_string(camera.width) + "x" + std::to_string(camera.height) + " (expected " +
+                        std::to_string(expected) + ")");
+  cv::Mat1f depth(camera.height, camera.width);
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(depth.data), static_cast<std::streamsize>(expected));
+  if (!in) throwInputError(path.string(), 0, "cannot read depth file");
+  return depth;
+}
+
+}  // namespace
 
 cv::Mat1f readDepthMetres(const Frame& frame) {
   if (!frame.depth) throwInputError(frame.name, 0, "frame has no depth map");
   const DepthSource& source = *frame.depth;
   const std::string file = source.path.string();
   if (!std::filesystem::exists(source.path)) throwInputError(file, 0, "depth file not found");
-  const cv::Mat stored = cv::imread(file, cv::IMREAD_ANYDEPTH);
+  const cv::Mat stored = source.path.extension() == ".depth" ? readRawFloatDepth(source.path, frame.intrinsics)
+                                                             : cv::imread(file, cv::IMREAD_ANYDEPTH);
   if (stored.empty()) throwInputError(file, 0, "cannot decode depth image");
   if (stored.channels() != 1)
     throwInputError(file, 0, "depth image has " + std::to_string(stored.channels()) + " channels, expected 1");
