@@ -9,6 +9,7 @@ namespace ffloc::cli {
 void registerEvalCommand(CLI::App& app);
 void registerSynthCommand(CLI::App& app);
 void registerConvertCommand(CLI::App& app);
+void registerConvertDatasetCommand(CLI::App& app);
 #ifdef FFLOC_WITH_TORCH  // these need the network module
 void registerBenchCommand(CLI::App& app);
 void registerMapCommand(CLI::App& app);

@@ -9,6 +9,7 @@
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/oracle_depth_source.h"
+#include "ffloc/eval/protocol.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/eval/sift_baseline_source.h"
 #ifdef FFLOC_WITH_TORCH
@@ -42,6 +43,7 @@ struct EvalArguments {
   size_t top_k = 10;        // the paper's indoor setting
   int64_t features = 1500;
   std::string poses_path, ply_path;
+  std::string protocol;
   int threads = 0;
   bool quiet = false;
 };
@@ -127,7 +129,8 @@ void runEval(const EvalArguments& args) {
   std::vector<MethodSummary> summaries;
   std::vector<std::string> non_metric;
   for (const std::string& dataset : args.datasets) {
-    const Scene scene = loadDataset(dataset, args.format);
+    Scene scene = loadDataset(dataset, args.format);
+    if (!args.protocol.empty()) thinMappingFrames(scene, benchmarkProtocol(args.protocol).mapping_stride);
     if (!scene.metric) non_metric.push_back(scene.name);
     for (const std::string& method : methods) {
       auto source = makeSource(method, args);
@@ -155,6 +158,7 @@ void runEval(const EvalArguments& args) {
   }
   const std::string table = markdownTable(summaries, non_metric);
   std::cout << table;
+  if (!args.protocol.empty()) std::cerr << describeProtocol(benchmarkProtocol(args.protocol));
   std::string csv_path = args.csv_path, markdown_path = args.markdown_path;
   if (!args.json_path.empty()) {
     writeTextFile(args.json_path, summaryJson(summaries).dump(2) + "\n");
@@ -236,8 +240,20 @@ void registerEvalCommand(CLI::App& app) {
                   "Write a PLY (one dataset; fastforward's poses when it runs, else the first method's): mapping cameras grey, ground truth green, estimates blue, "
                   "fastforward's predicted points of the last query red");
 #endif
+  cmd->add_option("--protocol", args->protocol,
+                  "The paper's setting for a benchmark (wayspots, indoor6, rio10, cambridge, 7scenes): top-K, N and "
+                  "7-Scenes' mapping-frame thinning; --top-k/--features override it (docs/benchmarks.md)");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
-  cmd->callback([args] { runEval(*args); });
+  cmd->callback([args, cmd] {
+    if (!args->protocol.empty()) {
+      const BenchmarkProtocol& protocol = benchmarkProtocol(args->protocol);
+      const auto* top_k = cmd->get_option_no_throw("--top-k");
+      const auto* features = cmd->get_option_no_throw("--features");
+      if (!top_k || top_k->count() == 0) args->top_k = protocol.top_k;
+      if (!features || features->count() == 0) args->features = protocol.features;
+    }
+    runEval(*args);
+  });
 }
 
 }  // namespace ffloc::cli

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   ffloc::cli::registerEvalCommand(app);
   ffloc::cli::registerSynthCommand(app);
   ffloc::cli::registerConvertCommand(app);
+  ffloc::cli::registerConvertDatasetCommand(app);
 #ifdef FFLOC_WITH_TORCH
   ffloc::cli::registerBenchCommand(app);
   ffloc::cli::registerMapCommand(app);
