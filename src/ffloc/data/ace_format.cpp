@@ -19,12 +19,13 @@ namespace fs = std::filesystem;
 const std::pair<const char*, Split> kSplitFolders[] = {{"train", Split::kMapping}, {"test", Split::kQuery}};
 
 // Files of one folder keyed by the part of their name before the first '.': the tools pair
-// rgb/x.color.png with poses/x.pose.txt, and Cambridge's rgb/x.png with poses/x.txt.
+// rgb/x.color.png with poses/x.pose.txt, and Cambridge's rgb/x.png with poses/x.txt. Hidden
+// files (".DS_Store") are not frames.
 std::map<std::string, fs::path> filesByStem(const fs::path& folder) {
   std::map<std::string, fs::path> files;
   if (!fs::is_directory(folder)) return files;
   for (const auto& entry : fs::directory_iterator(folder)) {
-    if (!entry.is_regular_file()) continue;
+    if (!entry.is_regular_file() || entry.path().filename().string().front() == '.') continue;
     const std::string name = entry.path().filename().string();
     files[name.substr(0, name.find('.'))] = entry.path();
   }

@@ -35,9 +35,11 @@ std::vector<std::string> datasetWriterFormats() {
 std::vector<std::string> writeDataset(const Scene& scene, const std::string& format, const fs::path& out_dir) {
   for (const auto& writer : writers()) {
     if (format != writer.format) continue;
-    requireEmptyOutputFolder(out_dir);
-    fs::create_directories(out_dir);
-    return writer.write(scene, fs::absolute(out_dir).lexically_normal());
+    fs::path out = fs::absolute(out_dir).lexically_normal();
+    if (out.filename().empty()) out = out.parent_path();  // "out/" ends in an empty part
+    requireEmptyOutputFolder(out);
+    fs::create_directories(out);
+    return writer.write(scene, out);
   }
   std::string known;
   for (const auto& name : datasetWriterFormats()) known += (known.empty() ? "" : ", ") + name;
@@ -49,12 +51,14 @@ std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path
   // relative to images/; depth maps keep their encoding.
   Scene copy = scene;
   copy.root = out;
+  const std::vector<std::string> paths = portableFrameNames(scene);
   std::vector<std::string> names;
-  for (Frame& frame : copy.frames) {
-    const std::string image = "images/" + frame.name;
+  for (size_t i = 0; i < copy.frames.size(); ++i) {
+    Frame& frame = copy.frames[i];
+    const std::string image = "images/" + paths[i];
     copyFrameImage(frame, out / image);
     if (frame.depth) {
-      const fs::path depth = out / "depth" / (frame.name + frame.depth->path.extension().string());
+      const fs::path depth = out / "depth" / (paths[i] + frame.depth->path.extension().string());
       fs::create_directories(depth.parent_path());
       fs::copy_file(frame.depth->path, depth, fs::copy_options::overwrite_existing);
       frame.depth->path = depth;

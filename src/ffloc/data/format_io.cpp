@@ -128,21 +128,45 @@ DepthSource millimetreDepth(const fs::path& path) {
 
 bool isQuerySide(const Frame& frame) { return frame.split == Split::kQuery; }
 
-std::vector<std::string> uniqueFrameStems(const Scene& scene) {
-  std::vector<std::string> stems;
+namespace {
+
+// The names, each unique, or an InputError naming the two frames that share one.
+std::vector<std::string> requireUnique(const Scene& scene, std::vector<std::string> names, const std::string& what) {
   std::map<std::string, std::string> owner;
-  for (const Frame& frame : scene.frames) {
-    std::string stem = frame.name;
-    for (char& c : stem)
-      if (c == '/') c = '_';
-    stem = stem.substr(0, stem.find('.'));
-    const auto [it, inserted] = owner.emplace(stem, frame.name);
+  for (size_t i = 0; i < names.size(); ++i) {
+    const auto [it, inserted] = owner.emplace(names[i], scene.frames[i].name);
     if (!inserted)
       throwInputError(scene.root.string(), 0,
-                      "frames '" + it->second + "' and '" + frame.name + "' would both be written as '" + stem + "'");
-    stems.push_back(stem);
+                      "frames '" + it->second + "' and '" + scene.frames[i].name + "' would both be written as " +
+                          what + " '" + names[i] + "'");
   }
-  return stems;
+  return names;
+}
+
+}  // namespace
+
+std::vector<std::string> portableFrameNames(const Scene& scene) {
+  std::vector<std::string> names;
+  for (const Frame& frame : scene.frames) {
+    fs::path portable;
+    for (const fs::path& part : fs::path(frame.name).lexically_normal())
+      if (!(portable.empty() && (part == ".." || part == "."))) portable /= part;
+    names.push_back(portable.generic_string());
+  }
+  return requireUnique(scene, names, "path");
+}
+
+std::vector<std::string> uniqueFrameStems(const Scene& scene) {
+  std::vector<std::string> stems;
+  for (const std::string& name : portableFrameNames(scene)) {
+    const fs::path path(name);
+    std::string folders = path.parent_path().generic_string();
+    for (char& c : folders)
+      if (c == '/') c = '_';
+    const std::string file = path.filename().string();
+    stems.push_back((folders.empty() ? "" : folders + "_") + file.substr(0, file.find('.')));
+  }
+  return requireUnique(scene, stems, "stem");
 }
 
 bool sameIntrinsics(const Intrinsics& a, const Intrinsics& b) {

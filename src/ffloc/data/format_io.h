@@ -55,10 +55,15 @@ DepthSource millimetreDepth(const std::filesystem::path& path);
 // For formats that only know mapping and query: unassigned frames travel with the mapping ones.
 bool isQuerySide(const Frame& frame);
 
-// A file name derived from a frame name, unique within the scene: the name without its extension,
-// '/' replaced by '_' ("seq-01/frame-000000.color.png" -> "seq-01_frame-000000"), and the part
-// after the first '.' dropped so formats that pair files by the stem before the first dot work.
-// Throws InputError naming both frames when two frames would get the same stem.
+// Frame names as relative paths a writer can put under its output folder: leading ".." parts
+// (images outside the dataset folder) dropped. Throws InputError naming both frames when two
+// names then coincide.
+std::vector<std::string> portableFrameNames(const Scene& scene);
+
+// A file stem per frame, unique within the scene, for formats that pair files by the stem before
+// the first '.': the portable name's folders joined by '_' and its file name cut at the first '.'
+// ("seq-01/frame-000000.color.png" -> "seq-01_frame-000000"). Throws InputError naming both
+// frames when two stems coincide.
 std::vector<std::string> uniqueFrameStems(const Scene& scene);
 
 // Bit-for-bit equal intrinsics (size, K and distortion).

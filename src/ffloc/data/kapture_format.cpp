@@ -209,6 +209,7 @@ Scene readKapture(const fs::path& dir) {
 }
 
 std::vector<std::string> writeKapture(const Scene& scene, const fs::path& out) {
+  const std::vector<std::string> paths = portableFrameNames(scene);
   std::vector<std::string> names(scene.frames.size());
   for (const auto& [folder_name, side_is_query] : {std::pair{"mapping", false}, {"query", true}}) {
     const fs::path sensors_dir = out / folder_name / "sensors";
@@ -219,7 +220,8 @@ std::vector<std::string> writeKapture(const Scene& scene, const fs::path& out) {
     for (size_t i = 0; i < scene.frames.size(); ++i) {
       const Frame& frame = scene.frames[i];
       if (isQuerySide(frame) != side_is_query) continue;
-      if (frame.name.find(',') != std::string::npos)
+      const std::string& path = paths[i];
+      if (path.find(',') != std::string::npos)
         throwInputError(frame.name, 0, "kapture paths cannot contain ','");
       size_t camera = 0;
       while (camera < cameras.size() && !sameIntrinsics(*cameras[camera], frame.intrinsics)) ++camera;
@@ -227,17 +229,17 @@ std::vector<std::string> writeKapture(const Scene& scene, const fs::path& out) {
       const std::string ts = std::to_string(timestamp++);
       const std::string id = std::to_string(camera);
       const std::string pose = worldToCameraQuaternionText(frame.camera_to_world, ", ");
-      copyFrameImage(frame, sensors_dir / "records_data" / frame.name);
-      records += ts + ", cam" + id + ", " + frame.name + "\n";
+      copyFrameImage(frame, sensors_dir / "records_data" / path);
+      records += ts + ", cam" + id + ", " + path + "\n";
       trajectories += ts + ", cam" + id + ", " + pose + "\n";
       if (frame.depth) {
-        const std::string depth = fs::path(frame.name).replace_extension(".depth").generic_string();
+        const std::string depth = fs::path(path).replace_extension(".depth").generic_string();
         writeDepthRawFloat(frame, sensors_dir / "records_data" / depth);
         depth_records += ts + ", depth" + id + ", " + depth + "\n";
         trajectories += ts + ", depth" + id + ", " + pose + "\n";
         any_depth = true;
       }
-      names[i] = (fs::path(folder_name) / "sensors" / "records_data" / frame.name).generic_string();
+      names[i] = (fs::path(folder_name) / "sensors" / "records_data" / path).generic_string();
     }
     if (cameras.empty()) continue;
     std::string sensors;
