@@ -15,6 +15,7 @@ using CommandRun = std::function<int()>;
 void registerEvalCommand(CLI::App& app, CommandRun& run);
 void registerSynthCommand(CLI::App& app, CommandRun& run);
 void registerConvertCommand(CLI::App& app, CommandRun& run);
+void registerConvertDatasetCommand(CLI::App& app, CommandRun& run);
 #ifdef FFLOC_WITH_TORCH  // these need the network module
 void registerBenchCommand(CLI::App& app, CommandRun& run);
 void registerMapCommand(CLI::App& app, CommandRun& run);

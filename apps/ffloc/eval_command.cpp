@@ -13,6 +13,7 @@
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/oracle_depth_source.h"
+#include "ffloc/eval/protocol.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/eval/scene_ply.h"
 #include "ffloc/eval/sift_baseline_source.h"
@@ -47,6 +48,7 @@ struct EvalArguments {
   std::string map_path;
   std::string poses_path, ply_path;
   bool no_depth = false;
+  std::string protocol;
   bool quiet = false;
 };
 
@@ -131,7 +133,12 @@ int runEval(const EvalArguments& args) {
   if (!args.poses_path.empty() && (rows != 1 || args.datasets.size() != 1))
     throw InputError("--poses: needs exactly one dataset and one method");
   if (!args.ply_path.empty() && args.datasets.size() != 1) throw InputError("--ply: needs exactly one dataset");
-  const LocalizeOptions localize = localizeOptions(args.query);
+  LocalizeOptions localize = localizeOptions(args.query);
+  if (!args.protocol.empty()) {
+    const BenchmarkProtocol& protocol = benchmarkProtocol(args.protocol);
+    if (args.query.top_k_option->count() == 0) localize.top_k = protocol.top_k;
+    if (args.query.features_option->count() == 0) localize.num_features = protocol.features;
+  }
 
   EvaluationOptions options;
   options.pnp = localize.pnp;
@@ -161,7 +168,8 @@ int runEval(const EvalArguments& args) {
   std::vector<MethodSummary> summaries;
   std::vector<std::string> non_metric;
   for (const std::string& dataset : args.datasets) {
-    const Scene scene = loadDataset(dataset, args.format);
+    Scene scene = loadDataset(dataset, args.format);
+    if (!args.protocol.empty()) thinMappingFrames(scene, benchmarkProtocol(args.protocol).mapping_stride);
     if (!scene.metric) non_metric.push_back(scene.name);
     auto record = [&](const std::vector<FrameResult>& frames, const std::string& method, const Correspondences* points) {
       summaries.push_back(summarize(frames));
@@ -205,6 +213,7 @@ int runEval(const EvalArguments& args) {
   }
   const std::string table = markdownTable(summaries, non_metric);
   std::cout << table;
+  if (!args.protocol.empty()) std::cerr << describeProtocol(benchmarkProtocol(args.protocol));
   std::string csv_path = args.csv_path, markdown_path = args.markdown_path;
   if (!args.json_path.empty()) {
     writeTextFile(args.json_path, summaryJson(summaries).dump(2) + "\n");
@@ -289,6 +298,9 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
                   "Write a PLY (one dataset; the map's poses, else fastforward's when it runs, else the first "
                   "method's): mapping frames grey, ground truth green, estimates blue, and for a localizer its last "
                   "query's points red");
+  cmd->add_option("--protocol", args->protocol,
+                  "The paper's setting for a benchmark (wayspots, indoor6, rio10, cambridge, 7scenes): top-K, N and "
+                  "7-Scenes' mapping-frame thinning; --top-k/--features override it (docs/benchmarks.md)");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   cmd->callback([args, &run] { run = [args] { return runEval(*args); }; });
 }

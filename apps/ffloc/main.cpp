@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   ffloc::cli::registerEvalCommand(app, run);
   ffloc::cli::registerSynthCommand(app, run);
   ffloc::cli::registerConvertCommand(app, run);
+  ffloc::cli::registerConvertDatasetCommand(app, run);
 #ifdef FFLOC_WITH_TORCH
   ffloc::cli::registerBenchCommand(app, run);
   ffloc::cli::registerMapCommand(app, run);

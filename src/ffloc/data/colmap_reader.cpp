@@ -2,6 +2,7 @@
 #include <map>
 
 #include "ffloc/core/error.h"
+#include "ffloc/data/colmap_camera.h"
 #include "ffloc/data/readers.h"
 #include "ffloc/data/text_file.h"
 
@@ -18,40 +19,6 @@ std::optional<fs::path> findModelFolder(const fs::path& dir, const char* file_na
   return std::nullopt;
 }
 
-struct ModelSpec {
-  const char* name;
-  size_t parameters;
-};
-
-// Number of parameters of each supported COLMAP model; others are rejected by name.
-const ModelSpec kModels[] = {{"SIMPLE_PINHOLE", 3}, {"PINHOLE", 4}, {"SIMPLE_RADIAL", 4},
-                             {"RADIAL", 5},         {"OPENCV", 8},  {"FULL_OPENCV", 12}};
-
-Intrinsics toIntrinsics(const std::string& model, const std::vector<double>& p) {
-  Intrinsics K;
-  if (model == "SIMPLE_PINHOLE" || model == "SIMPLE_RADIAL" || model == "RADIAL") {
-    K.fx = K.fy = p[0];
-    K.cx = p[1];
-    K.cy = p[2];
-    if (model == "SIMPLE_RADIAL") K.distortion = {p[3], 0, 0, 0};
-    if (model == "RADIAL") K.distortion = {p[3], p[4], 0, 0};
-  } else {
-    K.fx = p[0];
-    K.fy = p[1];
-    K.cx = p[2];
-    K.cy = p[3];
-    // COLMAP's OPENCV and FULL_OPENCV parameter order is OpenCV's: k1 k2 p1 p2 [k3 k4 k5 k6].
-    if (model == "OPENCV" || model == "FULL_OPENCV") K.distortion.assign(p.begin() + 4, p.end());
-  }
-  // COLMAP puts the top-left pixel's centre at (0.5, 0.5); OpenCV at (0, 0).
-  K.cx -= 0.5;
-  K.cy -= 0.5;
-  bool distorted = false;
-  for (double d : K.distortion) distorted = distorted || d != 0.0;
-  if (!distorted) K.distortion.clear();
-  return K;
-}
-
 std::map<long, Intrinsics> readCameras(const fs::path& file) {
   std::map<long, Intrinsics> cameras;
   for (const auto& line : contentLines(readTextLines(file), true)) {
@@ -60,20 +27,18 @@ std::map<long, Intrinsics> readCameras(const fs::path& file) {
       throwInputError(file.string(), line.number, "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]");
     const long id = parseInteger(tokens[0], file, line.number, "CAMERA_ID");
     const std::string& model = tokens[1];
-    const auto spec = std::find_if(std::begin(kModels), std::end(kModels),
-                                   [&](const ModelSpec& m) { return model == m.name; });
-    if (spec == std::end(kModels))
+    const auto parameter_count = colmapModelParameterCount(model);
+    if (!parameter_count)
       throwInputError(file.string(), line.number,
-                      "unsupported camera model '" + model +
-                          "' (supported: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV)");
-    if (tokens.size() != 4 + spec->parameters)
+                      "unsupported camera model '" + model + "' (supported: " + kSupportedColmapModels + ")");
+    if (tokens.size() != 4 + *parameter_count)
       throwInputError(file.string(), line.number,
-                      model + " takes " + std::to_string(spec->parameters) + " parameters, found " +
+                      model + " takes " + std::to_string(*parameter_count) + " parameters, found " +
                           std::to_string(tokens.size() - 4));
     std::vector<double> parameters;
     for (size_t i = 4; i < tokens.size(); ++i)
       parameters.push_back(parseDouble(tokens[i], file, line.number, "parameter " + std::to_string(i - 3)));
-    Intrinsics K = toIntrinsics(model, parameters);
+    Intrinsics K = colmapIntrinsics(model, parameters);
     K.width = static_cast<int>(parseInteger(tokens[2], file, line.number, "WIDTH"));
     K.height = static_cast<int>(parseInteger(tokens[3], file, line.number, "HEIGHT"));
     if (!K.isValid()) throwInputError(file.string(), line.number, "invalid camera (size and focal length must be positive)");

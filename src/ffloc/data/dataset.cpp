@@ -31,6 +31,11 @@ const std::vector<DatasetFormat>& formats() {
        readColmap},
       {"strecha", "gt_dense_cameras/*.camera", looksLikeStrecha, readStrecha},
       {"cambridge", "dataset_train.txt or dataset_test.txt", looksLikeCambridge, readCambridge},
+      {"kapture", "sensors/sensors.txt in the folder or in mapping/, query/", looksLikeKapture, readKapture},
+      {"mapfree", "intrinsics.txt and seq0/", looksLikeMapFree, readMapFree},
+      {"ace", "train/ or test/ with rgb/ and poses/", looksLikeAceLayout, readAceLayout},
+      {"rio10", "seqXX_YY/camera.yaml", looksLikeRio10, readRio10},
+      {"indoor6", "images/*.intrinsics.txt", looksLikeIndoor6, readIndoor6},
   };
   return kFormats;
 }

@@ -10,7 +10,7 @@
 namespace ffloc {
 
 // The formats loadDataset reads, in detection order: {"manifest", "7scenes", "nerf", "colmap",
-// "strecha", "cambridge"}. docs/datasets.md describes each.
+// "strecha", "cambridge", "kapture", "mapfree", "ace", "rio10", "indoor6"}. docs/datasets.md describes each.
 std::vector<std::string> datasetFormats();
 
 // The first format in datasetFormats() whose files are in `dir`. Throws InputError listing what

@@ -1,6 +1,7 @@
 #include "ffloc/data/depth.h"
 
 #include <cmath>
+#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -31,6 +32,22 @@ cv::Mat1f toColourGrid(const cv::Mat1f& depth, const Intrinsics& depth_camera, c
   return registered;
 }
 
+// kapture's .depth: raw little-endian float32, row-major, the frame's width x height.
+cv::Mat readRawFloatDepth(const std::filesystem::path& path, const Intrinsics& camera) {
+  const auto bytes = std::filesystem::file_size(path);
+  const auto expected = static_cast<std::uintmax_t>(camera.width) * camera.height * sizeof(float);
+  if (bytes != expected)
+    throwInputError(path.string(), 0,
+                    "raw depth file has " + std::to_string(bytes) + " bytes but the frame's image is " +
+                        std::to_string(camera.width) + "x" + std::to_string(camera.height) + " (expected " +
+                        std::to_string(expected) + ")");
+  cv::Mat1f depth(camera.height, camera.width);
+  std::ifstream in(path, std::ios::binary);
+  in.read(reinterpret_cast<char*>(depth.data), static_cast<std::streamsize>(expected));
+  if (!in) throwInputError(path.string(), 0, "cannot read depth file");
+  return depth;
+}
+
 }  // namespace
 
 cv::Mat1f readDepthMetres(const Frame& frame) {
@@ -38,13 +55,14 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
   const DepthSource& source = *frame.depth;
   const std::string file = source.path.string();
   if (!std::filesystem::exists(source.path)) throwInputError(file, 0, "depth file not found");
-  const cv::Mat stored = cv::imread(file, cv::IMREAD_ANYDEPTH);
+  const Intrinsics& camera = source.camera ? *source.camera : frame.intrinsics;
+  const cv::Mat stored = source.path.extension() == ".depth" ? readRawFloatDepth(source.path, camera)
+                                                             : cv::imread(file, cv::IMREAD_ANYDEPTH);
   if (stored.empty()) throwInputError(file, 0, "cannot decode depth image");
   if (stored.channels() != 1)
     throwInputError(file, 0, "depth image has " + std::to_string(stored.channels()) + " channels, expected 1");
   if (stored.depth() == CV_8U || stored.depth() == CV_8S)
     throwInputError(file, 0, "depth image is 8-bit; expected a 16-bit PNG or a 32-bit float TIFF");
-  const Intrinsics& camera = source.camera ? *source.camera : frame.intrinsics;
   if (stored.cols != camera.width || stored.rows != camera.height)
     throwInputError(file, 0,
                     "depth image is " + std::to_string(stored.cols) + "x" + std::to_string(stored.rows) + " but " +

@@ -8,6 +8,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/text_file_writer.h"
+#include "ffloc/data/format_io.h"
 #include "ffloc/io/json_fields.h"
 #include "ffloc/data/pose_check.h"
 
@@ -44,11 +45,6 @@ Split parseSplit(const JsonFields& frame) {
 std::string relativeTo(const std::filesystem::path& path, const std::filesystem::path& folder) {
   const auto absolute = std::filesystem::absolute(path).lexically_normal();
   return absolute.lexically_relative(folder).generic_string();
-}
-
-bool sameIntrinsics(const Intrinsics& a, const Intrinsics& b) {
-  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
-         a.cy == b.cy && a.distortion == b.distortion;
 }
 
 json matrixJson(const Eigen::Matrix4d& T) {

@@ -32,6 +32,29 @@ Scene readStrecha(const std::filesystem::path& dir);
 bool looksLikeCambridge(const std::filesystem::path& dir);
 Scene readCambridge(const std::filesystem::path& dir);
 
+// Map-free relocalization (and Wayspots in it): seq0/ (mapping), seq1/ (query), intrinsics.txt,
+// poses.txt (world-to-camera quaternions), optional depth <frame>.<source>.png beside the frames.
+bool looksLikeMapFree(const std::filesystem::path& dir);
+Scene readMapFree(const std::filesystem::path& dir);
+
+// The ACE / GLACE / DSAC* layout: train/ (mapping) and test/ (query) with rgb/, poses/,
+// calibration/ and optional depth/, files paired by the name before the first '.'.
+bool looksLikeAceLayout(const std::filesystem::path& dir);
+Scene readAceLayout(const std::filesystem::path& dir);
+
+// RIO10: seqXX_YY/ sequences with camera.yaml and frame-NNNNNN.{color.jpg,pose.txt,
+// rendered.depth.png}; _01 is mapping, _02 (validation) query, sequences without poses skipped.
+bool looksLikeRio10(const std::filesystem::path& dir);
+Scene readRio10(const std::filesystem::path& dir);
+
+// Indoor6: images/image-NNNNNN.{color.jpg,pose.txt,intrinsics.txt} and <scene>_{train,val,test}.txt.
+bool looksLikeIndoor6(const std::filesystem::path& dir);
+Scene readIndoor6(const std::filesystem::path& dir);
+
+// kapture 1.1: sensors/ in the folder, or in mapping/ and query/.
+bool looksLikeKapture(const std::filesystem::path& dir);
+Scene readKapture(const std::filesystem::path& dir);
+
 // Frame::name for an image: its path relative to the scene root, with forward slashes.
 std::string frameName(const std::filesystem::path& image_path, const std::filesystem::path& root);
 

@@ -1,0 +1,291 @@
+// Hand-written samples of the benchmark formats, file by file as their descriptions give them,
+// each with the conventions that trip people up (world-to-camera vs camera-to-world, quaternion
+// order, pixel-centre convention, per-frame intrinsics, rigs). Every test checks geometry: the
+// camera centre, and that a known 3D point lands on a known pixel.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/data/depth.h"
+#include "ffloc/data/scene_test_util.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::expectInputError;
+using testing::writeTextFile;
+
+// The camera of every sample: centre C = (1, 2, 3), rotated 90 degrees about the world y axis so
+// it looks along world +x (camera-to-world R = Ry(90)). World-to-camera: R^T, t = -R^T C =
+// (3, -2, -1); as a scalar-first quaternion (cos 45, 0, -sin 45, 0). Read scalar-last, or as
+// camera-to-world, the same numbers give a camera elsewhere, looking elsewhere.
+const Eigen::Vector3d kCentre(1, 2, 3);
+constexpr const char* kWorldToCameraQuaternion = "0.7071067811865476 0 -0.7071067811865476 0";
+constexpr const char* kWorldToCameraTranslation = "3 -2 -1";
+constexpr const char* kCameraToWorldMatrix = "0 0 1 1\n0 1 0 2\n-1 0 0 3\n0 0 0 1\n";
+constexpr const char* kWorldToCameraMatrix3x4 = "0 0 -1 3\n0 1 0 -2\n1 0 0 -1\n";
+
+// 2 m ahead of the camera and 0.4 m along world +z, which is the camera's -x: with focal f it
+// lands 0.2 f pixels left of the principal point.
+const Eigen::Vector3d kWorldPoint = kCentre + Eigen::Vector3d(2, 0, 0.4);
+
+void writeImage(const fs::path& path, int width, int height) {
+  fs::create_directories(path.parent_path());
+  ASSERT_TRUE(cv::imwrite(path.string(), cv::Mat(height, width, CV_8UC3, cv::Scalar(90, 120, 150))));
+}
+
+void writeDepthPng(const fs::path& path, int width, int height, uint16_t millimetres) {
+  fs::create_directories(path.parent_path());
+  cv::Mat1w depth(height, width, millimetres);
+  depth(0, 0) = 65535;  // 7-Scenes' and RIO10's "no depth"
+  ASSERT_TRUE(cv::imwrite(path.string(), depth));
+}
+
+const Frame& frameNamed(const Scene& scene, const std::string& name) {
+  for (const Frame& frame : scene.frames)
+    if (frame.name == name) return frame;
+  ADD_FAILURE() << "no frame " << name;
+  return scene.frames.front();
+}
+
+void expectRotatedCamera(const Frame& frame) {
+  EXPECT_LT((frame.camera_to_world.centre() - kCentre).norm(), 1e-9) << frame.name;
+  EXPECT_LT((frame.camera_to_world.R.col(2) - Eigen::Vector3d::UnitX()).norm(), 1e-9) << frame.name;
+}
+
+Eigen::Vector2d pixelOf(const Frame& frame, const Eigen::Vector3d& world) {
+  return frame.intrinsics.project(frame.camera_to_world.inverse() * world);
+}
+
+fs::path mapFreeSample() {
+  const fs::path dir = testing::makeTempDir("ffloc-mapfree") / "s00460";
+  writeImage(dir / "seq0/frame_00000.jpg", 64, 48);
+  writeImage(dir / "seq1/frame_00000.jpg", 64, 48);
+  writeDepthPng(dir / "seq1/frame_00000.zed.png", 64, 48, 2500);
+  writeTextFile(dir / "intrinsics.txt",
+                "seq0/frame_00000.jpg 100 100 31.5 23.5 64 48\n"
+                "seq1/frame_00000.jpg 120 110 30 22 64 48\n");
+  // The reference image is the world origin, as in the benchmark.
+  writeTextFile(dir / "poses.txt", "seq0/frame_00000.jpg 1 0 0 0 0 0 0\nseq1/frame_00000.jpg " +
+                                       std::string(kWorldToCameraQuaternion) + " " + kWorldToCameraTranslation + "\n");
+  return dir;
+}
+
+TEST(MapFree, WorldToCameraQuaternionsAndPerFrameIntrinsics) {
+  const fs::path dir = mapFreeSample();
+  ASSERT_EQ(detectDatasetFormat(dir), "mapfree");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 2u);
+  const Frame& reference = frameNamed(scene, "seq0/frame_00000.jpg");
+  const Frame& query = frameNamed(scene, "seq1/frame_00000.jpg");
+  EXPECT_EQ(reference.split, Split::kMapping);
+  EXPECT_EQ(query.split, Split::kQuery);
+  EXPECT_TRUE(reference.camera_to_world.matrix().isIdentity(0));
+  expectRotatedCamera(query);
+  EXPECT_EQ(query.intrinsics.fx, 120);
+  EXPECT_EQ(query.intrinsics.fy, 110);
+  EXPECT_LT((pixelOf(query, kWorldPoint) - Eigen::Vector2d(30 - 0.2 * 120, 22)).norm(), 1e-9);
+  ASSERT_TRUE(query.depth.has_value());
+  EXPECT_FALSE(reference.depth.has_value());
+  const cv::Mat1f depth = readDepthMetres(query);
+  EXPECT_FLOAT_EQ(depth(10, 10), 2.5f);
+  EXPECT_EQ(depth(0, 0), 0.0f);
+}
+
+TEST(MapFree, BadInputNamesFileAndLine) {
+  const fs::path dir = mapFreeSample();
+  writeTextFile(dir / "poses.txt", "seq0/frame_00000.jpg 1 0 0 0 0 0 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"intrinsics.txt:2:", "no pose for 'seq1/frame_00000.jpg'"});
+  writeTextFile(dir / "poses.txt", "seq0/frame_00000.jpg 1 0 0 0 0 0 0\nseq1/frame_00000.jpg 2 0 0 0 3 -2 -1\n");
+  expectInputError([&] { loadDataset(dir); }, {"poses.txt:2:", "quaternion (qw qx qy qz) has norm 2"});
+  writeTextFile(dir / "poses.txt", "seq0/frame_00000.jpg 1 0 0 x 0 0 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"poses.txt:1:", "qz"});
+  writeTextFile(dir / "poses.txt", "seq0/frame_00000.jpg 1 0 0 0 0 0 0\nseq1/frame_00000.jpg 1 0 0 0 0 0 0\n");
+  writeTextFile(dir / "intrinsics.txt",
+                "seq0/frame_00000.jpg 100 100 31.5 23.5 64 48\nseq1/frame_00000.jpg 100 100 319.5 239.5 640 480\n");
+  expectInputError([&] { loadDataset(dir); }, {"intrinsics.txt:2:", "says the image is 640x480", "is 64x48"});
+}
+
+TEST(AceLayout, FocalOnlyAndMatrixCalibrationWithCameraToWorldPoses) {
+  const fs::path dir = testing::makeTempDir("ffloc-ace") / "Cambridge_ShopFacade";
+  // ACE's 7-Scenes naming in train/, DSAC*'s Cambridge naming (x.png, x.txt) in test/.
+  writeImage(dir / "train/rgb/seq-01-frame-000000.color.png", 64, 48);
+  writeTextFile(dir / "train/poses/seq-01-frame-000000.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+  writeTextFile(dir / "train/calibration/seq-01-frame-000000.calibration.txt", "100\n");
+  writeDepthPng(dir / "train/depth/seq-01-frame-000000.depth.png", 64, 48, 1200);
+  writeImage(dir / "test/rgb/seq1_frame00001.png", 64, 48);
+  writeTextFile(dir / "test/poses/seq1_frame00001.txt", kCameraToWorldMatrix);
+  writeTextFile(dir / "test/calibration/seq1_frame00001.txt", "120 0 30\n0 110 22\n0 0 1\n");
+  ASSERT_EQ(detectDatasetFormat(dir), "ace");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 2u);
+  const Frame& train = frameNamed(scene, "train/rgb/seq-01-frame-000000.color.png");
+  const Frame& test = frameNamed(scene, "test/rgb/seq1_frame00001.png");
+  EXPECT_EQ(train.split, Split::kMapping);
+  EXPECT_EQ(test.split, Split::kQuery);
+  // A focal length alone puts the principal point at the image centre.
+  EXPECT_EQ(train.intrinsics.cx, 31.5);
+  EXPECT_EQ(train.intrinsics.cy, 23.5);
+  EXPECT_LT((pixelOf(train, Eigen::Vector3d(0, 0, 2)) - Eigen::Vector2d(31.5, 23.5)).norm(), 1e-9);
+  ASSERT_TRUE(train.depth.has_value());
+  EXPECT_FLOAT_EQ(readDepthMetres(train)(5, 5), 1.2f);
+  expectRotatedCamera(test);
+  EXPECT_LT((pixelOf(test, kWorldPoint) - Eigen::Vector2d(30 - 0.2 * 120, 22)).norm(), 1e-9);
+
+  fs::remove(dir / "test/poses/seq1_frame00001.txt");
+  expectInputError([&] { loadDataset(dir); }, {"seq1_frame00001.png", "no poses file seq1_frame00001.*"});
+}
+
+fs::path rio10Sample() {
+  const fs::path dir = testing::makeTempDir("ffloc-rio10") / "seq02";
+  const std::string camera = "camera_intrinsics:\n  height: 64\n  width: 48\n  model: [100, 110, 23.5, 31.5]\n";
+  for (const std::string sequence : {"seq02_01", "seq02_02", "seq02_03"}) {
+    writeTextFile(dir / sequence / "camera.yaml", camera);
+    writeImage(dir / sequence / "frame-000000.color.jpg", 48, 64);
+    writeDepthPng(dir / sequence / "frame-000000.rendered.depth.png", 48, 64, 3000);
+  }
+  writeTextFile(dir / "seq02_01/frame-000000.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+  writeTextFile(dir / "seq02_02/frame-000000.pose.txt", kCameraToWorldMatrix);
+  return dir;  // seq02_03 is a hidden test sequence: no poses
+}
+
+TEST(Rio10, TrainingValidationAndHiddenSequences) {
+  const fs::path dir = rio10Sample();
+  ASSERT_EQ(detectDatasetFormat(dir), "rio10");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 2u);
+  const Frame& train = frameNamed(scene, "seq02_01/frame-000000.color.jpg");
+  const Frame& validation = frameNamed(scene, "seq02_02/frame-000000.color.jpg");
+  EXPECT_EQ(train.split, Split::kMapping);
+  EXPECT_EQ(validation.split, Split::kQuery);
+  EXPECT_EQ(validation.intrinsics.width, 48);  // portrait frames
+  EXPECT_EQ(validation.intrinsics.height, 64);
+  expectRotatedCamera(validation);
+  EXPECT_LT((pixelOf(validation, kWorldPoint) - Eigen::Vector2d(23.5 - 0.2 * 100, 31.5)).norm(), 1e-9);
+  const cv::Mat1f depth = readDepthMetres(validation);
+  EXPECT_FLOAT_EQ(depth(3, 3), 3.0f);
+  EXPECT_EQ(depth(0, 0), 0.0f);
+
+  writeImage(dir / "seq02_02/frame-000001.color.jpg", 48, 64);
+  expectInputError([&] { loadDataset(dir); }, {"frame-000001.color.jpg", "no pose frame-000001.pose.txt beside it"});
+  fs::remove(dir / "seq02_02/frame-000001.color.jpg");
+  writeImage(dir / "seq02_02/frame-000000.color.jpg", 64, 48);
+  expectInputError([&] { loadDataset(dir); }, {"camera.yaml:4:", "says the image is 48x64"});
+}
+
+fs::path indoor6Sample() {
+  const fs::path dir = testing::makeTempDir("ffloc-indoor6") / "scene3";
+  writeImage(dir / "images/image-000000.color.jpg", 64, 48);
+  writeImage(dir / "images/image-000001.color.jpg", 64, 48);
+  writeImage(dir / "images/image-000002.color.jpg", 64, 48);
+  // COLMAP-derived cameras: the principal point (32, 24) is the image centre in COLMAP pixels.
+  for (const std::string stem : {"image-000000", "image-000001", "image-000002"})
+    writeTextFile(dir / "images" / (stem + ".intrinsics.txt"), "64 48 100 32 24\n");
+  writeTextFile(dir / "images/image-000000.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n");
+  writeTextFile(dir / "images/image-000001.pose.txt", kWorldToCameraMatrix3x4);
+  writeTextFile(dir / "images/image-000002.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n");
+  writeTextFile(dir / "scene3_train.txt", "image-000000.color.jpg\n");
+  writeTextFile(dir / "scene3_test.txt", "image-000001.color.jpg\n");
+  writeTextFile(dir / "scene3_val.txt", "image-000002.color.jpg\n");
+  return dir;
+}
+
+TEST(Indoor6, WorldToCameraPosesAndColmapPixelCentres) {
+  const fs::path dir = indoor6Sample();
+  ASSERT_EQ(detectDatasetFormat(dir), "indoor6");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 3u);
+  const Frame& test = frameNamed(scene, "images/image-000001.color.jpg");
+  EXPECT_EQ(frameNamed(scene, "images/image-000000.color.jpg").split, Split::kMapping);
+  EXPECT_EQ(test.split, Split::kQuery);
+  EXPECT_EQ(frameNamed(scene, "images/image-000002.color.jpg").split, Split::kUnassigned);
+  EXPECT_EQ(test.intrinsics.cx, 31.5);
+  EXPECT_EQ(test.intrinsics.cy, 23.5);
+  expectRotatedCamera(test);
+  EXPECT_LT((pixelOf(test, kWorldPoint) - Eigen::Vector2d(31.5 - 0.2 * 100, 23.5)).norm(), 1e-9);
+
+  writeTextFile(dir / "scene3_test.txt", "image-000009.color.jpg\n");
+  expectInputError([&] { loadDataset(dir); }, {"scene3_test.txt:1:", "'image-000009.color.jpg' is not an image"});
+  writeTextFile(dir / "scene3_test.txt", "image-000001.color.jpg\n");
+  writeTextFile(dir / "images/image-000001.intrinsics.txt", "640 480 100 320 240\n");
+  expectInputError([&] { loadDataset(dir); }, {"image-000001.intrinsics.txt:1:", "says the image is 640x480"});
+  fs::remove(dir / "images/image-000001.pose.txt");
+  expectInputError([&] { loadDataset(dir); }, {"image-000001.color.jpg", "no image-000001.pose.txt beside it"});
+}
+
+constexpr const char* kKaptureHeader = "# kapture format: 1.1\n";
+
+fs::path kaptureSample() {
+  const fs::path dir = testing::makeTempDir("ffloc-kapture") / "stairs";
+  // mapping/: one RGB-D camera whose depth sensor shares its timestamps, identity pose.
+  const fs::path mapping = dir / "mapping/sensors";
+  writeTextFile(mapping / "sensors.txt", std::string(kKaptureHeader) +
+                                             "# sensor_device_id, name, sensor_type, [sensor_params]+\n"
+                                             "kinect_rgb, kinect, camera, PINHOLE, 64, 48, 100, 100, 32, 24\n"
+                                             "kinect_depth, kinect, depth, PINHOLE, 64, 48, 100, 100, 32, 24\n");
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader) + "0, kinect_rgb, seq-01/frame-000000.color.jpg\n");
+  writeTextFile(mapping / "records_depth.txt", std::string(kKaptureHeader) + "0, kinect_depth, seq-01/frame-000000.depth\n");
+  writeTextFile(mapping / "trajectories.txt", std::string(kKaptureHeader) + "0, kinect_rgb, 1, 0, 0, 0, 0, 0, 0\n");
+  writeImage(mapping / "records_data/seq-01/frame-000000.color.jpg", 64, 48);
+  {
+    std::vector<float> depth(64 * 48, 1.75f);
+    depth[0] = 0.0f;
+    std::ofstream(mapping / "records_data/seq-01/frame-000000.depth", std::ios::binary)
+        .write(reinterpret_cast<const char*>(depth.data()), static_cast<std::streamsize>(depth.size() * sizeof(float)));
+  }
+  // query/: the trajectory gives the rig's world-to-device pose (rig centre (1, 2, 2.9)); rigs.txt
+  // the rig-to-camera transform, whose translation +0.1 puts the camera at the rig's -x.
+  const fs::path query = dir / "query/sensors";
+  writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) +
+                                           "phone, , camera, SIMPLE_RADIAL, 64, 48, 120, 30.5, 22.5, 0.01\n");
+  writeTextFile(query / "rigs.txt", std::string(kKaptureHeader) + "rig, phone, 1, 0, 0, 0, 0.1, 0, 0\n");
+  writeTextFile(query / "records_camera.txt", std::string(kKaptureHeader) + "7, phone, query/0007.jpg\n");
+  writeTextFile(query / "trajectories.txt",
+                std::string(kKaptureHeader) + "7, rig, 0.7071067811865476, 0, -0.7071067811865476, 0, 2.9, -2, -1\n");
+  writeImage(query / "records_data/query/0007.jpg", 64, 48);
+  return dir;
+}
+
+TEST(Kapture, MappingAndQueryFoldersRigsDepthAndCornerPixelCentres) {
+  const fs::path dir = kaptureSample();
+  ASSERT_EQ(detectDatasetFormat(dir), "kapture");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.frames.size(), 2u);
+  const Frame& mapping = frameNamed(scene, "mapping/sensors/records_data/seq-01/frame-000000.color.jpg");
+  const Frame& query = frameNamed(scene, "query/sensors/records_data/query/0007.jpg");
+  EXPECT_EQ(mapping.split, Split::kMapping);
+  EXPECT_EQ(query.split, Split::kQuery);
+  // kapture's camera parameters are COLMAP's: (32, 24) is the centre of a 64x48 image.
+  EXPECT_EQ(mapping.intrinsics.cx, 31.5);
+  EXPECT_EQ(mapping.intrinsics.cy, 23.5);
+  ASSERT_TRUE(mapping.depth.has_value());
+  const cv::Mat1f depth = readDepthMetres(mapping);
+  EXPECT_FLOAT_EQ(depth(20, 30), 1.75f);
+  EXPECT_EQ(depth(0, 0), 0.0f);
+  EXPECT_FALSE(query.depth.has_value());
+  expectRotatedCamera(query);
+  EXPECT_EQ(query.intrinsics.distortion, (std::vector<double>{0.01, 0, 0, 0}));
+  EXPECT_LT((pixelOf(query, kWorldPoint) - Eigen::Vector2d(30 - 0.2 * 120, 22)).norm(), 1e-9);
+}
+
+TEST(Kapture, BadInputNamesFileAndLine) {
+  const fs::path dir = kaptureSample();
+  const fs::path query = dir / "query/sensors";
+  writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) + "phone, , camera, FOV, 64, 48, 120, 120, 32, 24, 0.9\n");
+  expectInputError([&] { loadDataset(dir); }, {"sensors.txt:2:", "unsupported camera model 'FOV'"});
+  writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) + "phone, , camera, PINHOLE, 640, 480, 120, 120, 32, 24\n");
+  expectInputError([&] { loadDataset(dir); }, {"sensors.txt:2:", "says the image is 640x480", "is 64x48"});
+  writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) + "phone, , camera, PINHOLE, 64, 48, 120, 120, 32, 24\n");
+  writeTextFile(query / "trajectories.txt", std::string(kKaptureHeader) + "7, rig, 0.5, 0, 0, 0, 0, 0, 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"trajectories.txt:2:", "has norm 0.5"});
+  writeTextFile(query / "trajectories.txt", std::string(kKaptureHeader) + "8, rig, 1, 0, 0, 0, 0, 0, 0\n");
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_camera.txt:2:", "no pose for image 'query/0007.jpg' (timestamp 7, device phone)"});
+}
+
+}  // namespace
+}  // namespace ffloc

@@ -1,0 +1,74 @@
+#include "ffloc/data/dataset_writers.h"
+
+#include <functional>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/format_io.h"
+#include "ffloc/data/manifest.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct DatasetWriter {
+  const char* format;
+  std::function<std::vector<std::string>(const Scene&, const fs::path&)> write;
+};
+
+const std::vector<DatasetWriter>& writers() {
+  static const std::vector<DatasetWriter> kWriters = {
+      {"manifest", writeManifestDataset}, {"mapfree", writeMapFree}, {"ace", writeAceLayout},
+      {"rio10", writeRio10},              {"indoor6", writeIndoor6}, {"kapture", writeKapture},
+  };
+  return kWriters;
+}
+
+}  // namespace
+
+std::vector<std::string> datasetWriterFormats() {
+  std::vector<std::string> names;
+  for (const auto& writer : writers()) names.push_back(writer.format);
+  return names;
+}
+
+std::vector<std::string> writeDataset(const Scene& scene, const std::string& format, const fs::path& out_dir) {
+  for (const auto& writer : writers()) {
+    if (format != writer.format) continue;
+    fs::path out = fs::absolute(out_dir).lexically_normal();
+    if (out.filename().empty()) out = out.parent_path();  // "out/" ends in an empty part
+    requireEmptyOutputFolder(out);
+    fs::create_directories(out);
+    return writer.write(scene, out);
+  }
+  std::string known;
+  for (const auto& name : datasetWriterFormats()) known += (known.empty() ? "" : ", ") + name;
+  throw InputError("--format: cannot write '" + format + "' (known: " + known + ")");
+}
+
+std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path& out) {
+  // Images keep their names under images/, so the copy reads back with the same frame names
+  // relative to images/; depth maps keep their encoding.
+  Scene copy = scene;
+  copy.root = out;
+  const std::vector<std::string> paths = portableFrameNames(scene);
+  std::vector<std::string> names;
+  for (size_t i = 0; i < copy.frames.size(); ++i) {
+    Frame& frame = copy.frames[i];
+    const std::string image = "images/" + paths[i];
+    copyFrameImage(frame, out / image);
+    if (frame.depth) {
+      const fs::path depth = out / "depth" / (paths[i] + frame.depth->path.extension().string());
+      fs::create_directories(depth.parent_path());
+      fs::copy_file(frame.depth->path, depth, fs::copy_options::overwrite_existing);
+      frame.depth->path = depth;
+    }
+    frame.image_path = out / image;
+    frame.name = image;
+    names.push_back(image);
+  }
+  writeManifest(copy, out / kManifestFileName);
+  return names;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,267 @@
+// kapture (NAVER LABS, format 1.1): sensors/sensors.txt (camera models named as COLMAP names
+// them), records_camera.txt, trajectories.txt (world-to-device), optional rigs.txt and
+// records_depth.txt, files under sensors/records_data/. A dataset is one such folder, or
+// mapping/ and query/ folders each holding one.
+#include <map>
+#include <set>
+
+#include "ffloc/core/error.h"
+#include "ffloc/data/colmap_camera.h"
+#include "ffloc/data/dataset_writers.h"
+#include "ffloc/data/format_io.h"
+#include "ffloc/data/readers.h"
+#include "ffloc/data/text_file.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kHeader = "# kapture format: 1.1\n";
+const std::pair<const char*, Split> kKaptureFolders[] = {
+    {"", Split::kUnassigned}, {"mapping", Split::kMapping}, {"query", Split::kQuery}};
+
+// kapture text: comma-separated values, spaces around commas ignored, '#' lines are comments.
+struct CsvLine {
+  int number = 0;
+  std::vector<std::string> fields;
+};
+
+std::vector<CsvLine> readCsv(const fs::path& file) {
+  std::vector<CsvLine> rows;
+  for (const auto& line : contentLines(readTextLines(file), true)) {
+    CsvLine row{line.number, {}};
+    size_t start = 0;
+    while (true) {
+      const size_t comma = line.text.find(',', start);
+      std::string field = line.text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      const size_t first = field.find_first_not_of(" \t\r");
+      field = first == std::string::npos ? "" : field.substr(first, field.find_last_not_of(" \t\r") + 1 - first);
+      row.fields.push_back(field);
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+struct Sensor {
+  std::string type;  // "camera", "depth", ...
+  Intrinsics intrinsics;
+  int line = 0;
+};
+
+std::map<std::string, Sensor> readSensors(const fs::path& file) {
+  std::map<std::string, Sensor> sensors;
+  for (const CsvLine& row : readCsv(file)) {
+    if (row.fields.size() < 3) throwInputError(file.string(), row.number, "expected 'sensor_device_id, name, sensor_type, ...'");
+    Sensor sensor{row.fields[2], {}, row.number};
+    if (sensor.type == "camera" || sensor.type == "depth") {
+      if (row.fields.size() < 6)
+        throwInputError(file.string(), row.number, "expected '..., " + sensor.type + ", model, width, height, parameters'");
+      const std::string& model = row.fields[3];
+      const auto count = colmapModelParameterCount(model);
+      if (!count)
+        throwInputError(file.string(), row.number,
+                        "unsupported camera model '" + model + "' (supported: " + kSupportedColmapModels + ")");
+      if (row.fields.size() != 6 + *count)
+        throwInputError(file.string(), row.number,
+                        model + " takes width, height and " + std::to_string(*count) + " parameters, found " +
+                            std::to_string(row.fields.size() - 4) + " values");
+      std::vector<double> parameters;
+      for (size_t i = 6; i < row.fields.size(); ++i)
+        parameters.push_back(parseDouble(row.fields[i], file, row.number, "parameter " + std::to_string(i - 5)));
+      sensor.intrinsics = colmapIntrinsics(model, parameters);
+      sensor.intrinsics.width = static_cast<int>(parseInteger(row.fields[4], file, row.number, "width"));
+      sensor.intrinsics.height = static_cast<int>(parseInteger(row.fields[5], file, row.number, "height"));
+      if (!sensor.intrinsics.isValid())
+        throwInputError(file.string(), row.number, "invalid camera (size and focal length must be positive)");
+    }
+    if (!sensors.emplace(row.fields[0], sensor).second)
+      throwInputError(file.string(), row.number, "duplicate sensor_device_id '" + row.fields[0] + "'");
+  }
+  return sensors;
+}
+
+// "qw, qx, qy, qz, tx, ty, tz" starting at field `first`, as a world-to-device (or rig-to-sensor)
+// transform; returned as the inverse, device-to-world (sensor-to-rig).
+Pose readDeviceToWorld(const CsvLine& row, size_t first, const fs::path& file) {
+  const char* names[] = {"qw", "qx", "qy", "qz", "tx", "ty", "tz"};
+  double v[7];
+  for (int k = 0; k < 7; ++k) v[k] = parseDouble(row.fields[first + k], file, row.number, names[k]);
+  return cameraToWorldFromQuaternion(v, Eigen::Vector3d(v[4], v[5], v[6]), file, row.number);
+}
+
+using TimedDevice = std::pair<std::string, std::string>;  // (timestamp, device_id)
+
+struct KaptureFolder {
+  fs::path root;  // the folder holding sensors/
+  std::map<std::string, Sensor> sensors;
+  std::map<std::string, std::pair<std::string, Pose>> rig_of_sensor;  // sensor -> (rig, sensor-to-rig)
+  std::map<TimedDevice, Pose> device_to_world;
+};
+
+KaptureFolder readFolderGeometry(const fs::path& root) {
+  KaptureFolder folder;
+  folder.root = root;
+  const fs::path sensors = root / "sensors";
+  folder.sensors = readSensors(sensors / "sensors.txt");
+  if (fs::exists(sensors / "rigs.txt"))
+    for (const CsvLine& row : readCsv(sensors / "rigs.txt")) {
+      if (row.fields.size() != 9)
+        throwInputError((sensors / "rigs.txt").string(), row.number,
+                        "expected 'rig_device_id, sensor_device_id, qw, qx, qy, qz, tx, ty, tz'");
+      folder.rig_of_sensor[row.fields[1]] = {row.fields[0], readDeviceToWorld(row, 2, sensors / "rigs.txt")};
+    }
+  const fs::path trajectories = sensors / "trajectories.txt";
+  if (fs::exists(trajectories))
+    for (const CsvLine& row : readCsv(trajectories)) {
+      if (row.fields.size() != 9)
+        throwInputError(trajectories.string(), row.number, "expected 'timestamp, device_id, qw, qx, qy, qz, tx, ty, tz'");
+      folder.device_to_world[{row.fields[0], row.fields[1]}] = readDeviceToWorld(row, 2, trajectories);
+    }
+  return folder;
+}
+
+// The sensor's pose at `timestamp`: its own trajectory entry, or its rig's composed with its
+// place on the rig.
+std::optional<Pose> sensorToWorld(const KaptureFolder& folder, const std::string& timestamp, const std::string& sensor) {
+  if (const auto own = folder.device_to_world.find({timestamp, sensor}); own != folder.device_to_world.end())
+    return own->second;
+  const auto rig = folder.rig_of_sensor.find(sensor);
+  if (rig == folder.rig_of_sensor.end()) return std::nullopt;
+  const auto rig_pose = folder.device_to_world.find({timestamp, rig->second.first});
+  if (rig_pose == folder.device_to_world.end()) return std::nullopt;
+  return rig_pose->second * rig->second.second;
+}
+
+struct DepthRecord {
+  std::string sensor;
+  fs::path path;
+};
+
+void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, Scene& scene) {
+  const KaptureFolder folder = readFolderGeometry(root);
+  const fs::path sensors_dir = root / "sensors";
+  const fs::path data_dir = sensors_dir / "records_data";
+  std::multimap<std::string, DepthRecord> depth_at;  // timestamp -> depth records
+  const fs::path depth_file = sensors_dir / "records_depth.txt";
+  if (fs::exists(depth_file))
+    for (const CsvLine& row : readCsv(depth_file)) {
+      if (row.fields.size() != 3) throwInputError(depth_file.string(), row.number, "expected 'timestamp, device_id, depth_map_path'");
+      const auto sensor = folder.sensors.find(row.fields[1]);
+      if (sensor == folder.sensors.end() || sensor->second.type != "depth")
+        throwInputError(depth_file.string(), row.number, "'" + row.fields[1] + "' is not a depth sensor in sensors.txt");
+      depth_at.insert({row.fields[0], {row.fields[1], (data_dir / row.fields[2]).lexically_normal()}});
+    }
+
+  const fs::path records = sensors_dir / "records_camera.txt";
+  for (const CsvLine& row : readCsv(records)) {
+    if (row.fields.size() != 3) throwInputError(records.string(), row.number, "expected 'timestamp, device_id, image_path'");
+    const std::string& timestamp = row.fields[0];
+    const std::string& device = row.fields[1];
+    const auto sensor = folder.sensors.find(device);
+    if (sensor == folder.sensors.end() || sensor->second.type != "camera")
+      throwInputError(records.string(), row.number, "'" + device + "' is not a camera in sensors.txt");
+    Frame frame;
+    frame.image_path = (data_dir / row.fields[2]).lexically_normal();
+    frame.name = frameName(frame.image_path, dataset_dir);
+    frame.intrinsics = sensor->second.intrinsics;
+    requireImageSize(frame.image_path, frame.intrinsics.width, frame.intrinsics.height,
+                     (sensors_dir / "sensors.txt").string(), sensor->second.line);
+    const auto pose = sensorToWorld(folder, timestamp, device);
+    if (!pose)
+      throwInputError(records.string(), row.number,
+                      "no pose for image '" + row.fields[2] + "' (timestamp " + timestamp + ", device " + device +
+                          ") in trajectories.txt");
+    frame.camera_to_world = *pose;
+    // The depth map of the same instant from a depth sensor of the same image size.
+    for (auto [it, end] = depth_at.equal_range(timestamp); it != end; ++it) {
+      const Intrinsics& depth_camera = folder.sensors.at(it->second.sensor).intrinsics;
+      if (depth_camera.width != frame.intrinsics.width || depth_camera.height != frame.intrinsics.height) continue;
+      DepthSource depth;
+      depth.path = it->second.path;
+      depth.scale = 1.0;  // float32 metres
+      depth.invalid_values.clear();
+      frame.depth = depth;
+      break;
+    }
+    frame.split = split;
+    scene.frames.push_back(std::move(frame));
+  }
+}
+
+}  // namespace
+
+bool looksLikeKapture(const fs::path& dir) {
+  for (const auto& [folder, split] : kKaptureFolders)
+    if (fs::is_regular_file(dir / folder / "sensors" / "sensors.txt")) return true;
+  return false;
+}
+
+Scene readKapture(const fs::path& dir) {
+  Scene scene = emptyScene(dir, "kapture", true);
+  for (const auto& [folder, split] : kKaptureFolders)
+    if (fs::is_regular_file(dir / folder / "sensors" / "sensors.txt"))
+      readFolder((dir / folder).lexically_normal(), dir, split, scene);
+  return scene;
+}
+
+std::vector<std::string> writeKapture(const Scene& scene, const fs::path& out) {
+  const std::vector<std::string> paths = portableFrameNames(scene);
+  std::vector<std::string> names(scene.frames.size());
+  for (const auto& [folder_name, side_is_query] : {std::pair{"mapping", false}, {"query", true}}) {
+    const fs::path sensors_dir = out / folder_name / "sensors";
+    std::vector<const Intrinsics*> cameras;
+    std::string records, trajectories, depth_records;
+    bool any_depth = false;
+    int timestamp = 0;
+    for (size_t i = 0; i < scene.frames.size(); ++i) {
+      const Frame& frame = scene.frames[i];
+      if (isQuerySide(frame) != side_is_query) continue;
+      const std::string& path = paths[i];
+      if (path.find(',') != std::string::npos)
+        throwInputError(frame.name, 0, "kapture paths cannot contain ','");
+      size_t camera = 0;
+      while (camera < cameras.size() && !sameIntrinsics(*cameras[camera], frame.intrinsics)) ++camera;
+      if (camera == cameras.size()) cameras.push_back(&frame.intrinsics);
+      const std::string ts = std::to_string(timestamp++);
+      const std::string id = std::to_string(camera);
+      const std::string pose = worldToCameraQuaternionText(frame.camera_to_world, ", ");
+      copyFrameImage(frame, sensors_dir / "records_data" / path);
+      records += ts + ", cam" + id + ", " + path + "\n";
+      trajectories += ts + ", cam" + id + ", " + pose + "\n";
+      if (frame.depth) {
+        const std::string depth = fs::path(path).replace_extension(".depth").generic_string();
+        writeDepthRawFloat(frame, sensors_dir / "records_data" / depth);
+        depth_records += ts + ", depth" + id + ", " + depth + "\n";
+        trajectories += ts + ", depth" + id + ", " + pose + "\n";
+        any_depth = true;
+      }
+      names[i] = (fs::path(folder_name) / "sensors" / "records_data" / path).generic_string();
+    }
+    if (cameras.empty()) continue;
+    std::string sensors;
+    for (size_t c = 0; c < cameras.size(); ++c) {
+      const ColmapCamera camera = colmapCamera(*cameras[c]);
+      std::string parameters = camera.model + ", " + std::to_string(cameras[c]->width) + ", " +
+                               std::to_string(cameras[c]->height);
+      for (double p : camera.parameters) parameters += ", " + formatNumber(p);
+      sensors += "cam" + std::to_string(c) + ", , camera, " + parameters + "\n";
+      if (any_depth) sensors += "depth" + std::to_string(c) + ", , depth, " + parameters + "\n";
+    }
+    writeTextCreatingFolders(sensors_dir / "sensors.txt",
+                             std::string(kHeader) + "# sensor_device_id, name, sensor_type, [sensor_params]+\n" + sensors);
+    writeTextCreatingFolders(sensors_dir / "records_camera.txt",
+                             std::string(kHeader) + "# timestamp, device_id, image_path\n" + records);
+    writeTextCreatingFolders(sensors_dir / "trajectories.txt",
+                             std::string(kHeader) + "# timestamp, device_id, qw, qx, qy, qz, tx, ty, tz\n" + trajectories);
+    if (any_depth)
+      writeTextCreatingFolders(sensors_dir / "records_depth.txt",
+                               std::string(kHeader) + "# timestamp, device_id, depth_map_path\n" + depth_records);
+  }
+  return names;
+}
+
+}  // namespace ffloc

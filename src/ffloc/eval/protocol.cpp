@@ -1,0 +1,51 @@
+#include "ffloc/eval/protocol.h"
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+const std::vector<BenchmarkProtocol>& benchmarkProtocols() {
+  // Indoor: top-10 retrieval and N = 1,500 (paper §4.2, Indoor6); outdoor: top-20 and N = 3,000
+  // (§4.1 Wayspots, §4.4 Cambridge). Mapping times are the "Mapping" columns for FastForward.
+  static const std::vector<BenchmarkProtocol> kProtocols = {
+      {"wayspots", "Tables 1 and 2 (tab:wayspots, tab:wayspots_acc) and appendix tab:wayspots_medians", true, 20, 3000,
+       {"10cm_10deg"}, true, 1, "3s"},
+      {"indoor6", "Table 3 left (tab:indoor6_rio10)", false, 10, 1500, {"10cm_10deg", "20cm_20deg"}, true, 1, "8s"},
+      {"rio10", "Table 3 right (tab:indoor6_rio10; the validation sequences)", false, 10, 1500,
+       {"10cm_10deg", "20cm_20deg"}, true, 1, "10s"},
+      {"cambridge", "Table 4 (tab:cambridge_table)", true, 20, 3000, {}, true, 1,
+       "~30s (the retrieval index, §4.4 text; the table leaves FastForward's cell empty)"},
+      {"7scenes", "appendix tab:7scenes_datasets", false, 10, 1500,
+       {"5cm_5deg", "10cm_10deg", "20cm_20deg", "10cm_1deg", "25cm_5deg"}, true, 15, "7s"},
+  };
+  return kProtocols;
+}
+
+const BenchmarkProtocol& benchmarkProtocol(const std::string& name) {
+  std::string known;
+  for (const BenchmarkProtocol& protocol : benchmarkProtocols()) {
+    if (protocol.name == name) return protocol;
+    known += (known.empty() ? "" : ", ") + protocol.name;
+  }
+  throw InputError("--protocol: unknown protocol '" + name + "' (known: " + known + ")");
+}
+
+void thinMappingFrames(Scene& scene, int stride) {
+  if (stride < 1) throw InputError("mapping stride must be at least 1, got " + std::to_string(stride));
+  int seen = 0;
+  for (Frame& frame : scene.frames)
+    if (frame.split == Split::kMapping && seen++ % stride != 0) frame.split = Split::kUnassigned;
+}
+
+std::string describeProtocol(const BenchmarkProtocol& p) {
+  std::string columns = p.medians ? "median errors" : "";
+  for (const std::string& key : p.accuracy_keys) columns += (columns.empty() ? "" : ", ") + key;
+  std::string text = "protocol " + p.name + " (" + (p.outdoor ? "outdoor" : "indoor") + "): top-K " +
+                     std::to_string(p.top_k) + ", N " + std::to_string(p.features);
+  if (p.mapping_stride > 1) text += ", every " + std::to_string(p.mapping_stride) + "th mapping frame";
+  text += "; the paper reports " + columns + " in " + p.paper_tables + "; FastForward's mapping time there: " +
+          p.mapping_time + "\n";
+  return text;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,53 @@
+#include "ffloc/eval/protocol.h"
+
+#include <gtest/gtest.h>
+
+#include "ffloc/core/error.h"
+#include "ffloc/eval/metrics.h"
+
+namespace ffloc {
+namespace {
+
+TEST(Protocol, PaperSettingsPerBenchmark) {
+  for (const BenchmarkProtocol& p : benchmarkProtocols()) {
+    SCOPED_TRACE(p.name);
+    EXPECT_EQ(p.top_k, p.outdoor ? 20u : 10u);
+    EXPECT_EQ(p.features, p.outdoor ? 3000 : 1500);
+    EXPECT_TRUE(p.medians);
+    EXPECT_FALSE(p.mapping_time.empty());
+    // Every reported accuracy is one the evaluator computes.
+    for (const std::string& key : p.accuracy_keys) {
+      bool known = false;
+      for (const AccuracyThreshold& threshold : accuracyThresholds()) known = known || key == threshold.key;
+      EXPECT_TRUE(known) << key;
+    }
+  }
+  EXPECT_EQ(benchmarkProtocol("wayspots").accuracy_keys, std::vector<std::string>{"10cm_10deg"});
+  EXPECT_EQ(benchmarkProtocol("indoor6").accuracy_keys.front(), "10cm_10deg");
+  EXPECT_EQ(benchmarkProtocol("7scenes").accuracy_keys.size(), 5u);
+  EXPECT_TRUE(benchmarkProtocol("cambridge").accuracy_keys.empty());
+  EXPECT_EQ(benchmarkProtocol("7scenes").mapping_stride, 15);
+  EXPECT_EQ(benchmarkProtocol("rio10").mapping_time, "10s");
+  EXPECT_THROW(benchmarkProtocol("aachen"), InputError);
+  const std::string text = describeProtocol(benchmarkProtocol("wayspots"));
+  EXPECT_NE(text.find("top-K 20, N 3000"), std::string::npos);
+  EXPECT_NE(text.find("10cm_10deg"), std::string::npos);
+}
+
+TEST(Protocol, ThinningKeepsEveryNthMappingFrameAndAllQueries) {
+  Scene scene;
+  for (int i = 0; i < 40; ++i) {
+    Frame frame;
+    frame.name = std::to_string(i);
+    frame.split = i < 31 ? Split::kMapping : Split::kQuery;
+    scene.frames.push_back(frame);
+  }
+  thinMappingFrames(scene, 15);
+  EXPECT_EQ(scene.mappingIndices(), (std::vector<size_t>{0, 15, 30}));
+  EXPECT_EQ(scene.queryIndices().size(), 9u);
+  EXPECT_EQ(scene.indices(Split::kUnassigned).size(), 28u);
+  EXPECT_THROW(thinMappingFrames(scene, 0), InputError);
+}
+
+}  // namespace
+}  // namespace ffloc
