@@ -10,7 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
-#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/synthetic/synthetic.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/fastforward_localizer.h"

@@ -3,7 +3,7 @@
 // done once outside the timed loop (it is per scene, not per frame).
 #include <benchmark/benchmark.h>
 
-#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/synthetic/synthetic.h"
 
 namespace {
 

@@ -2,17 +2,21 @@
 # Produces the per-frame CSVs behind the verdict's calibration and its measured precision and
 # recall (docs/verdict.md): tuning scenes (synthetic seed 5000 and the shared real data) and
 # held-out scenes (synthetic seed 9000, never used for tuning). Usage:
-#   scripts/verdict_runs.sh BUILD_DIR SHARED_DIR OUT_DIR [methods]
+#   scripts/verdict_runs.sh BUILD_DIR SHARED_DIR OUT_DIR
+# The rule is tuned on the methods that localise (classical, sift-baseline); FastForward runs on the
+# held-out and real scenes, where its precision is measured.
 set -euo pipefail
 build=${1:-build}
 shared=${2:-../shared}
 out=${3:-build/verdict}
-methods=${4:-classical,sift-baseline,fastforward}
+tuned=classical,sift-baseline
+all=classical,sift-baseline,fastforward
 ffloc="$build/bin/ffloc"
 mkdir -p "$out"
 [ -d "$out/tuning" ] || "$ffloc" synth --out "$out/tuning" --seed 5000 --scenes 9 --kind mixed --quiet
 [ -d "$out/heldout" ] || "$ffloc" synth --out "$out/heldout" --seed 9000 --scenes 10 --kind mixed --quiet
-for set in tuning heldout; do
+for set in tuning; do
+  methods=$([ "$set" = tuning ] && echo "$tuned" || echo "$all")
   for scene in "$out/$set"/scene_*; do
     name=$(basename "$scene")
     [ -f "$out/$set.$name.frames.csv" ] || "$ffloc" eval --dataset "$scene" --methods "$methods" --quiet \
@@ -21,7 +25,15 @@ for set in tuning heldout; do
 done
 for data in 7scenes_redkitchen strecha_fountain_p11 strecha_herzjesu_p8 instant_ngp_fox 7scenes_stairs_kapture_sample; do
   [ -d "$shared/data/$data" ] || continue
-  [ -f "$out/real.$data.frames.csv" ] || "$ffloc" eval --dataset "$shared/data/$data" --methods "$methods" --quiet \
+  [ -f "$out/real.$data.frames.csv" ] || "$ffloc" eval --dataset "$shared/data/$data" --methods "$all" --quiet \
     --json "$out/real.$data.json" > /dev/null
+done
+for set in heldout; do
+  methods=$([ "$set" = tuning ] && echo "$tuned" || echo "$all")
+  for scene in "$out/$set"/scene_*; do
+    name=$(basename "$scene")
+    [ -f "$out/$set.$name.frames.csv" ] || "$ffloc" eval --dataset "$scene" --methods "$methods" --quiet \
+      --json "$out/$set.$name.json" > /dev/null
+  done
 done
 echo "per-frame CSVs in $out"

@@ -17,7 +17,18 @@ std::string withFlagName(const std::string& message) {
       {"pnp.confidence_threshold", "--confidence-threshold"},
       {"pnp.max_correspondences", "--max-correspondences"},
       {"max_image_size", "--max-image-size"},
-      {"max_features", "--max-features"}};
+      {"max_features", "--max-features"},
+      {"model", "--model"},
+      {"dtype", "--dtype"},
+      {"kind", "--kind"},
+      {"width, height", "--size"},
+      {"mapping_frames", "--mapping-frames"},
+      {"query_frames", "--query-frames"},
+      {"min_fov_deg, max_fov_deg", "--min-fov, --max-fov"},
+      {"image_noise", "--image-noise"},
+      {"depth_noise", "--depth-noise"},
+      {"format", "--format"},
+      {"protocol", "--protocol"}};
   const size_t colon = message.find(':');
   if (colon == std::string::npos) return message;
   const auto flag = flags.find(message.substr(0, colon));
@@ -43,24 +54,20 @@ void addQueryOptions(CLI::App& command, QueryArguments& args) {
 }
 
 LocalizeOptions localizeOptions(const QueryArguments& args) {
-  try {
-    LocalizeOptions options = LocalizeOptions::preset(args.preset);
-    if (args.top_k_option && args.top_k_option->count() > 0) {
-      if (args.top_k <= 0) throw InputError("top_k: must be positive, got " + std::to_string(args.top_k));
-      options.top_k = static_cast<size_t>(args.top_k);
-    }
-    if (args.features_option && args.features_option->count() > 0) options.num_features = args.features;
-    options.seed = args.seed;
-    options.pnp.seed = args.seed;
-    options.selection = parseImageSelection(args.selection);
-    options.retrieval = parseFastForwardRetrieval(args.retrieval);
-    options.pnp.solver = parsePnpSolver(args.solver);
-    options.verify_with_second_reference = !args.no_verify;
-    options.check();
-    return options;
-  } catch (const InputError& e) {
-    throw InputError(withFlagName(e.what()));
+  LocalizeOptions options = LocalizeOptions::preset(args.preset);
+  if (args.top_k_option && args.top_k_option->count() > 0) {
+    if (args.top_k <= 0) throw InputError("top_k: must be positive, got " + std::to_string(args.top_k));
+    options.top_k = static_cast<size_t>(args.top_k);
   }
+  if (args.features_option && args.features_option->count() > 0) options.num_features = args.features;
+  options.seed = args.seed;
+  options.pnp.seed = args.seed;
+  options.selection = parseImageSelection(args.selection);
+  options.retrieval = parseFastForwardRetrieval(args.retrieval);
+  options.pnp.solver = parsePnpSolver(args.solver);
+  options.verify_with_second_reference = !args.no_verify;
+  options.check();
+  return options;
 }
 
 }  // namespace ffloc::cli

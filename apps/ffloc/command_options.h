@@ -11,8 +11,7 @@ namespace ffloc::cli {
 
 // The query options every localizing command shares (--preset, --top-k, --features, --seed,
 // --selection, --retrieval, --solver, --no-verify), declared once and turned into the
-// library's LocalizeOptions, whose check() names the library field; the error then names the
-// flag instead.
+// library's LocalizeOptions, whose check() names the library field.
 struct QueryArguments {
   std::string preset = "indoor";
   int64_t top_k = 0;     // the preset's unless given
@@ -29,7 +28,7 @@ void addQueryOptions(CLI::App& command, QueryArguments& args);
 LocalizeOptions localizeOptions(const QueryArguments& args);
 
 // An error message that starts with a library option field ("top_k: ...") with the field
-// replaced by its flag ("--top-k: ...").
+// replaced by its flag ("--top-k: ..."): main() says every InputError this way.
 std::string withFlagName(const std::string& message);
 
 }  // namespace ffloc::cli

@@ -152,11 +152,7 @@ int runEval(const EvalArguments& args) {
   {
     LocalizeOptions checked = localize;
     checked.pnp = options.pnp;
-    try {
-      checked.check();
-    } catch (const InputError& e) {
-      throw InputError(withFlagName(e.what()));
-    }
+    checked.check();
   }
 
   // The PLY shows one method's poses (and, for a localizer, the last query's points): the map's

@@ -1,6 +1,7 @@
 #include <CLI/CLI.hpp>
 #include <iostream>
 
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
 
@@ -32,7 +33,7 @@ int main(int argc, char** argv) {
   try {
     return run ? run() : 0;
   } catch (const ffloc::InputError& e) {
-    std::cerr << "error: " << e.what() << "\n";
+    std::cerr << "error: " << ffloc::cli::withFlagName(e.what()) << "\n";
     return 2;
   } catch (const std::exception& e) {
     std::cerr << "internal error: " << e.what() << "\n";

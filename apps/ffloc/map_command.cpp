@@ -53,11 +53,7 @@ int mapClassical(const MapArguments& args, const Scene& scene, const std::vector
   options.sift.max_image_size = args.max_image_size;
   options.sift.max_features = args.max_features;
   options.quiet = args.quiet;
-  try {
-    options.check();
-  } catch (const InputError& e) {
-    throw InputError(withFlagName(e.what()));
-  }
+  options.check();
   ClassicalMap map = emptyClassicalMap(scene.metric, options);
   if (args.append && std::filesystem::exists(args.output)) {
     requireAppendTarget(args, LocalizationMethod::kClassical);
@@ -93,13 +89,7 @@ int mapFastForward(const MapArguments& args, const Scene& scene, const std::vect
 
 int runMap(const MapArguments& args) {
   setLibraryThreadCount(args.model.threads);
-  const LocalizationMethod method = [&] {
-    try {
-      return parseLocalizationMethod(args.method);
-    } catch (const InputError& e) {
-      throw InputError(withFlagName(e.what()));
-    }
-  }();
+  const LocalizationMethod method = parseLocalizationMethod(args.method);
   const Scene scene = loadDataset(args.dataset, args.format);
   const std::vector<size_t> frames = scene.mappingIndices();
   if (frames.empty()) throwInputError(args.dataset, 0, "dataset has no mapping frames (split_mapping.txt or its native split)");

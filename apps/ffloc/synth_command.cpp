@@ -4,7 +4,7 @@
 
 #include "commands.h"
 #include "ffloc/core/error.h"
-#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/synthetic/synthetic.h"
 
 namespace ffloc::cli {
 namespace {
@@ -38,7 +38,7 @@ void runSynth(const SynthArguments& args) {
   const bool mixed = args.kind == "mixed";
   if (!mixed) {
     try {
-      options.kind = parseSceneKind(args.kind, "--kind");
+      options.kind = parseSceneKind(args.kind);
     } catch (const InputError&) {
       throw InputError("--kind: unknown scene kind '" + args.kind +
                        "' (expected indoor, outdoor, object or mixed)");

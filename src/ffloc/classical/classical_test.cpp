@@ -13,7 +13,7 @@
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/depth.h"
-#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/synthetic/synthetic.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/io/image.h"
 #include "ffloc/io/map_file.h"

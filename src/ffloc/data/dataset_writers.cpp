@@ -43,7 +43,7 @@ std::vector<std::string> writeDataset(const Scene& scene, const std::string& for
   }
   std::string known;
   for (const auto& name : datasetWriterFormats()) known += (known.empty() ? "" : ", ") + name;
-  throw InputError("--format: cannot write '" + format + "' (known: " + known + ")");
+  throw InputError("format: cannot write '" + format + "' (known: " + known + ")");
 }
 
 std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path& out) {

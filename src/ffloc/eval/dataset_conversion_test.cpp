@@ -9,7 +9,7 @@
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/dataset_writers.h"
-#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/synthetic/synthetic.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/eval/metrics.h"
 #include "ffloc/eval/oracle_depth_source.h"

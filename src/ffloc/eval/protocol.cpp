@@ -27,7 +27,7 @@ const BenchmarkProtocol& benchmarkProtocol(const std::string& name) {
     if (protocol.name == name) return protocol;
     known += (known.empty() ? "" : ", ") + protocol.name;
   }
-  throw InputError("--protocol: unknown protocol '" + name + "' (known: " + known + ")");
+  throw InputError("protocol: unknown protocol '" + name + "' (known: " + known + ")");
 }
 
 void thinMappingFrames(Scene& scene, int stride) {

@@ -30,7 +30,7 @@ struct BenchmarkProtocol {
 // Every protocol, in the order of the paper's sections.
 const std::vector<BenchmarkProtocol>& benchmarkProtocols();
 
-// The protocol called `name`; InputError "--protocol: unknown protocol ..." listing the known ones.
+// The protocol called `name`; InputError "protocol: unknown protocol ..." listing the known ones.
 const BenchmarkProtocol& benchmarkProtocol(const std::string& name);
 
 // Keeps every `stride`-th mapping frame (in scene order, starting with the first) in the mapping

@@ -7,7 +7,7 @@
 
 #include "ffloc/geometry/camera.h"
 #include "ffloc/geometry/pose.h"
-#include "ffloc/io/image.h"
+#include "ffloc/geometry/preprocess.h"
 
 namespace ffloc {
 

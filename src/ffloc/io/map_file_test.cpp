@@ -1,3 +1,4 @@
+#include "ffloc/geometry/preprocess.h"
 #include "ffloc/io/map_file.h"
 
 #include <gtest/gtest.h>

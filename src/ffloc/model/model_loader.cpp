@@ -90,13 +90,13 @@ LoadedModel randomModel(const std::string& spec) {
     const std::string text = rest.substr(colon + 1);
     char* end = nullptr;
     seed = std::strtoull(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0') throwInputError("--model", 0, "'" + spec + "': seed must be an integer");
+    if (text.empty() || *end != '\0') throwInputError("model", 0, "'" + spec + "': seed must be an integer");
   }
   FastForwardConfig config;
   try {
     config.dust3r = Dust3rConfig::preset(preset);
   } catch (const InputError&) {
-    throwInputError("--model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny, small or large)");
+    throwInputError("model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny, small or large)");
   }
   LoadedModel loaded;
   loaded.model = std::make_unique<FastForwardModel>(config);
@@ -165,7 +165,7 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
     throwInputError(spec, 0, "the default model is missing (set FFLOC_MODEL, or pass --model; docs/training.md trains one)");
   }
   if (options.dtype != at::kFloat && options.dtype != at::kBFloat16)
-    throwInputError("--model", 0, "network dtype must be float32 or bfloat16");
+    throwInputError("model", 0, "network dtype must be float32 or bfloat16");
   if (options.dtype == at::kBFloat16) warnIfBfloat16IsEmulated("use --dtype f32 (docs/benchmarks.md)");
   LoadedModel loaded;
   if (spec.rfind("random:", 0) == 0) {

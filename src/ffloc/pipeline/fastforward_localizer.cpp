@@ -1,3 +1,4 @@
+#include "ffloc/geometry/preprocess.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
 
 #include <ATen/core/Tensor.h>

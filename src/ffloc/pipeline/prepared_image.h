@@ -4,6 +4,7 @@
 
 #include <string>
 
+#include "ffloc/geometry/preprocess.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/fastforward_model.h"
 

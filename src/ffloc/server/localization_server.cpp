@@ -216,7 +216,7 @@ int LocalizationServer::bind() {
     bound_port_ = options_.port;
   }
   if (bound_port_ < 0) {
-    throw InputError("--host " + options_.host + " --port " + std::to_string(options_.port) +
+    throw InputError("host " + options_.host + ", port " + std::to_string(options_.port) +
                      ": cannot listen there (address in use, not an address of this machine, or a privileged port)");
   }
   return bound_port_;

@@ -16,7 +16,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
-#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/synthetic/synthetic.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/localization/localization_json.h"
@@ -428,7 +428,7 @@ TEST_F(ServerTest, SecondServerOnTheSamePortIsAnInputError) {
     second.bind();
     FAIL() << "bound a port already in use";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("--port " + std::to_string(port_)), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("port " + std::to_string(port_)), std::string::npos) << e.what();
   }
 }
 

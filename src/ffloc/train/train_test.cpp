@@ -15,7 +15,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
-#include "ffloc/data/synthetic/synthetic.h"
+#include "ffloc/synthetic/synthetic.h"
 #include "ffloc/model/image_tensor.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/train/adamw.h"

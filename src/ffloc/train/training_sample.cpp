@@ -1,3 +1,4 @@
+#include "ffloc/geometry/preprocess.h"
 #include "ffloc/train/training_sample.h"
 
 #include <ATen/ops/from_blob.h>

@@ -12,6 +12,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "ffloc/geometry/preprocess.h"
 #include "ffloc/data/scene.h"
 #include "ffloc/geometry/normalization.h"
 #include "ffloc/io/image.h"
