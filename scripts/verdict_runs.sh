@@ -15,25 +15,20 @@ ffloc="$build/bin/ffloc"
 mkdir -p "$out"
 [ -d "$out/tuning" ] || "$ffloc" synth --out "$out/tuning" --seed 5000 --scenes 9 --kind mixed --quiet
 [ -d "$out/heldout" ] || "$ffloc" synth --out "$out/heldout" --seed 9000 --scenes 10 --kind mixed --quiet
-for set in tuning; do
-  methods=$([ "$set" = tuning ] && echo "$tuned" || echo "$all")
-  for scene in "$out/$set"/scene_*; do
+# evaluate SET METHODS: every synthetic scene of the set, once.
+evaluate() {
+  local scene name
+  for scene in "$out/$1"/scene_*; do
     name=$(basename "$scene")
-    [ -f "$out/$set.$name.frames.csv" ] || "$ffloc" eval --dataset "$scene" --methods "$methods" --quiet \
-      --json "$out/$set.$name.json" > /dev/null
+    [ -f "$out/$1.$name.frames.csv" ] || "$ffloc" eval --dataset "$scene" --methods "$2" --quiet \
+      --json "$out/$1.$name.json" > /dev/null
   done
-done
+}
+evaluate tuning "$tuned"
 for data in 7scenes_redkitchen strecha_fountain_p11 strecha_herzjesu_p8 instant_ngp_fox 7scenes_stairs_kapture_sample; do
   [ -d "$shared/data/$data" ] || continue
   [ -f "$out/real.$data.frames.csv" ] || "$ffloc" eval --dataset "$shared/data/$data" --methods "$all" --quiet \
     --json "$out/real.$data.json" > /dev/null
 done
-for set in heldout; do
-  methods=$([ "$set" = tuning ] && echo "$tuned" || echo "$all")
-  for scene in "$out/$set"/scene_*; do
-    name=$(basename "$scene")
-    [ -f "$out/$set.$name.frames.csv" ] || "$ffloc" eval --dataset "$scene" --methods "$methods" --quiet \
-      --json "$out/$set.$name.json" > /dev/null
-  done
-done
+evaluate heldout "$all"
 echo "per-frame CSVs in $out"

@@ -193,7 +193,9 @@ void writeClassicalMap(const ClassicalMap& map, const std::filesystem::path& pat
 
 ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   const std::string file = path.string();
-  const MapHeader header = readMapHeader(path);
+  const auto archive = openSafetensors(path);
+  const nlohmann::json header_json = readMapMetadata(*archive, file);
+  const MapHeader header = mapHeader(header_json, file);
   if (header.method != kMethod)
     throwInputError(file, 0, "map was built with the " + header.method +
                                  " method, not classical (localize it with the method it was built with)");
@@ -201,9 +203,7 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
     throwInputError(file, 0, "classical map version " + std::to_string(header.version) +
                                  " is not supported (this build reads version " + std::to_string(ClassicalMap::kVersion) +
                                  "; rebuild the map with ffloc map --method classical)");
-  const auto archive = openSafetensors(path);
   const BodyReader read(file);
-  const nlohmann::json header_json = nlohmann::json::parse(archive->metadata().at(kMapMetadataKey));
   const auto body_entry = archive->metadata().find(kBodyKey);
   if (body_entry == archive->metadata().end()) throwInputError(file, 0, "classical map: metadata body missing");
   if (read.text(header_json, "body_checksum", "map") != hex64(fnv1a64(body_entry->second)))

@@ -133,18 +133,18 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
   writeSafetensors(path, tensors, {{kMetadataKey, metadata.dump()}});
 }
 
-MapHeader readMapHeader(const std::filesystem::path& path) {
-  const auto archive = openSafetensors(path);
-  const std::string file = path.string();
-  const auto entry = archive->metadata().find(kMetadataKey);
-  if (entry == archive->metadata().end())
+nlohmann::json readMapMetadata(const TensorArchive& archive, const std::string& file) {
+  const auto entry = archive.metadata().find(kMetadataKey);
+  if (entry == archive.metadata().end())
     throwInputError(file, 0, "not an ffloc map (no '" + std::string(kMetadataKey) + "' metadata)");
-  nlohmann::json metadata;
   try {
-    metadata = nlohmann::json::parse(entry->second);
+    return nlohmann::json::parse(entry->second);
   } catch (const nlohmann::json::exception& e) {
     throwInputError(file, 0, std::string("map metadata is not valid JSON: ") + e.what());
   }
+}
+
+MapHeader mapHeader(const nlohmann::json& metadata, const std::string& file) {
   MapHeader header;
   // Maps written before there was more than one method say nothing of it.
   header.method = metadata.contains("method") ? field<std::string>(metadata, "method", file + ": map") : kMethod;
@@ -155,22 +155,18 @@ MapHeader readMapHeader(const std::filesystem::path& path) {
   return header;
 }
 
+MapHeader readMapHeader(const std::filesystem::path& path) {
+  return mapHeader(readMapMetadata(*openSafetensors(path), path.string()), path.string());
+}
+
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {
-  const MapHeader header = readMapHeader(path);
-  if (header.method != kMethod)
-    throwInputError(path.string(), 0, "map was built with the " + header.method +
-                                          " method, not fastforward (localize it with the method it was built with)");
   const auto archive = openSafetensors(path);
   const std::string file = path.string();
-  const auto entry = archive->metadata().find(kMetadataKey);
-  if (entry == archive->metadata().end())
-    throwInputError(file, 0, "not an ffloc map (no '" + std::string(kMetadataKey) + "' metadata)");
-  nlohmann::json metadata;
-  try {
-    metadata = nlohmann::json::parse(entry->second);
-  } catch (const nlohmann::json::exception& e) {
-    throwInputError(file, 0, std::string("map metadata is not valid JSON: ") + e.what());
-  }
+  const nlohmann::json metadata = readMapMetadata(*archive, file);
+  const MapHeader header = mapHeader(metadata, file);
+  if (header.method != kMethod)
+    throwInputError(file, 0, "map was built with the " + header.method +
+                                 " method, not fastforward (localize it with the method it was built with)");
   const std::string where = file + ": map";
   const int version = header.version;
   if (version != MapFile::kVersion)

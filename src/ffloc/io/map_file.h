@@ -5,9 +5,12 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "ffloc/geometry/camera.h"
 #include "ffloc/geometry/pose.h"
 #include "ffloc/geometry/preprocess.h"
+#include "ffloc/io/tensor_archive.h"
 
 namespace ffloc {
 
@@ -48,6 +51,9 @@ struct MapHeader {
   int version = 0;
 };
 MapHeader readMapHeader(const std::filesystem::path& path);
+// The same from a container already open: its JSON description, then the header in it.
+nlohmann::json readMapMetadata(const TensorArchive& archive, const std::string& file);
+MapHeader mapHeader(const nlohmann::json& metadata, const std::string& file);
 
 // The container's metadata key that holds a map's JSON description.
 inline constexpr const char* kMapMetadataKey = "ffloc_map";

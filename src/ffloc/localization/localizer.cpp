@@ -92,6 +92,7 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
   LocalizationResult result;
   std::optional<PnpResult> second;
   predict(rgb, sized, name, options, result, second);
+  const bool independent = second.has_value();
   result.pnp = estimatePose(result.correspondences, result.camera, options.pnp);
   result.timings.pnp = result.pnp.seconds;
   if (!second && result.pnp.ok()) {
@@ -99,8 +100,9 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
     second = halfSampleEstimate(result.correspondences, result.camera, options.pnp);
     result.timings.verification += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   }
-  const PoseEvidence evidence =
+  PoseEvidence evidence =
       measureEvidence(result.correspondences, result.camera, result.pnp, options.pnp, second ? &*second : nullptr);
+  evidence.independent_second_estimate = independent;
   result.verdict = judgePose(evidence, result.pnp, metric(), options.verdict);
   return result;
 }

@@ -6,6 +6,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
 #include "ffloc/pose/reprojection.h"
+#include "ffloc/pose/select_correspondences.h"
 
 namespace ffloc {
 namespace {
@@ -49,10 +50,11 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   if (!pose.ok()) return evidence;
   evidence.inlier_ratio = pose.used_correspondences > 0 ? static_cast<double>(pose.inliers) / pose.used_correspondences : 0;
 
+  // The pairs PnP chose from (the confidence filter and its fallback), before subsampling.
   std::vector<Eigen::Vector2d> pixels;
   std::vector<Eigen::Vector3d> points;
-  for (size_t i = 0; i < correspondences.size(); ++i) {
-    if (!(correspondences.confidences[i] >= pnp.confidence_threshold)) continue;
+  for (int i : selectCorrespondences(correspondences, pnp.confidence_threshold, correspondences.size(), nullptr,
+                                     pnp.min_correspondences)) {
     pixels.push_back(correspondences.pixels[i]);
     points.push_back(correspondences.points[i]);
   }
@@ -104,12 +106,16 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
     verdict.reason = "inlier ratio below " + std::to_string(options.min_inlier_ratio);
   else if (evidence.inlier_spread < options.min_inlier_spread)
     verdict.reason = "inliers cover too little of the image";
-  else if (options.require_agreement && evidence.agreement_translation < 0)
-    verdict.reason = "no second estimate to compare with";
-  else if (evidence.agreement_translation >= 0 &&
-           !(evidence.agreement_translation <= options.max_agreement_translation &&
-             evidence.agreement_rotation_deg <= options.max_agreement_rotation_deg &&
-             (!metric || evidence.agreement_distance <= options.max_agreement_distance_m)))
+  else if (!std::isfinite(evidence.agreement_translation) || evidence.agreement_translation < 0) {
+    if (evidence.independent_second_estimate)
+      verdict.reason = "the second reference frame gives no pose";
+    else if (options.require_agreement)
+      verdict.reason = "too few pairs for a second estimate";
+    else
+      verdict.status = PoseStatus::kLocalized;
+  } else if (!(evidence.agreement_translation <= options.max_agreement_translation &&
+               evidence.agreement_rotation_deg <= options.max_agreement_rotation_deg &&
+               (!metric || evidence.agreement_distance <= options.max_agreement_distance_m)))
     verdict.reason = "a second estimate disagrees";
   else
     verdict.status = PoseStatus::kLocalized;

@@ -279,6 +279,30 @@ TEST(Pipeline, FixtureModelOnRedkitchen) {
             std::string::npos);
 }
 
+// The shipped model's poses on a real query are far off; the verdict must not call them
+// localized (the second reference's prediction disagrees with the first).
+TEST(Pipeline, ShippedModelIsNotLocalizedOnARealQuery) {
+  FFLOC_REQUIRE_SHARED(dataset, "data/7scenes_redkitchen");
+  ::unsetenv("FFLOC_MODEL");
+  setTorchThreadCount(0);
+  const LoadedModel model = loadModel("default");
+  Scene scene = loadDataset(dataset);
+  const std::vector<size_t> mapping = scene.mappingIndices();
+  std::vector<size_t> used;
+  for (size_t i = 0; i < mapping.size(); i += 10) used.push_back(mapping[i]);
+  MappingOptions quiet;
+  quiet.quiet = true;
+  MapFile map = emptyMap(model, true);
+  addToMap(map, model, scene, used, quiet);
+  const FastForwardLocalizer localizer(*model.model, std::move(map));
+  const Frame& query = scene.frames[scene.queryIndices()[40]];
+  const LocalizationResult result =
+      localizer.localize(readImageRgb(query.image_path), query.intrinsics, query.name, LocalizeOptions{});
+  EXPECT_NE(result.verdict.status, PoseStatus::kLocalized)
+      << "pose " << translationError(result.pnp.camera_to_world, query.camera_to_world) << " m from the truth";
+  EXPECT_GE(result.verdict.evidence.agreement_rotation_deg, 0);  // the second reference ran
+}
+
 }  // namespace
 }  // namespace ffloc
 

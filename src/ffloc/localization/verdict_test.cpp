@@ -1,0 +1,115 @@
+#include "ffloc/localization/verdict.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+#include "ffloc/core/error.h"
+#include "ffloc/localization/localizer.h"
+
+namespace ffloc {
+namespace {
+
+PnpResult success() {
+  PnpResult pose;
+  pose.status = PnpStatus::kSuccess;
+  pose.inliers = 300;
+  pose.used_correspondences = 600;
+  return pose;
+}
+
+PoseEvidence strong() {
+  PoseEvidence e;
+  e.inliers = 300;
+  e.used_correspondences = 600;
+  e.inlier_ratio = 0.5;
+  e.inlier_spread = 0.5;
+  e.agreement_translation = 0.002;
+  e.agreement_rotation_deg = 0.1;
+  e.agreement_distance = 0.004;
+  return e;
+}
+
+TEST(Verdict, EachTestCanMakeAPoseUncertain) {
+  const VerdictOptions rule;
+  EXPECT_EQ(judgePose(strong(), success(), true, rule).status, PoseStatus::kLocalized);
+
+  auto judged = [&](auto change, bool metric = true) {
+    PoseEvidence e = strong();
+    change(e);
+    return judgePose(e, success(), metric, rule);
+  };
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.inliers = 24; }).reason, "24 inliers, fewer than 25");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_ratio = 0.2; }).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_spread = 0.1; }).reason, "inliers cover too little of the image");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_rotation_deg = 4; }).reason, "a second estimate disagrees");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_translation = 0.06; }).status, PoseStatus::kUncertain);
+  // 30 cm apart: too far in a metric map, not judged in metres in one of arbitrary units.
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.3; }).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.3; }, false).status, PoseStatus::kLocalized);
+}
+
+// A half-sample estimate that fails says the pairs are few, not that they disagree; the method's
+// own second estimate (FastForward's second reference frame) failing does count.
+TEST(Verdict, AFailedSecondEstimateCountsOnlyWhenIndependent) {
+  const double inf = std::numeric_limits<double>::infinity();
+  PoseEvidence e = strong();
+  e.agreement_translation = e.agreement_rotation_deg = e.agreement_distance = inf;
+  VerdictOptions rule;
+  EXPECT_EQ(judgePose(e, success(), true, rule).status, PoseStatus::kLocalized);
+  rule.require_agreement = true;
+  EXPECT_EQ(judgePose(e, success(), true, rule).reason, "too few pairs for a second estimate");
+  e.independent_second_estimate = true;
+  EXPECT_EQ(judgePose(e, success(), true, VerdictOptions{}).reason, "the second reference frame gives no pose");
+}
+
+TEST(Verdict, NoPoseIsFailedAndSaysWhy) {
+  PnpResult pose;
+  pose.status = PnpStatus::kTooFewCorrespondences;
+  const PoseVerdict verdict = judgePose(PoseEvidence{}, pose, true, VerdictOptions{});
+  EXPECT_EQ(verdict.status, PoseStatus::kFailed);
+  EXPECT_EQ(verdict.reason.rfind("no pose: ", 0), 0u);
+}
+
+TEST(Verdict, OptionsOutOfRangeNameTheField) {
+  auto errorOf = [](auto change) {
+    VerdictOptions rule;
+    change(rule);
+    try {
+      rule.check();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(errorOf([](VerdictOptions& r) { r.min_inliers = -1; }).rfind("min_inliers:", 0), 0u);
+  EXPECT_EQ(errorOf([](VerdictOptions& r) { r.min_inlier_spread = 2; }).rfind("min_inlier_spread:", 0), 0u);
+  EXPECT_EQ(errorOf([](VerdictOptions& r) { r.max_agreement_rotation_deg = std::nan(""); }).rfind("max_agreement_rotation_deg:", 0), 0u);
+  EXPECT_EQ(errorOf([](VerdictOptions&) {}), "");
+}
+
+// Spread is measured on the pairs PnP chose from: a pose held by one corner of the image covers
+// one cell of the 8 x 8 grid.
+TEST(Verdict, SpreadCountsTheGridCellsWithInliers) {
+  Intrinsics camera;
+  camera.fx = camera.fy = 500;
+  camera.cx = 320;
+  camera.cy = 240;
+  camera.width = 640;
+  camera.height = 480;
+  Correspondences pairs;
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Vector2d pixel(10 + (i % 5) * 5, 10 + (i / 5) * 4);
+    const double depth = 2.0 + 0.01 * i;
+    pairs.add(pixel, Eigen::Vector3d((pixel.x() - 320) / 500 * depth, (pixel.y() - 240) / 500 * depth, depth), 3.0f);
+  }
+  PnpResult pose = success();
+  pose.camera_to_world = Pose::identity();
+  const PoseEvidence evidence = measureEvidence(pairs, camera, pose, PnpOptions{}, nullptr);
+  EXPECT_DOUBLE_EQ(evidence.inlier_spread, 1.0 / 64);
+  EXPECT_LT(evidence.agreement_translation, 0);  // no second estimate given
+}
+
+}  // namespace
+}  // namespace ffloc
