@@ -25,10 +25,11 @@ evaluate() {
   done
 }
 evaluate tuning "$tuned"
-for data in 7scenes_redkitchen strecha_fountain_p11 strecha_herzjesu_p8 instant_ngp_fox 7scenes_stairs_kapture_sample; do
+for data in 7scenes_redkitchen strecha_fountain_p11 strecha_herzjesu_p8 instant_ngp_fox 7scenes_stairs_kapture_sample/stairs; do
   [ -d "$shared/data/$data" ] || continue
-  [ -f "$out/real.$data.frames.csv" ] || "$ffloc" eval --dataset "$shared/data/$data" --methods "$all" --quiet \
-    --json "$out/real.$data.json" > /dev/null
+  label=$(basename "$data")
+  [ -f "$out/real.$label.frames.csv" ] || "$ffloc" eval --dataset "$shared/data/$data" --methods "$all" --quiet \
+    --json "$out/real.$label.json" > /dev/null
 done
 evaluate heldout "$all"
 echo "per-frame CSVs in $out"

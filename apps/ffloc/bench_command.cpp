@@ -6,34 +6,28 @@
 #include <ATen/Parallel.h>
 #include <ATen/TensorOperators.h>
 #include <ATen/ops/cat.h>
-#include <ATen/ops/empty.h>
-#include <ATen/ops/ones.h>
 #include <ATen/ops/rand.h>
 #include <ATen/ops/randn.h>
-#include <ATen/ops/zeros.h>
-#include <dlfcn.h>
-#include <sys/resource.h>
 #include <torch/version.h>
 
 #include <algorithm>
-#include <chrono>
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <map>
 #include <memory>
 #include <optional>
-#include <regex>
 #include <string>
 #include <vector>
 
+#include "bench_measurement.h"
+#include "bench_reference.h"
 #include "commands.h"
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/fastforward_model.h"
+#include "ffloc/model/model_loader.h"
+#include "ffloc/model/model_options.h"
 #include "ffloc/model/torch_threads.h"
 #include "flop_count.h"
 
@@ -51,105 +45,6 @@ struct BenchModelArguments {
   std::string reference;
   uint64_t seed = 0;
 };
-
-// The Python reference timing (fixtures/dust3r/python_reference_timing.txt), per dtype: the
-// medians of each process and the median of all calls pooled, for the encoder and for the
-// decoder + both DPT heads of a pair.
-struct ReferenceRow {
-  std::vector<double> process_medians;
-  std::optional<double> pooled_median;
-};
-struct ReferenceTiming {
-  std::filesystem::path path;
-  std::map<std::string, ReferenceRow> encoder, pair;
-};
-
-// The setup the reference was measured with; other setups get no ratio.
-constexpr const char* kReferenceConfig = "large";
-constexpr int64_t kReferenceWidth = 512, kReferenceHeight = 384;
-
-ReferenceTiming readReferenceTiming(const std::filesystem::path& path) {
-  std::ifstream file(path);
-  if (!file) throwInputError(path.string(), 0, "cannot open the reference timing file");
-  const std::regex process(R"(^\s*(fp32|bf16) process \d+:\s*$)");
-  const std::regex encoder(R"(^\s*\(i\)\s+encoder\b.*\bmedian ([0-9.]+) s\b)");
-  const std::regex pair(R"(^\s*\(ii\)\s+decoder\b.*\bmedian ([0-9.]+) s\b)");
-  const std::regex pooled(
-      R"(^\s*(fp32|bf16) all calls pooled: encoder median ([0-9.]+) s\b.*decoder\+heads median ([0-9.]+) s\b)");
-  ReferenceTiming reference;
-  reference.path = path;
-  std::string line, dtype;
-  int line_number = 0, rows = 0;
-  while (std::getline(file, line)) {
-    ++line_number;
-    std::smatch match;
-    try {
-      if (std::regex_search(line, match, process)) {
-        dtype = match[1];
-      } else if (!dtype.empty() && std::regex_search(line, match, encoder)) {
-        reference.encoder[dtype].process_medians.push_back(std::stod(match[1]));
-        ++rows;
-      } else if (!dtype.empty() && std::regex_search(line, match, pair)) {
-        reference.pair[dtype].process_medians.push_back(std::stod(match[1]));
-        ++rows;
-      } else if (std::regex_search(line, match, pooled)) {
-        reference.encoder[match[1]].pooled_median = std::stod(match[2]);
-        reference.pair[match[1]].pooled_median = std::stod(match[3]);
-        ++rows;
-      }
-    } catch (const std::logic_error&) {
-      throwInputError(path.string(), line_number, "malformed number in '" + line + "'");
-    }
-  }
-  if (rows == 0) {
-    throwInputError(path.string(), 0,
-                    "no timing lines found (expected '(i) encoder ... median X s' under '<dtype> process N:' "
-                    "or '<dtype> all calls pooled: ...')");
-  }
-  return reference;
-}
-
-// The explicit --reference, else the fixture under FFLOC_SHARED_DIR when it exists.
-std::optional<ReferenceTiming> findReferenceTiming(const std::string& explicit_path) {
-  if (!explicit_path.empty()) return readReferenceTiming(explicit_path);
-  const char* shared = std::getenv("FFLOC_SHARED_DIR");
-  if (!shared) return std::nullopt;
-  const std::filesystem::path path =
-      std::filesystem::path(shared) / "fixtures" / "dust3r" / "python_reference_timing.txt";
-  if (!std::filesystem::exists(path)) return std::nullopt;
-  return readReferenceTiming(path);
-}
-
-at::ScalarType parseDtype(const std::string& name) {
-  if (name == "fp32") return at::kFloat;
-  if (name == "bf16") return at::kBFloat16;
-  throw InputError("--dtype: unknown dtype '" + name + "' (expected fp32 or bf16)");
-}
-
-// Timings do not depend on the weights' values as long as activations stay finite and of
-// ordinary size (denormals or overflow would change the speed): variance-preserving uniform
-// weights, unit norm scales, zero biases. Each tensor is cast as soon as it is drawn so that a
-// bf16 model never holds a float32 copy of itself.
-void fillRandomParameters(const ParameterTable& table, at::ScalarType dtype) {
-  const at::TensorOptions f32 = at::TensorOptions().dtype(at::kFloat);
-  const auto ends_with = [](const std::string& text, const std::string& suffix) {
-    return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
-  };
-  for (const auto& entry : table.entries()) {
-    at::Tensor value;
-    if (entry.shape.size() == 1 && ends_with(entry.name, ".weight")) {
-      value = at::ones(entry.shape, f32);
-    } else if (entry.shape.size() == 1) {
-      value = at::zeros(entry.shape, f32);
-    } else {
-      value = at::empty(entry.shape, f32);
-      const double fan_in = static_cast<double>(value.numel() / entry.shape[0]);
-      const double bound = std::sqrt(3.0 / fan_in);
-      value.uniform_(-bound, bound);
-    }
-    *entry.tensor = value.to(dtype);
-  }
-}
 
 // `count` map tokens sampled with the production code path (sampleMapTokenIndices +
 // gatherMapTokens) from mapping images of random encoder tokens and random rays.
@@ -173,83 +68,6 @@ MapTokens randomMapTokens(const Dust3rConfig& config, int64_t rows, int64_t cols
   }
   const std::vector<int64_t> tokens_per_image(static_cast<size_t>(images), per_image);
   return gatherMapTokens(encodings, rays, sampleMapTokenIndices(tokens_per_image, count, seed));
-}
-
-struct Timing {
-  std::vector<double> seconds;
-
-  double median() const {
-    std::vector<double> sorted = seconds;
-    std::sort(sorted.begin(), sorted.end());
-    const size_t n = sorted.size();
-    return n % 2 == 1 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
-  }
-  double min() const { return *std::min_element(seconds.begin(), seconds.end()); }
-  double max() const { return *std::max_element(seconds.begin(), seconds.end()); }
-};
-
-Timing timeCalls(int warmup, int repeats, const std::function<void()>& call) {
-  for (int i = 0; i < warmup; ++i) call();
-  Timing timing;
-  for (int i = 0; i < repeats; ++i) {
-    const auto start = std::chrono::steady_clock::now();
-    call();
-    timing.seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  }
-  return timing;
-}
-
-// A "Vm...:   <n> kB" line of /proc/self/status, in MiB.
-std::optional<double> procStatusMiB(const std::string& key) {
-  std::ifstream status("/proc/self/status");
-  std::string line;
-  while (std::getline(status, line)) {
-    if (line.rfind(key + ":", 0) == 0) return std::stod(line.substr(key.size() + 1)) / 1024.0;
-  }
-  return std::nullopt;
-}
-
-// Resets the peak RSS (VmHWM) to the current RSS (Linux >= 4.0), so that each model reports its
-// own peak; false where the kernel refuses.
-bool resetPeakRss() {
-  std::ofstream clear("/proc/self/clear_refs");
-  clear << "5";
-  clear.flush();
-  return static_cast<bool>(clear);
-}
-
-// The process-wide peak where /proc is missing: ru_maxrss (KiB on Linux).
-double processPeakRssMiB() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;
-}
-
-struct MemoryReport {
-  double after_build_mib = 0.0;
-  double peak_mib = 0.0;
-  bool peak_is_per_model = false;
-};
-
-std::string loadAverage() {
-  double load[3] = {0.0, 0.0, 0.0};
-  if (getloadavg(load, 3) != 3) return "unknown";
-  char text[64];
-  std::snprintf(text, sizeof(text), "%.2f %.2f %.2f", load[0], load[1], load[2]);
-  return text;
-}
-
-// fp32 matmuls go to the system BLAS, which keeps its own thread pool: on Debian that is
-// OpenBLAS, reached here through the symbols libtorch already links. Returns what it is and the
-// kernel family it picked for this CPU.
-std::string setBlasThreads(int threads) {
-  using SetThreads = void (*)(int);
-  using GetString = char* (*)();
-  const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-  const auto core = reinterpret_cast<GetString>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
-  if (!set) return "not OpenBLAS (thread count left as is)";
-  set(threads);
-  return std::string("OpenBLAS, core ") + (core ? core() : "unknown") + ", " + std::to_string(threads) + " threads";
 }
 
 class Report {
@@ -316,25 +134,13 @@ void printMemory(const std::string& dtype, const std::string& model, const Memor
   std::fflush(stdout);
 }
 
-// Starts the peak-RSS window for a freshly built model.
-MemoryReport startMemoryWindow() {
-  MemoryReport memory;
-  memory.after_build_mib = procStatusMiB("VmRSS").value_or(0.0);
-  memory.peak_is_per_model = resetPeakRss() && procStatusMiB("VmHWM").has_value();
-  return memory;
-}
-
-void closeMemoryWindow(MemoryReport& memory) {
-  memory.peak_mib = memory.peak_is_per_model ? *procStatusMiB("VmHWM") : processPeakRssMiB();
-}
-
 // Encoder on one image and DUSt3R's decoder + both DPT heads (with post-processing) on a pair:
 // the two measurements of the Python reference.
 void benchDust3r(const BenchModelArguments& args, const Report& report, const std::string& dtype_name) {
-  const at::ScalarType dtype = parseDtype(dtype_name);
+  const at::ScalarType dtype = parseNetworkDtype(dtype_name);
   at::manual_seed(args.seed);
   Dust3rModel model(Dust3rConfig::preset(args.config));
-  fillRandomParameters(model.parameterTable(), dtype);
+  randomizeParameters(model.parameterTable(), args.seed, dtype);
   model.to(at::kCPU, dtype, dtype);
   MemoryReport memory = startMemoryWindow();
   const Dust3rConfig& config = model.config();
@@ -362,12 +168,12 @@ void benchDust3r(const BenchModelArguments& args, const Report& report, const st
 // FastForwardModel::forward for one query against N map tokens: ray MLP, decoder, query DPT
 // head (with post-processing) and map head.
 void benchFastForward(const BenchModelArguments& args, const Report& report, const std::string& dtype_name) {
-  const at::ScalarType dtype = parseDtype(dtype_name);
+  const at::ScalarType dtype = parseNetworkDtype(dtype_name);
   at::manual_seed(args.seed);
   FastForwardConfig ff_config;
   ff_config.dust3r = Dust3rConfig::preset(args.config);
   FastForwardModel model(ff_config);
-  fillRandomParameters(model.parameterTable(), dtype);
+  randomizeParameters(model.parameterTable(), args.seed, dtype);
   model.to(at::kCPU, dtype, dtype);
   MemoryReport memory = startMemoryWindow();
   const Dust3rConfig& config = model.config().dust3r;
@@ -388,7 +194,7 @@ void validate(const BenchModelArguments& args) {
   if (args.warmup < 0) throw InputError("--warmup: must not be negative");
   if (args.threads < 0) throw InputError("--threads: must not be negative (0 = all hardware threads)");
   if (args.dtypes.empty()) throw InputError("--dtype: give at least one of fp32, bf16");
-  for (const auto& dtype : args.dtypes) parseDtype(dtype);
+  for (const auto& dtype : args.dtypes) parseNetworkDtype(dtype);
   for (const int64_t count : args.map_tokens) {
     if (count < 1) throw InputError("--features: map token counts must be positive, got " + std::to_string(count));
   }

@@ -1,6 +1,7 @@
 #include "ffloc/model/model_loader.h"
 
 #include <ATen/core/Tensor.h>
+#include <ATen/ops/empty.h>
 
 #include <algorithm>
 #include <cmath>
@@ -108,11 +109,10 @@ LoadedModel randomModel(const std::string& spec) {
 
 }  // namespace
 
-void randomizeParameters(FastForwardModel& model, uint64_t seed) {
-  const ParameterTable table = model.parameterTable();
-  allocateParameters(table, at::TensorOptions().dtype(at::kFloat));
+void randomizeParameters(const ParameterTable& table, uint64_t seed, at::ScalarType dtype) {
+  const at::TensorOptions f32 = at::TensorOptions().dtype(at::kFloat);
   for (const ParameterTable::Entry& entry : table.entries()) {
-    at::Tensor& tensor = *entry.tensor;
+    at::Tensor tensor = at::empty(entry.shape, f32);
     // Seeded per name, so a tensor's values do not depend on the registration order.
     SplitMix64 rng{hashString(entry.name, seed ^ 0x5eedULL)};
     float* data = tensor.data_ptr<float>();
@@ -127,7 +127,13 @@ void randomizeParameters(FastForwardModel& model, uint64_t seed) {
       const float bound = static_cast<float>(std::sqrt(3.0 / static_cast<double>(fan_in)));
       for (int64_t i = 0; i < count; ++i) data[i] = bound * rng.symmetric();
     }
+    // Cast as soon as drawn: a bf16 model never holds a float32 copy of itself.
+    *entry.tensor = dtype == at::kFloat ? tensor : tensor.to(dtype);
   }
+}
+
+void randomizeParameters(FastForwardModel& model, uint64_t seed) {
+  randomizeParameters(model.parameterTable(), seed, at::kFloat);
   model.to(at::kCPU, at::kFloat);
 }
 

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "ffloc/model/fastforward_model.h"
+#include "ffloc/model/parameter_table.h"
 
 namespace ffloc {
 
@@ -43,6 +44,9 @@ LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options =
 // Fills every parameter of `model` from `seed`: LayerNorm weights near 1, biases near 0, other
 // weights uniform with variance 1/fan_in, so activations stay O(1) through the network.
 void randomizeParameters(FastForwardModel& model, uint64_t seed);
+// The same values for any parameter table (a DUSt3R model too), each tensor cast to `dtype` as it
+// is drawn; `ffloc bench model` times models filled this way.
+void randomizeParameters(const ParameterTable& table, uint64_t seed, at::ScalarType dtype);
 
 // 64-bit fingerprint of every parameter (name and float32 values, in state_dict order).
 uint64_t parameterFingerprint(FastForwardModel& model);
