@@ -2,8 +2,9 @@
 """Calibrates the verdict's rule (src/ffloc/localization/verdict.h) on per-frame CSVs of
 `ffloc eval` (scripts/verdict_runs.sh) and prints its precision and recall per method and dataset.
 
-A pose counts as correct within (25 cm, 5 deg). Tuning files are named tuning.* and real.*;
-held-out files heldout.* are only reported, never searched over.
+A pose counts as correct within (25 cm, 5 deg). Tuning files are named tuning.*, heldout.* (the
+first held-out set, seed 9000: measured once, then folded into tuning, docs/verdict.md) and real.*;
+the files heldout2.* are only reported, never searched over.
 
   scripts/calibrate_verdict.py DIR            search, then report the best rule
   scripts/calibrate_verdict.py DIR --report   report the rule in verdict.h's defaults
@@ -15,9 +16,9 @@ import math
 import os
 import sys
 
-DEFAULT = dict(min_inliers=25, min_inlier_ratio=0.25, min_inlier_spread=0.15,
-               max_agreement_translation=0.05, max_agreement_rotation_deg=3.0, max_agreement_distance_m=0.2,
-               require_agreement=False)
+DEFAULT = dict(min_inliers=12, min_inlier_ratio=0.1, min_inlier_spread=0.1,
+               max_agreement_translation=0.05, max_agreement_rotation_deg=2.0, max_agreement_distance_m=0.05,
+               require_agreement=True)
 
 
 def number(text):
@@ -81,16 +82,17 @@ def print_row(group, dataset, method, subset, rule):
 
 def search(frames):
     """The rule with the best recall for the default method, classical, on the tuning scenes, among
-    those whose precision is at least 97 % for classical and 95 % for sift-baseline over the
-    synthetic tuning scenes, and 95 % for classical on every real dataset; ties go to the better
+    those with at most one wrong `localized` pose in a hundred of classical and of sift-baseline
+    on the synthetic tuning scenes (a margin: 97 % there gave 92 % on the first held-out set) and
+    a classical precision of at least 95 % on every real dataset; ties go to the better
     sift-baseline precision."""
-    tuning = [f for f in frames if f["group"] in ("tuning", "real")]
+    tuning = [f for f in frames if f["group"] in ("tuning", "heldout", "real")]
     classical = [f for f in tuning if f["method"] == "classical"]
     sift = [f for f in tuning if f["method"] == "sift-baseline"]
     real_sets = [[f for f in classical if f["dataset"] == d] for d in sorted({f["dataset"] for f in classical
                                                                               if f["group"] == "real"})]
-    synthetic = [f for f in classical if f["group"] == "tuning"]
-    synthetic_sift = [f for f in sift if f["group"] == "tuning"]
+    synthetic = [f for f in classical if f["group"] != "real"]
+    synthetic_sift = [f for f in sift if f["group"] != "real"]
     best = None
     grid = dict(min_inliers=[12, 15, 20, 25, 30, 40], min_inlier_ratio=[0.1, 0.15, 0.2, 0.25, 0.3],
                 min_inlier_spread=[0.05, 0.08, 0.1, 0.12, 0.15], max_agreement_translation=[0.02, 0.05, 0.1],
@@ -100,15 +102,15 @@ def search(frames):
     for values in itertools.product(*(grid[n] for n in names)):
         rule = dict(zip(names, values))
         marked, good, correct = score(classical, rule)
-        if not marked or good < 0.97 * marked:
+        if not marked:
             continue
         if any(m and g < 0.95 * m for m, g, _ in (score(s, rule) for s in real_sets)):
             continue
         synthetic_marked, synthetic_good, _ = score(synthetic, rule)
-        if synthetic_good < 0.97 * synthetic_marked:
+        if synthetic_good < 0.99 * synthetic_marked:
             continue
         synthetic_sift_marked, synthetic_sift_good, _ = score(synthetic_sift, rule)
-        if synthetic_sift_good < 0.95 * synthetic_sift_marked:
+        if synthetic_sift_good < 0.99 * synthetic_sift_marked:
             continue
         sift_marked, sift_good, _ = score(sift, rule)
         key = (good / max(correct, 1), sift_good / max(sift_marked, 1))

@@ -36,17 +36,17 @@ struct PoseEvidence {
 // precision and recall). A pose is kLocalized when every test passes, kUncertain when PnP found
 // one but a test fails.
 struct VerdictOptions {
-  int min_inliers = 25;
-  double min_inlier_ratio = 0.25;
-  double min_inlier_spread = 0.15;
+  int min_inliers = 12;
+  double min_inlier_ratio = 0.1;
+  double min_inlier_spread = 0.1;
   // A second estimate that lands farther than this makes the pose kUncertain; so does an
   // independent one that fails, and a half-sample one that fails when require_agreement.
   double max_agreement_translation = 0.05;  // of the median inlier depth
-  double max_agreement_rotation_deg = 3.0;
+  double max_agreement_rotation_deg = 2.0;
   // In metric maps also in metres: far from the camera a small fraction of the depth is already
   // more than a caller can use.
-  double max_agreement_distance_m = 0.2;
-  bool require_agreement = false;
+  double max_agreement_distance_m = 0.05;
+  bool require_agreement = true;
 
   // InputError naming the field for a value out of range or NaN.
   void check() const;

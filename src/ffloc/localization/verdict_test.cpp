@@ -40,14 +40,14 @@ TEST(Verdict, EachTestCanMakeAPoseUncertain) {
     change(e);
     return judgePose(e, success(), metric, rule);
   };
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.inliers = 24; }).reason, "24 inliers, fewer than 25");
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_ratio = 0.2; }).status, PoseStatus::kUncertain);
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_spread = 0.1; }).reason, "inliers cover too little of the image");
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_rotation_deg = 4; }).reason, "a second estimate disagrees");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.inliers = 11; }).reason, "11 inliers, fewer than 12");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_ratio = 0.09; }).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_spread = 0.09; }).reason, "inliers cover too little of the image");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_rotation_deg = 2.5; }).reason, "a second estimate disagrees");
   EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_translation = 0.06; }).status, PoseStatus::kUncertain);
-  // 30 cm apart: too far in a metric map, not judged in metres in one of arbitrary units.
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.3; }).status, PoseStatus::kUncertain);
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.3; }, false).status, PoseStatus::kLocalized);
+  // 8 cm apart: too far in a metric map, not judged in metres in one of arbitrary units.
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }, false).status, PoseStatus::kLocalized);
 }
 
 // A half-sample estimate that fails says the pairs are few, not that they disagree; the method's
@@ -57,9 +57,9 @@ TEST(Verdict, AFailedSecondEstimateCountsOnlyWhenIndependent) {
   PoseEvidence e = strong();
   e.agreement_translation = e.agreement_rotation_deg = e.agreement_distance = inf;
   VerdictOptions rule;
-  EXPECT_EQ(judgePose(e, success(), true, rule).status, PoseStatus::kLocalized);
-  rule.require_agreement = true;
   EXPECT_EQ(judgePose(e, success(), true, rule).reason, "too few pairs for a second estimate");
+  rule.require_agreement = false;
+  EXPECT_EQ(judgePose(e, success(), true, rule).status, PoseStatus::kLocalized);
   e.independent_second_estimate = true;
   EXPECT_EQ(judgePose(e, success(), true, VerdictOptions{}).reason, "the second reference frame gives no pose");
 }
