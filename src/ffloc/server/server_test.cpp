@@ -14,6 +14,8 @@
 #include <opencv2/imgproc.hpp>
 #include <thread>
 
+#include "ffloc/classical/classical_localizer.h"
+#include "ffloc/classical/classical_mapper.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/synthetic/synthetic.h"
@@ -418,6 +420,42 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   const auto health = client_->Get("/health");
   ASSERT_TRUE(health);
   EXPECT_EQ(health->status, 200);
+}
+
+// The server fronts any Localizer: a classical map of the same scene answers what the library
+// computes, says its method, and refuses intrinsics that do not fit the image.
+TEST_F(ServerTest, ServesAClassicalMapAsTheLibraryLocalizesIt) {
+  ClassicalMappingOptions mapping;
+  mapping.quiet = true;
+  ClassicalMap map = emptyClassicalMap(true, mapping);
+  addToClassicalMap(map, *scene_, scene_->mappingIndices(), mapping);
+  const ClassicalLocalizer classical(std::move(map));
+  ServerOptions options = options_;
+  LocalizationServer server(classical, options, "classical");
+  const int port = server.bind();
+  std::thread serving([&] { server.serve(); });
+  httplib::Client client("127.0.0.1", port);
+  client.set_read_timeout(60);
+
+  const auto health = client.Get("/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(body(health)["method"], "classical");
+  const LocalizationResult direct =
+      classical.localize(readImageRgb(query().image_path), query().intrinsics, "q", options.localize);
+  const auto answer = client.Post(("/localize?name=q&" + intrinsicsParameters()).c_str(), queryFileBytes(), "image/png");
+  ASSERT_TRUE(answer);
+  ASSERT_EQ(answer->status, 200) << answer->body;
+  const nlohmann::json expected = localizationJson("q", direct, classical);
+  EXPECT_EQ(body(answer)["method"], "classical");
+  EXPECT_EQ(body(answer)["status"], expected["status"]);
+  EXPECT_EQ(body(answer)["inliers"], expected["inliers"]);
+  EXPECT_EQ(body(answer)["selected"], expected["selected"]);
+  const auto outside = client.Post("/localize?fx=200&fy=200&cx=100000&cy=10", queryFileBytes(), "image/png");
+  ASSERT_TRUE(outside);
+  EXPECT_EQ(outside->status, 400);
+  EXPECT_EQ(body(outside)["error"].get<std::string>().rfind("cx, cy:", 0), 0u);
+  server.stop();
+  serving.join();
 }
 
 TEST_F(ServerTest, SecondServerOnTheSamePortIsAnInputError) {
