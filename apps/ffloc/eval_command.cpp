@@ -296,7 +296,7 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
                   "query's points red");
   cmd->add_option("--protocol", args->protocol,
                   "The paper's setting for a benchmark (wayspots, indoor6, rio10, cambridge, 7scenes): top-K, N and "
-                  "7-Scenes' mapping-frame thinning; --top-k/--features override it (docs/benchmarks.md)");
+                  "7-Scenes' mapping-frame thinning; --top-k/--features override it (docs/protocols.md)");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   cmd->callback([args, &run] { run = [args] { return runEval(*args); }; });
 }

@@ -9,7 +9,7 @@
 namespace ffloc {
 
 // The settings the paper (FastForward) evaluates each benchmark with, and what its tables report,
-// so `ffloc eval --protocol NAME` reproduces a table's setting. docs/benchmarks.md maps every
+// so `ffloc eval --protocol NAME` reproduces a table's setting. docs/protocols.md maps every
 // table to a command line.
 struct BenchmarkProtocol {
   std::string name;          // "7scenes", "wayspots", "indoor6", "rio10", "cambridge"
