@@ -212,7 +212,18 @@ int runEval(const EvalArguments& args) {
   if (!args.protocol.empty()) std::cerr << describeProtocol(benchmarkProtocol(args.protocol));
   std::string csv_path = args.csv_path, markdown_path = args.markdown_path;
   if (!args.json_path.empty()) {
-    writeTextFile(args.json_path, summaryJson(summaries).dump(2) + "\n");
+    nlohmann::json summary = summaryJson(summaries);
+    if (!args.protocol.empty()) {
+      const BenchmarkProtocol& protocol = benchmarkProtocol(args.protocol);
+      summary["protocol"] = {{"name", protocol.name},
+                             {"paper_tables", protocol.paper_tables},
+                             {"top_k", localize.top_k},
+                             {"features", localize.num_features},
+                             {"mapping_stride", protocol.mapping_stride},
+                             {"reported_accuracies", protocol.accuracy_keys},
+                             {"medians", protocol.medians}};
+    }
+    writeTextFile(args.json_path, summary.dump(2) + "\n");
     const std::filesystem::path stem = std::filesystem::path(args.json_path).replace_extension();
     if (csv_path.empty()) csv_path = stem.string() + ".frames.csv";
     if (markdown_path.empty()) markdown_path = stem.string() + ".md";
