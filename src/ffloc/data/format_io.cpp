@@ -188,4 +188,8 @@ std::string imageExtension(const Frame& frame) {
   return extension;
 }
 
+bool endsWith(const std::string& text, const std::string& suffix) {
+  return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
 }  // namespace ffloc

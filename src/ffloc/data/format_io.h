@@ -69,6 +69,8 @@ std::vector<std::string> uniqueFrameStems(const Scene& scene);
 // Bit-for-bit equal intrinsics (size, K and distortion).
 bool sameIntrinsics(const Intrinsics& a, const Intrinsics& b);
 
+bool endsWith(const std::string& text, const std::string& suffix);
+
 // Throws InputError naming the first distorted frame: `format` has no field for distortion.
 void requireNoDistortion(const Scene& scene, const std::string& format);
 

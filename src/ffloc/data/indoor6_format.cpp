@@ -25,9 +25,6 @@ constexpr const char* kIntrinsicsSuffix = ".intrinsics.txt";
 const std::pair<const char*, Split> kSplitLists[] = {
     {"_train.txt", Split::kMapping}, {"_test.txt", Split::kQuery}, {"_val.txt", Split::kUnassigned}};
 
-bool endsWith(const std::string& text, const std::string& suffix) {
-  return text.size() >= suffix.size() && text.compare(text.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
 
 // "W H f cx cy" and, when present, a sixth value: the radial k of COLMAP's SIMPLE_RADIAL.
 // The cameras come from COLMAP, whose top-left pixel centre is (0.5, 0.5).
