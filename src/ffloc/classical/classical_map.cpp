@@ -7,6 +7,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/hash.h"
+#include "ffloc/io/json_fields.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/io/tensor_archive.h"
 
@@ -28,12 +29,6 @@ TensorView viewOf(const std::string& name, DType dtype, std::vector<int64_t> sha
   view.data = reinterpret_cast<const uint8_t*>(values.data());
   view.nbytes = values.size() * sizeof(T);
   return view;
-}
-
-nlohmann::json matrixJson(const Eigen::Matrix4d& T) {
-  nlohmann::json rows = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
-  return rows;
 }
 
 // Reads a map's JSON with every field checked, naming file and field.
@@ -161,7 +156,7 @@ void writeClassicalMap(const ClassicalMap& map, const std::filesystem::path& pat
       add(viewOf(tensorName("links", i), DType::kI32, {static_cast<int64_t>(image.links.size()), 3}, links[i]));
     const Intrinsics& k = image.camera;
     images.push_back({{"name", image.name},
-                      {"camera_to_world", matrixJson(image.camera_to_world.matrix())},
+                      {"camera_to_world", matrix4Json(image.camera_to_world.matrix())},
                       {"camera", {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy},
                                   {"width", k.width}, {"height", k.height}}},
                       {"working_scale", image.working_scale},

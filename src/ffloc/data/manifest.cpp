@@ -47,12 +47,6 @@ std::string relativeTo(const std::filesystem::path& path, const std::filesystem:
   return absolute.lexically_relative(folder).generic_string();
 }
 
-json matrixJson(const Eigen::Matrix4d& T) {
-  json rows = json::array();
-  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
-  return rows;
-}
-
 }  // namespace
 
 Scene readManifest(const std::filesystem::path& manifest_json) {
@@ -139,7 +133,7 @@ void writeManifest(const Scene& scene, const std::filesystem::path& manifest_jso
     entry["image"] = relativeTo(frame.image_path, folder);
     if (entry["image"].get<std::string>() != frame.name) entry["name"] = frame.name;
     entry["camera"] = camera;
-    entry["camera_to_world"] = matrixJson(frame.camera_to_world.matrix());
+    entry["camera_to_world"] = matrix4Json(frame.camera_to_world.matrix());
     if (frame.depth) {
       entry["depth"] = relativeTo(frame.depth->path, folder);
       entry["depth_scale"] = frame.depth->scale;

@@ -19,6 +19,12 @@ json parseJsonFile(const std::filesystem::path& file) {
   }
 }
 
+json matrix4Json(const Eigen::Matrix4d& T) {
+  json rows = json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  return rows;
+}
+
 JsonFields::JsonFields(const json& object, std::filesystem::path file, std::string path)
     : object_(object), file_(std::move(file)), path_(std::move(path)) {
   if (!object_.is_object()) fail("", "expected a JSON object");

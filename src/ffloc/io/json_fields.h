@@ -12,6 +12,9 @@ namespace ffloc {
 
 nlohmann::json parseJsonFile(const std::filesystem::path& file);
 
+// 4 rows of 4 numbers: what JsonFields::matrix4 reads back.
+nlohmann::json matrix4Json(const Eigen::Matrix4d& T);
+
 class JsonFields {
  public:
   // `path` names the object inside the file ("frames[3]"); empty for the top level.

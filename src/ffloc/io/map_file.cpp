@@ -7,6 +7,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/hash.h"
+#include "ffloc/io/json_fields.h"
 #include "ffloc/io/tensor_archive.h"
 
 namespace ffloc {
@@ -19,13 +20,6 @@ constexpr const char* kVladVocabularyTensor = "vlad_vocabulary";
 constexpr const char* kVladDescriptorsTensor = "vlad_descriptors";
 
 std::string tokensTensorName(size_t index) { return "tokens." + std::to_string(index); }
-
-nlohmann::json poseJson(const Pose& pose) {
-  nlohmann::json rows = nlohmann::json::array();
-  const Eigen::Matrix4d T = pose.matrix();
-  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
-  return rows;
-}
 
 template <typename T>
 T field(const nlohmann::json& object, const char* key, const std::string& where) {
@@ -85,7 +79,7 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
     const Intrinsics& k = image.intrinsics;
     const PreprocessGeometry& g = image.geometry;
     images.push_back({{"name", image.name},
-                      {"camera_to_world", poseJson(image.camera_to_world)},
+                      {"camera_to_world", matrix4Json(image.camera_to_world.matrix())},
                       {"intrinsics", {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy},
                                       {"width", k.width}, {"height", k.height}}},
                       {"preprocess", {{"original_width", g.original_width}, {"original_height", g.original_height},

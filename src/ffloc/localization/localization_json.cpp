@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "ffloc/io/json_fields.h"
+
 namespace ffloc {
 namespace {
 
@@ -15,12 +17,9 @@ std::string jsonText(const nlohmann::json& value, int indent) {
 }
 
 nlohmann::json poseJson(const Pose& camera_to_world) {
-  nlohmann::json rows = nlohmann::json::array();
-  const Eigen::Matrix4d T = camera_to_world.matrix();
-  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
   const Pose world_to_camera = camera_to_world.inverse();
   const Eigen::Quaterniond q = world_to_camera.quaternion();
-  return {{"camera_to_world", rows},
+  return {{"camera_to_world", matrix4Json(camera_to_world.matrix())},
           {"world_to_camera", {{"qwxyz", {q.w(), q.x(), q.y(), q.z()}},
                                {"t", {world_to_camera.t.x(), world_to_camera.t.y(), world_to_camera.t.z()}}}}};
 }
