@@ -31,63 +31,17 @@ TensorView viewOf(const std::string& name, DType dtype, std::vector<int64_t> sha
   return view;
 }
 
-// Reads a map's JSON with every field checked, naming file and field.
-class BodyReader {
- public:
-  explicit BodyReader(std::string file) : file_(std::move(file)) {}
-
-  [[noreturn]] void fail(const std::string& where, const std::string& what) const {
-    throwInputError(file_, 0, where + ": " + what);
-  }
-
-  const nlohmann::json& at(const nlohmann::json& object, const char* key, const std::string& where) const {
-    if (!object.is_object() || !object.contains(key)) fail(where, std::string("field '") + key + "' missing");
-    return object.at(key);
-  }
-  double number(const nlohmann::json& object, const char* key, const std::string& where) const {
-    const nlohmann::json& v = at(object, key, where);
-    if (!v.is_number() || !std::isfinite(v.get<double>())) fail(where, std::string("field '") + key + "' is not a finite number");
-    return v.get<double>();
-  }
-  int64_t integer(const nlohmann::json& object, const char* key, const std::string& where, int64_t lo, int64_t hi) const {
-    const nlohmann::json& v = at(object, key, where);
-    if (!v.is_number_integer() || v.get<int64_t>() < lo || v.get<int64_t>() > hi)
-      fail(where, std::string("field '") + key + "' must be an integer in [" + std::to_string(lo) + ", " +
-                      std::to_string(hi) + "]");
-    return v.get<int64_t>();
-  }
-  bool boolean(const nlohmann::json& object, const char* key, const std::string& where) const {
-    const nlohmann::json& v = at(object, key, where);
-    if (!v.is_boolean()) fail(where, std::string("field '") + key + "' must be true or false");
-    return v.get<bool>();
-  }
-  std::string text(const nlohmann::json& object, const char* key, const std::string& where) const {
-    const nlohmann::json& v = at(object, key, where);
-    if (!v.is_string()) fail(where, std::string("field '") + key + "' must be a string");
-    return v.get<std::string>();
-  }
-  Pose pose(const nlohmann::json& object, const char* key, const std::string& where) const {
-    const nlohmann::json& rows = at(object, key, where);
-    Eigen::Matrix4d T;
-    if (!rows.is_array() || rows.size() != 4) fail(where, std::string("field '") + key + "' is not 4x4");
-    for (int r = 0; r < 4; ++r) {
-      if (!rows[r].is_array() || rows[r].size() != 4) fail(where, std::string("field '") + key + "' is not 4x4");
-      for (int c = 0; c < 4; ++c) {
-        if (!rows[r][c].is_number() || !std::isfinite(rows[r][c].get<double>()))
-          fail(where, std::string("field '") + key + "' holds a value that is not a finite number");
-        T(r, c) = rows[r][c].get<double>();
-      }
-    }
-    const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-    if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 || R.determinant() < 0 ||
-        (T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)
-      fail(where, std::string("field '") + key + "' is not a rigid transform (rotation not orthonormal)");
-    return Pose::fromMatrix(T);
-  }
-
- private:
-  std::string file_;
-};
+// The map's poses are written from rigid transforms, so anything but a rotation (to rounding)
+// and a 0 0 0 1 row is a damaged file.
+Pose rigidPose(const JsonFields& fields, const std::string& key) {
+  const Eigen::Matrix4d T = fields.matrix4(key);
+  if (!T.allFinite()) fields.fail(key, "holds a value that is not a finite number");
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 || R.determinant() < 0 ||
+      (T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)
+    fields.fail(key, "is not a rigid transform (rotation not orthonormal)");
+  return Pose::fromMatrix(T);
+}
 
 }  // namespace
 
@@ -198,10 +152,9 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
     throwInputError(file, 0, "classical map version " + std::to_string(header.version) +
                                  " is not supported (this build reads version " + std::to_string(ClassicalMap::kVersion) +
                                  "; rebuild the map with ffloc map --method classical)");
-  const BodyReader read(file);
   const auto body_entry = archive->metadata().find(kBodyKey);
   if (body_entry == archive->metadata().end()) throwInputError(file, 0, "classical map: metadata body missing");
-  if (read.text(header_json, "body_checksum", "map") != hex64(fnv1a64(body_entry->second)))
+  if (JsonFields(header_json, file, "").string("body_checksum") != hex64(fnv1a64(body_entry->second)))
     throwInputError(file, 0, "classical map: metadata checksum mismatch (the file is corrupted)");
   nlohmann::json body;
   try {
@@ -211,20 +164,17 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   }
 
   ClassicalMap map;
-  map.metric = read.boolean(body, "metric", "map");
-  const nlohmann::json& origin_json = read.at(body, "origin", "map");
-  if (!origin_json.is_array() || origin_json.size() != 3) read.fail("map", "field 'origin' must be 3 numbers");
-  Eigen::Vector3d origin;
-  for (int c = 0; c < 3; ++c) {
-    if (!origin_json[c].is_number() || !std::isfinite(origin_json[c].get<double>()))
-      read.fail("map", "field 'origin' must be 3 finite numbers");
-    origin[c] = origin_json[c].get<double>();
-  }
-  const nlohmann::json& sift = read.at(body, "sift", "map");
-  map.sift.max_image_size = static_cast<int>(read.integer(sift, "max_image_size", "map sift", 16, 1 << 20));
-  map.sift.max_features = static_cast<int>(read.integer(sift, "max_features", "map sift", 1, 1 << 24));
-  map.sift.contrast_threshold = read.number(sift, "contrast_threshold", "map sift");
-  map.ratio = static_cast<float>(read.number(body, "ratio", "map"));
+  const JsonFields top(body, file, "");
+  map.metric = top.boolean("metric");
+  const std::vector<double> origin_values = top.numbers("origin");
+  if (origin_values.size() != 3) top.fail("origin", "expected 3 numbers");
+  const Eigen::Vector3d origin(origin_values[0], origin_values[1], origin_values[2]);
+  if (!origin.allFinite()) top.fail("origin", "expected 3 finite numbers");
+  const JsonFields sift(top.get("sift"), file, "sift");
+  map.sift.max_image_size = static_cast<int>(sift.integer("max_image_size", 16, 1 << 20));
+  map.sift.max_features = static_cast<int>(sift.integer("max_features", 1, 1 << 24));
+  map.sift.contrast_threshold = sift.finiteNumber("contrast_threshold");
+  map.ratio = static_cast<float>(top.finiteNumber("ratio"));
   try {
     map.sift.check();
     if (!(map.ratio > 0 && map.ratio <= 1)) throw InputError("ratio: must be in (0, 1]");
@@ -232,7 +182,7 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
     throwInputError(file, 0, std::string("classical map options: ") + e.what());
   }
 
-  const nlohmann::json& checksums = read.at(body, "checksums", "map");
+  const nlohmann::json& checksums = top.get("checksums");
   auto tensor = [&](const std::string& name, DType dtype, const std::vector<int64_t>& shape) -> const TensorView& {
     if (!archive->contains(name)) throwInputError(file, 0, "tensor '" + name + "' missing");
     const TensorView& view = archive->at(name);
@@ -257,33 +207,33 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   map.vocabulary = VladVocabulary(std::move(centres));
   const int64_t descriptor_size = static_cast<int64_t>(map.vocabulary.descriptorSize());
 
-  const nlohmann::json& images = read.at(body, "images", "map");
-  if (!images.is_array()) read.fail("map", "field 'images' is not a list");
+  const nlohmann::json& images = top.get("images");
+  if (!images.is_array()) top.fail("images", "expected a list");
   const int64_t image_count = static_cast<int64_t>(images.size());
   const float* globals =
       image_count > 0 ? floats(tensor("global_descriptors", DType::kF32, {image_count, descriptor_size})) : nullptr;
   std::set<std::string> names;
   for (size_t i = 0; i < images.size(); ++i) {
-    const nlohmann::json& j = images[i];
-    const std::string where = "map image #" + std::to_string(i);
+    const JsonFields entry(images[i], file, "images[" + std::to_string(i) + "]");
     ClassicalMapImage image;
-    image.name = read.text(j, "name", where);
-    if (!names.insert(image.name).second) read.fail(where, "name '" + image.name + "' appears twice");
+    image.name = entry.string("name");
+    if (!names.insert(image.name).second) entry.fail("name", "'" + image.name + "' appears twice");
     const std::string named = "map image '" + image.name + "'";
-    image.camera_to_world = read.pose(j, "camera_to_world", named);
-    const nlohmann::json& k = read.at(j, "camera", named);
-    image.camera.width = static_cast<int>(read.integer(k, "width", named + " camera", 1, 1 << 20));
-    image.camera.height = static_cast<int>(read.integer(k, "height", named + " camera", 1, 1 << 20));
-    image.camera.fx = read.number(k, "fx", named + " camera");
-    image.camera.fy = read.number(k, "fy", named + " camera");
-    image.camera.cx = read.number(k, "cx", named + " camera");
-    image.camera.cy = read.number(k, "cy", named + " camera");
-    if (!(image.camera.fx > 0 && image.camera.fy > 0)) read.fail(named, "camera focal lengths must be positive");
-    image.working_scale = read.number(j, "working_scale", named);
-    if (!(image.working_scale > 0 && image.working_scale <= 1)) read.fail(named, "field 'working_scale' must be in (0, 1]");
-    image.depth_lifted = read.boolean(j, "depth_lifted", named);
-    const int64_t n = read.integer(j, "keypoints", named, 2, 1 << 24);
-    const int64_t link_count = read.integer(j, "links", named, 0, int64_t{1} << 31);
+    auto fail = [&](const std::string& what) { throwInputError(file, 0, named + ": " + what); };
+    image.camera_to_world = rigidPose(entry, "camera_to_world");
+    const JsonFields camera(entry.get("camera"), file, "images[" + std::to_string(i) + "].camera");
+    image.camera.width = static_cast<int>(camera.integer("width", 1, 1 << 20));
+    image.camera.height = static_cast<int>(camera.integer("height", 1, 1 << 20));
+    image.camera.fx = camera.finiteNumber("fx");
+    image.camera.fy = camera.finiteNumber("fy");
+    image.camera.cx = camera.finiteNumber("cx");
+    image.camera.cy = camera.finiteNumber("cy");
+    if (!(image.camera.fx > 0 && image.camera.fy > 0)) fail("camera focal lengths must be positive");
+    image.working_scale = entry.finiteNumber("working_scale");
+    if (!(image.working_scale > 0 && image.working_scale <= 1)) entry.fail("working_scale", "must be in (0, 1]");
+    image.depth_lifted = entry.boolean("depth_lifted");
+    const int64_t n = entry.integer("keypoints", 2, 1 << 24);
+    const int64_t link_count = entry.integer("links", 0, int64_t{1} << 31);
 
     const float* keypoints = floats(tensor(tensorName("keypoints", i), DType::kF32, {n, 2}));
     const TensorView& descriptors = tensor(tensorName("descriptors", i), DType::kU8, {n, 128});
@@ -293,14 +243,14 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
     image.point_views.resize(n);
     for (int64_t p = 0; p < n; ++p) {
       image.keypoints[p] = {keypoints[2 * p], keypoints[2 * p + 1]};
-      if (!image.keypoints[p].allFinite()) read.fail(named, "keypoint " + std::to_string(p) + " is not finite");
+      if (!image.keypoints[p].allFinite()) fail("keypoint " + std::to_string(p) + " is not finite");
       const float* row = points + kPointColumns * p;
       if (!(row[3] >= 0 && row[3] <= 255 && row[3] == std::floor(row[3])))
-        read.fail(named, "point " + std::to_string(p) + " has an invalid view count");
+        fail("point " + std::to_string(p) + " has an invalid view count");
       image.point_views[p] = static_cast<uint8_t>(row[3]);
       image.points[p] = origin + Eigen::Vector3d(row[0], row[1], row[2]);
       if (image.point_views[p] > 0 && !image.points[p].allFinite())
-        read.fail(named, "point " + std::to_string(p) + " is not finite");
+        fail("point " + std::to_string(p) + " is not finite");
     }
     image.descriptors = cv::Mat(static_cast<int>(n), 128, CV_8U);
     std::memcpy(image.descriptors.data, descriptors.data, descriptors.nbytes);
@@ -311,12 +261,12 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
         const int32_t* row = links + 3 * l;
         if (row[0] < 0 || row[0] >= n || row[1] < 0 || row[1] >= image_count || row[2] < 0 ||
             static_cast<size_t>(row[1]) == i)
-          read.fail(named, "link " + std::to_string(l) + " points outside the map");
+          fail("link " + std::to_string(l) + " points outside the map");
         image.links[l] = {static_cast<uint32_t>(row[0]), static_cast<uint32_t>(row[1]), static_cast<uint32_t>(row[2])};
       }
     }
     image.global_descriptor = Eigen::Map<const Eigen::VectorXf>(globals + i * descriptor_size, descriptor_size);
-    if (!image.global_descriptor.allFinite()) read.fail(named, "global descriptor is not finite");
+    if (!image.global_descriptor.allFinite()) fail("global descriptor is not finite");
     map.images.push_back(std::move(image));
   }
   // A link's far keypoint can only be checked once every image's size is known.

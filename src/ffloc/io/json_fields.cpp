@@ -1,5 +1,7 @@
 #include "ffloc/io/json_fields.h"
 
+#include <cmath>
+#include <cstdint>
 #include <fstream>
 
 #include "ffloc/core/error.h"
@@ -43,6 +45,21 @@ double JsonFields::number(const std::string& key) const {
   const json& value = get(key);
   if (!value.is_number()) fail(key, "expected a number");
   return value.get<double>();
+}
+
+double JsonFields::finiteNumber(const std::string& key) const {
+  const double value = number(key);
+  if (!std::isfinite(value)) fail(key, "expected a finite number");
+  return value;
+}
+
+int64_t JsonFields::integer(const std::string& key, int64_t lo, int64_t hi) const {
+  const json& value = get(key);
+  const bool in_range = value.is_number_integer() &&
+                        !(value.is_number_unsigned() && value.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX)) &&
+                        value.get<int64_t>() >= lo && value.get<int64_t>() <= hi;
+  if (!in_range) fail(key, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return value.get<int64_t>();
 }
 
 int JsonFields::integer(const std::string& key) const {
