@@ -156,34 +156,38 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
   }
 }
 
-QueryPrediction FastForwardLocalizer::predictCoordinates(const cv::Mat& rgb, const Intrinsics& intrinsics,
-                                                         const std::string& name, const LocalizeOptions& options) const {
-  options.check();
-  c10::InferenceMode inference;
+QueryPrediction FastForwardLocalizer::firstPrediction(const cv::Mat& rgb, const Intrinsics& intrinsics,
+                                                      const std::string& name, const LocalizeOptions& options,
+                                                      EncodedQuery& query) const {
   QueryPrediction out;
-  const EncodedQuery query = encode(rgb, intrinsics, name, options, out.timings);
+  query = encode(rgb, intrinsics, name, options, out.timings);
   const auto start = Clock::now();
   decode(query, query.ranked, options.seed, options, out);
   out.timings.matching = secondsSince(start);
   return out;
 }
 
+QueryPrediction FastForwardLocalizer::predictCoordinates(const cv::Mat& rgb, const Intrinsics& intrinsics,
+                                                         const std::string& name, const LocalizeOptions& options) const {
+  options.check();
+  c10::InferenceMode inference;
+  EncodedQuery query;
+  return firstPrediction(rgb, intrinsics, name, options, query);
+}
+
 void FastForwardLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                                    const LocalizeOptions& options, LocalizationResult& result,
                                    std::optional<PnpResult>& second_estimate) const {
   c10::InferenceMode inference;
-  QueryPrediction prediction;
-  const EncodedQuery query = encode(rgb, intrinsics, name, options, prediction.timings);
-  auto start = Clock::now();
-  decode(query, query.ranked, options.seed, options, prediction);
-  prediction.timings.matching = secondsSince(start);
+  EncodedQuery query;
+  QueryPrediction prediction = firstPrediction(rgb, intrinsics, name, options, query);
   result.correspondences = std::move(prediction.correspondences);
   result.camera = prediction.camera;
   result.selected = prediction.selected;
   result.timings = prediction.timings;
 
   if (options.verify_with_second_reference && query.ranked.size() >= 2) {
-    start = Clock::now();
+    const auto start = Clock::now();
     std::vector<size_t> swapped = query.ranked;
     std::swap(swapped[0], swapped[1]);
     QueryPrediction other;
