@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake ccache pkg-config
-  libtorch-dev libopenblas0-pthread libblas-dev
+  libtorch-dev libgloo-dev libopenblas0-pthread libblas-dev
   libopencv-dev libeigen3-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )

@@ -26,6 +26,7 @@
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/fastforward_model.h"
+#include "ffloc/model/map_assembly.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/model/model_options.h"
 #include "ffloc/model/torch_threads.h"
@@ -46,28 +47,36 @@ struct BenchModelArguments {
   uint64_t seed = 0;
 };
 
-// `count` map tokens sampled with the production code path (sampleMapTokenIndices +
-// gatherMapTokens) from mapping images of random encoder tokens and random rays.
+// `count` map tokens assembled as localisation and training assemble them (map_assembly.h), from
+// mapping cameras on a circle looking inwards and random encoder tokens.
 MapTokens randomMapTokens(const Dust3rConfig& config, int64_t rows, int64_t cols, int64_t count,
                           at::ScalarType dtype, uint64_t seed) {
   const int64_t per_image = rows * cols;
   // At least a handful of images, as after retrieval, and enough to hold all N tokens.
   const int64_t images = std::max<int64_t>(8, (count + per_image - 1) / per_image);
+  const int patch = static_cast<int>(config.patch_size);
+  std::vector<MapCamera> cameras;
   std::vector<Dust3rEncoding> encodings;
-  std::vector<at::Tensor> rays;
   for (int64_t k = 0; k < images; ++k) {
+    MapCamera camera;
+    camera.intrinsics.width = static_cast<int>(cols) * patch;
+    camera.intrinsics.height = static_cast<int>(rows) * patch;
+    camera.intrinsics.fx = camera.intrinsics.fy = 0.8 * camera.intrinsics.width;
+    camera.intrinsics.cx = 0.5 * (camera.intrinsics.width - 1);
+    camera.intrinsics.cy = 0.5 * (camera.intrinsics.height - 1);
+    const double angle = 2.0 * 3.141592653589793 * static_cast<double>(k) / static_cast<double>(images);
+    camera.camera_to_world.R = Eigen::AngleAxisd(-angle, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    camera.camera_to_world.t = -2.0 * (camera.camera_to_world.R * Eigen::Vector3d::UnitZ());
+    camera.name = "bench_" + std::to_string(k);
+    cameras.push_back(camera);
     Dust3rEncoding encoding;
     encoding.tokens = at::randn({1, per_image, config.enc_dim}).to(dtype);
     encoding.positions = patchPositions(1, rows, cols, at::kCPU);
-    encoding.height = rows * config.patch_size;
-    encoding.width = cols * config.patch_size;
+    encoding.height = rows * patch;
+    encoding.width = cols * patch;
     encodings.push_back(encoding);
-    at::Tensor direction = at::randn({1, per_image, 3});
-    direction = direction / direction.norm(2, {-1}, /*keepdim=*/true);
-    rays.push_back(at::cat({at::rand({1, per_image, 3}) * 2 - 1, direction}, -1));
   }
-  const std::vector<int64_t> tokens_per_image(static_cast<size_t>(images), per_image);
-  return gatherMapTokens(encodings, rays, sampleMapTokenIndices(tokens_per_image, count, seed));
+  return assembleMapTokens(planMap(cameras, patch, count, seed), encodings);
 }
 
 class Report {

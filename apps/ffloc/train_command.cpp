@@ -2,6 +2,7 @@
 // Method, settings and file layout: docs/training.md.
 #ifdef FFLOC_WITH_TORCH
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -11,12 +12,15 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/splits.h"
+#include "ffloc/train/data_parallel.h"
+#include "ffloc/train/local_launcher.h"
 #include "ffloc/train/trainer.h"
 #include "ffloc/train/training_checkpoint.h"
 
@@ -37,6 +41,12 @@ struct TrainArguments {
   std::optional<std::string> device;
   std::optional<std::string> model;
   std::optional<int> threads;
+  std::optional<std::string> precision;
+  std::optional<int> batch_size;
+  std::optional<int> accumulate;
+  std::optional<int> loader_threads;
+  int nproc_per_node = 1;
+  double max_seconds = 0;
   bool quiet = false;
 };
 
@@ -72,9 +82,34 @@ std::string validationSummary(const ValidationStats& stats) {
 }
 
 const char* kCsvHeader =
-    "step,loss,query_loss,map_loss,query_error,map_error,learning_rate,grad_norm,samples_per_s,"
+    "step,loss,query_loss,map_loss,query_error,map_error,learning_rate,grad_norm,samples_per_s,step_s,data_wait_s,"
+    "allreduce_s,optimizer_s,"
     "val_loss,val_query_error,val_map_error,val_median_translation,val_median_rotation_deg,val_10cm_10deg,"
     "val_25cm_5deg\n";
+
+// This process's command line, as the kernel holds it, for the ranks --nproc-per-node starts.
+std::vector<std::string> ownArguments() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  std::vector<std::string> arguments;
+  std::string argument;
+  while (std::getline(in, argument, '\0')) arguments.push_back(argument);
+  return arguments;
+}
+
+// The same command without --nproc-per-node, for each rank.
+std::vector<std::string> rankArguments() {
+  std::vector<std::string> out;
+  const std::vector<std::string> all = ownArguments();
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (all[i] == "--nproc-per-node") {
+      ++i;
+      continue;
+    }
+    if (all[i].rfind("--nproc-per-node=", 0) == 0) continue;
+    out.push_back(all[i]);
+  }
+  return out;
+}
 
 void runTrain(const TrainArguments& args) {
   TrainingConfig config = args.config.empty() ? TrainingConfig{} : readTrainingConfig(args.config);
@@ -84,7 +119,17 @@ void runTrain(const TrainArguments& args) {
   if (args.device) config.device = *args.device;
   if (args.model) config.model = *args.model;
   if (args.threads) config.threads = *args.threads;
+  if (args.precision) config.precision = *args.precision;
+  if (args.batch_size) config.batch_size = *args.batch_size;
+  if (args.accumulate) config.accumulate = *args.accumulate;
+  if (args.loader_threads) config.loader_threads = *args.loader_threads;
+  const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
+  // Ranks on one machine share its cores rather than each taking them all.
+  if (config.threads == 0 && environment.local_world_size > 1) {
+    config.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / environment.local_world_size);
+  }
   config.validate("command line");
+  const bool lead = environment.rank == 0;
 
   std::vector<Scene> scenes;
   for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
@@ -95,7 +140,24 @@ void runTrain(const TrainArguments& args) {
   fs::create_directories(run_dir);
   std::vector<Scene> validation_scenes;
   for (const std::string& spec : args.validation_data) validation_scenes.push_back(loadTrainingData(spec));
-  Trainer trainer(config, std::move(scenes), run_dir, args.resume, std::move(validation_scenes));
+  std::unique_ptr<DataParallel> parallel;
+  if (environment.distributed()) parallel = std::make_unique<DataParallel>(environment, config.device == "cuda");
+  Trainer trainer(config, std::move(scenes), run_dir, args.resume, std::move(validation_scenes), parallel.get());
+  using Clock = std::chrono::steady_clock;
+  const Clock::time_point started = Clock::now();
+  // Each rank asks on its own clock; the stop takes effect on all of them at the same step.
+  const auto trainStep = [&] {
+    if (args.max_seconds > 0 && std::chrono::duration<double>(Clock::now() - started).count() > args.max_seconds) {
+      trainer.requestStop();
+    }
+    return trainer.step();
+  };
+  if (!lead) {
+    // The other ranks compute and keep in step through the collectives; rank 0 alone writes.
+    while (trainer.stepsDone() < config.steps && !trainStep().stop_requested) {
+    }
+    return;
+  }
   {
     std::ofstream(run_dir / "config.json") << toJson(config).dump(2) << "\n";
   }
@@ -116,29 +178,42 @@ void runTrain(const TrainArguments& args) {
   if (!args.quiet) {
     std::cerr << "model: " << trainer.modelDescription() << "; " << trainer.trainableParameterCount()
               << " trainable parameters" << (config.train_encoder ? "" : " (encoder frozen)") << "\n"
-              << "steps " << trainer.stepsDone() << " -> " << config.steps << ", run folder " << run_dir.string()
-              << "\n";
+              << "steps " << trainer.stepsDone() << " -> " << config.steps << ", global batch "
+              << trainer.globalBatch() << " (" << config.batch_size << " x " << config.accumulate << " passes x "
+              << environment.world_size << " ranks), run folder " << run_dir.string() << "\n";
   }
 
-  using Clock = std::chrono::steady_clock;
   Clock::time_point window_start = Clock::now();
   int64_t window_steps = 0;
   double window_loss = 0;
+  // Rank 0's time per step over the window: whole step, waiting for data, all-reduce, optimiser.
+  double window_step = 0, window_wait = 0, window_allreduce = 0, window_optimizer = 0;
   while (trainer.stepsDone() < config.steps) {
-    const TrainingStepStats stats = trainer.step();
+    const TrainingStepStats stats = trainStep();
+    if (stats.stop_requested && !args.quiet) {
+      std::cerr << "time budget of " << args.max_seconds << " s spent at step " << stats.step << "\n";
+    }
     ++window_steps;
     window_loss += stats.loss;
-    const bool log_now = stats.step % config.log_every == 0 || stats.step == config.steps;
+    window_step += stats.step_seconds;
+    window_wait += stats.data_wait_seconds;
+    window_allreduce += stats.allreduce_seconds;
+    window_optimizer += stats.optimizer_seconds;
+    const bool log_now = stats.step % config.log_every == 0 || stats.step == config.steps || stats.stop_requested;
     const bool validate_now = config.validation_every > 0 && stats.step % config.validation_every == 0;
     if (!log_now && !validate_now) continue;
     const double seconds = std::chrono::duration<double>(Clock::now() - window_start).count();
     const double rate = seconds > 0 ? static_cast<double>(window_steps) / seconds : 0.0;
+    const double sample_rate = rate * static_cast<double>(trainer.globalBatch());
+    const double steps_in_window = static_cast<double>(window_steps);
+    const double wait_share = window_step > 0 ? window_wait / window_step : 0.0;
     std::optional<ValidationStats> validation;
     if (validate_now) validation = trainer.validate();
     char row[512];
-    std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,", static_cast<long long>(stats.step),
-                  stats.loss, stats.query_loss, stats.map_loss, stats.query_error, stats.map_error,
-                  stats.learning_rate, stats.grad_norm, rate);
+    std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
+                  static_cast<long long>(stats.step), stats.loss, stats.query_loss, stats.map_loss, stats.query_error,
+                  stats.map_error, stats.learning_rate, stats.grad_norm, sample_rate, window_step / steps_in_window,
+                  window_wait / steps_in_window, window_allreduce / steps_in_window, window_optimizer / steps_in_window);
     log << row;
     if (validation) {
       std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g", validation->loss,
@@ -152,15 +227,22 @@ void runTrain(const TrainArguments& args) {
     log << "\n" << std::flush;
     if (!args.quiet) {
       const double eta = rate > 0 ? static_cast<double>(config.steps - stats.step) / rate : 0.0;
-      std::fprintf(stderr, "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  lr %.2e  |g| %.3g  %.2f it/s  eta %.0f s%s\n",
+      std::fprintf(stderr,
+                   "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  lr %.2e  |g| %.3g  %.2f samples/s"
+                   " (%.0f%% waiting for data)  eta %.0f s%s\n",
                    static_cast<long long>(stats.step), static_cast<long long>(config.steps), stats.loss,
                    window_loss / static_cast<double>(window_steps), stats.query_error, stats.map_error,
-                   stats.learning_rate, stats.grad_norm, rate, eta,
+                   stats.learning_rate, stats.grad_norm, sample_rate, 100.0 * wait_share, eta,
                    validation ? validationSummary(*validation).c_str() : "");
     }
     window_start = Clock::now();
     window_steps = 0;
     window_loss = 0;
+    window_step = 0;
+    window_wait = 0;
+    window_allreduce = 0;
+    window_optimizer = 0;
+    if (stats.stop_requested) break;
     if (stats.step % config.checkpoint_every == 0 && stats.step != config.steps) trainer.saveCheckpoint();
   }
   const fs::path folder = trainer.saveCheckpoint();
@@ -187,9 +269,25 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--device", args->device, "cpu or cuda (overrides the config)");
   cmd->add_option("--model", args->model, "Initial weights (overrides the config): checkpoint or random:<preset>");
   cmd->add_option("--threads", args->threads, "libtorch threads, 0 = all cores (overrides the config)");
+  cmd->add_option("--precision", args->precision, "fp32, or bf16 mixed precision (overrides the config)")
+      ->check(CLI::IsMember({"fp32", "bf16"}));
+  cmd->add_option("--batch-size", args->batch_size, "Samples in one forward pass of each rank (overrides the config)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--accumulate", args->accumulate, "Forward passes per optimiser step (overrides the config)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--loader-threads", args->loader_threads,
+                  "Background threads preparing samples (overrides the config)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--nproc-per-node", args->nproc_per_node,
+                  "Start this many ranks on this machine, as torchrun does (RANK, WORLD_SIZE, ... set for each)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--max-seconds", args->max_seconds,
+                  "Stop after this many seconds of training with a checkpoint (0: run all steps)")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--quiet", args->quiet, "No progress output");
   cmd->callback([args, &run] {
     run = [args] {
+      if (args->nproc_per_node > 1) return runLocalRanks(rankArguments(), args->nproc_per_node);
       runTrain(*args);
       return 0;
     };

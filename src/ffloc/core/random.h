@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 
 namespace ffloc {
@@ -26,6 +27,9 @@ class Rng {
   double uniform(double lo, double hi) { return lo + (hi - lo) * uniform(); }
   // In [0, n); the modulo bias is below 2^-40 for the small n used here.
   int index(int n) { return static_cast<int>(next() % static_cast<uint64_t>(n)); }
+  size_t below(size_t n) { return static_cast<size_t>(next() % static_cast<uint64_t>(n)); }
+  // In [lo, hi], both included.
+  int64_t between(int64_t lo, int64_t hi) { return lo + static_cast<int64_t>(below(static_cast<size_t>(hi - lo + 1))); }
   bool chance(double p) { return uniform() < p; }
   // Zero mean, unit variance, bell-shaped (Irwin-Hall of four uniforms): needs only sqrt,
   // which IEEE 754 rounds exactly, unlike the log and cos of Box-Muller.

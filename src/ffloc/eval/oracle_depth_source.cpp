@@ -1,8 +1,8 @@
 #include "ffloc/eval/oracle_depth_source.h"
 
-#include <random>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/random.h"
 #include "ffloc/data/depth.h"
 
 namespace ffloc {
@@ -32,10 +32,7 @@ Correspondences OracleDepthSource::correspondences(const Scene& scene, size_t qu
   const Intrinsics pinhole = frame.intrinsics.undistorted();
 
   // One generator per query, so results do not depend on the order frames are visited in.
-  std::mt19937_64 rng(options_.seed * 1000003ULL + query_index);
-  // Standard normals, scaled where used: a normal_distribution of sigma 0 is not allowed.
-  std::normal_distribution<double> gaussian(0.0, 1.0);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  Rng rng(options_.seed * 1000003ULL + query_index);
 
   Correspondences out;
   out.reserve(ideal.size());
@@ -46,15 +43,15 @@ Correspondences OracleDepthSource::correspondences(const Scene& scene, size_t qu
     low = low.cwiseMin(world);
     high = high.cwiseMax(world);
     Eigen::Vector2d pixel = ideal[i];
-    if (options_.pixel_noise_px > 0) pixel += options_.pixel_noise_px * Eigen::Vector2d(gaussian(rng), gaussian(rng));
+    if (options_.pixel_noise_px > 0) pixel += options_.pixel_noise_px * Eigen::Vector2d(rng.normal(), rng.normal());
     out.add(pixel, world, std::numeric_limits<float>::infinity());
   }
   for (size_t i = 0; i < out.size(); ++i) {
-    if (options_.outlier_fraction > 0 && unit(rng) < options_.outlier_fraction) {
-      const Eigen::Vector3d r(unit(rng), unit(rng), unit(rng));
+    if (options_.outlier_fraction > 0 && rng.uniform() < options_.outlier_fraction) {
+      const Eigen::Vector3d r(rng.uniform(), rng.uniform(), rng.uniform());
       out.points[i] = low + r.cwiseProduct(high - low);
     } else if (options_.point_noise > 0) {
-      out.points[i] += options_.point_noise * Eigen::Vector3d(gaussian(rng), gaussian(rng), gaussian(rng));
+      out.points[i] += options_.point_noise * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
     }
   }
   return out;

@@ -10,9 +10,9 @@ namespace ffloc {
 // and ground-truth pose, optionally corrupted, to test the solver and the harness.
 struct OracleDepthOptions {
   int stride = 4;                 // use every stride-th pixel in x and y
-  double pixel_noise_px = 0.0;    // Gaussian noise added to the 2D side
+  double pixel_noise_px = 0.0;    // zero-mean unit-variance bell noise (core/random.h) times this, on the 2D side
   double outlier_fraction = 0.0;  // fraction of pairs whose 3D point is replaced at random
-  double point_noise = 0.0;       // Gaussian noise on the other 3D points (scene units), like a regressor's error
+  double point_noise = 0.0;       // the same noise on the other 3D points (scene units), like a regressor's error
   uint64_t seed = 0;
 };
 

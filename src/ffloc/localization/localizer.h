@@ -8,6 +8,7 @@
 #include <opencv2/core.hpp>
 
 #include "ffloc/geometry/camera.h"
+#include "ffloc/geometry/map_camera.h"
 #include "ffloc/geometry/pose.h"
 #include "ffloc/localization/verdict.h"
 #include "ffloc/pose/pnp.h"
@@ -61,13 +62,6 @@ struct QueryTimings {
   double pnp = 0;
   double verification = 0;   // the second estimate behind the verdict
   double total() const { return preprocessing + features + retrieval + matching + pnp + verification; }
-};
-
-// A mapping image as every method knows it.
-struct MapCamera {
-  std::string name;
-  Pose camera_to_world;
-  Intrinsics intrinsics;  // of the image the method works on
 };
 
 struct LocalizationResult {

@@ -1,5 +1,5 @@
 // Parity of the C++ DUSt3R port with the Python reference fixtures (shared/fixtures/dust3r):
-// every tensor each case file lists must match in float32 on CPU to 1e-5 of its largest
+// every tensor each case file lists must match in float32 (CPU, or FFLOC_TEST_DEVICE) to 1e-5 of its largest
 // magnitude (the fixtures' float32-vs-float64 spread is ~1e-6), integer tensors exactly.
 
 #include <gtest/gtest.h>
@@ -10,6 +10,8 @@
 #include <ATen/ops/equal.h>
 
 #include <cstdio>
+#include <cstdlib>
+#include <string>
 
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/testing/shared_data.h"
@@ -32,6 +34,13 @@ constexpr double kRelativeTolerance = 1e-5;
 double bfloat16Tolerance(bool bf16_heads) {
   if (!cpuHasNativeBfloat16()) return 0.16;
   return bf16_heads ? 0.1 : 0.05;
+}
+
+// FFLOC_TEST_DEVICE=cuda runs the model on the GPU (scripts/train_on_device.sh); the references
+// stay on the CPU.
+at::Device testDevice() {
+  const char* device = std::getenv("FFLOC_TEST_DEVICE");
+  return device && std::string(device) == "cuda" ? at::Device(at::kCUDA) : at::Device(at::kCPU);
 }
 
 struct Comparison {
@@ -98,6 +107,7 @@ class Dust3rParity : public ::testing::Test {
     setTorchThreadCount(0);
     model_ = std::make_unique<Dust3rModel>(Dust3rConfig::preset("tiny"));
     model_->loadWeights(*openSafetensors(dir_ / "tiny_model.safetensors"));
+    model_->to(testDevice(), at::kFloat);
   }
 
   void checkPairCase(const std::string& file) {
@@ -105,7 +115,7 @@ class Dust3rParity : public ::testing::Test {
     const at::Tensor image1 = checkedInput(*fixture, "view1");
     const at::Tensor image2 = checkedInput(*fixture, "view2");
     TensorTrace trace;
-    const Dust3rPairPrediction prediction = model_->forward(image1, image2, &trace);
+    const Dust3rPairPrediction prediction = model_->forward(image1.to(testDevice()), image2.to(testDevice()), &trace);
     double worst = 0;
     EXPECT_EQ(firstMismatch(*fixture, trace, kRelativeTolerance, &worst), "");
     std::printf("%s: worst relative error %.3g over %zu tensors\n", file.c_str(), worst, fixture->names().size());
@@ -122,7 +132,7 @@ TEST_F(Dust3rParity, EncoderSingle) {
   const auto fixture = openSafetensors(dir_ / "case_encoder_single.safetensors");
   const at::Tensor image = checkedInput(*fixture, "view1");
   TensorTrace trace;
-  const Dust3rEncoding encoding = model_->encode(image, &trace, "view1");
+  const Dust3rEncoding encoding = model_->encode(image.to(testDevice()), &trace, "view1");
   EXPECT_EQ(encoding.height, 80);
   EXPECT_EQ(encoding.width, 48);
   double worst = 0;
@@ -179,18 +189,19 @@ TEST_F(Dust3rParity, DetectsWrongLayerNormEpsilon) {
 // in bfloat16 (as the reference on CPU); see docs/model.md for the per-tensor numbers.
 void expectBfloat16Agreement(Dust3rModel& model, const std::filesystem::path& dir, at::ScalarType head_dtype,
                              double tolerance) {
-  model.to(at::kCPU, at::kBFloat16, head_dtype);
+  model.to(testDevice(), at::kBFloat16, head_dtype);
   const std::string label = head_dtype == at::kFloat ? "bf16 backbone" : "bf16 backbone+heads";
   for (const std::string file : {"case_pair_landscape.safetensors", "case_pair_mixed.safetensors"}) {
     const auto fixture = openSafetensors(dir / file);
     TensorTrace trace;
-    model.forward(checkedInput(*fixture, "view1"), checkedInput(*fixture, "view2"), &trace);
+    model.forward(checkedInput(*fixture, "view1").to(testDevice()), checkedInput(*fixture, "view2").to(testDevice()),
+                  &trace);
     EXPECT_EQ(trace.at("view1.enc.out").scalar_type(), at::kBFloat16);
     EXPECT_EQ(trace.at("view1.head.path1").scalar_type(), head_dtype);
     EXPECT_EQ(trace.at("view1.head.raw").scalar_type(), at::kFloat);
     for (const std::string name : {"view1.enc.out", "view1.dec.out", "view2.dec.out", "view1.head.raw",
                                    "view1.pts3d", "view1.conf", "view2.pts3d_in_other_view", "view2.conf"}) {
-      const Comparison c = compareTensors(trace.at(name).to(at::kFloat), toTorch(fixture->at(name)));
+      const Comparison c = compareTensors(trace.at(name).to(at::kFloat).cpu(), toTorch(fixture->at(name)));
       std::printf("%s %s %s: max abs %.3g, relative %.3g\n", label.c_str(), file.c_str(), name.c_str(), c.max_abs,
                   c.relative());
       EXPECT_LE(c.relative(), tolerance) << label << " " << file << " " << name;

@@ -8,9 +8,9 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <random>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/random.h"
 
 namespace ffloc {
 
@@ -21,11 +21,8 @@ at::Tensor sampleMapTokenIndices(const std::vector<int64_t>& tokens_per_image, i
   }
   if (count < static_cast<int64_t>(all.size())) {
     // Partial Fisher-Yates: the first `count` entries become a uniform sample without replacement.
-    std::mt19937_64 rng(seed);
-    for (int64_t i = 0; i < count; ++i) {
-      std::uniform_int_distribution<int64_t> pick(i, static_cast<int64_t>(all.size()) - 1);
-      std::swap(all[i], all[pick(rng)]);
-    }
+    Rng rng(seed);
+    for (int64_t i = 0; i < count; ++i) std::swap(all[i], all[rng.between(i, static_cast<int64_t>(all.size()) - 1)]);
     all.resize(std::max<int64_t>(count, 0));
   }
   at::Tensor indices = at::empty({static_cast<int64_t>(all.size()), 2}, at::TensorOptions().dtype(at::kLong));
@@ -106,14 +103,13 @@ void FastForwardModel::loadWeights(const TensorArchive& archive) {
 
 namespace {
 
-// Xavier-uniform (PyTorch's default for these layers in DUSt3R) from a seeded std::mt19937, so
-// the initialisation does not depend on the libtorch version's RNG.
-at::Tensor xavierUniform(int64_t out, int64_t in, std::mt19937_64& rng) {
+// Xavier-uniform (PyTorch's default for these layers in DUSt3R) from the project's generator, so
+// the initialisation depends neither on the libtorch version's RNG nor on the standard library.
+at::Tensor xavierUniform(int64_t out, int64_t in, Rng& rng) {
   at::Tensor weight = at::empty({out, in}, at::TensorOptions().dtype(at::kFloat));
   const double bound = std::sqrt(6.0 / static_cast<double>(in + out));
-  std::uniform_real_distribution<float> uniform(static_cast<float>(-bound), static_cast<float>(bound));
   float* data = weight.data_ptr<float>();
-  for (int64_t i = 0; i < out * in; ++i) data[i] = uniform(rng);
+  for (int64_t i = 0; i < out * in; ++i) data[i] = static_cast<float>(rng.uniform(-bound, bound));
   return weight;
 }
 
@@ -123,7 +119,7 @@ void FastForwardModel::initializeFromDust3r(const TensorArchive& dust3r, uint64_
   ParameterLoadOptions options;
   options.ignored_prefixes = {"downstream_head2."};
   loadParameters(dust3r_.parameterTable(Dust3rHeads::kFirstOnly), dust3r, options);
-  std::mt19937_64 rng(seed);
+  Rng rng(seed);
   const at::TensorOptions f32 = at::TensorOptions().dtype(at::kFloat);
   ray_embed_.fc1.weight = xavierUniform(ray_embed_.fc1.out, ray_embed_.fc1.in, rng);
   ray_embed_.fc1.bias = at::zeros({ray_embed_.fc1.out}, f32);

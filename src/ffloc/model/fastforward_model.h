@@ -33,8 +33,8 @@ struct MapTokens {
 };
 
 // `count` distinct (image, token) pairs drawn uniformly from mapping images with the given token
-// counts (all of them, in order, when count >= the total), as an (M, 2) int64 tensor. Seeded
-// std::mt19937, so the sample is reproducible everywhere.
+// counts (all of them, in order, when count >= the total), as an (M, 2) int64 tensor. Drawn with
+// core/random.h, so the sample is the same on every machine and standard library.
 at::Tensor sampleMapTokenIndices(const std::vector<int64_t>& tokens_per_image, int64_t count, uint64_t seed);
 
 // Gathers the map tokens listed in `indices` ((M, 2) image, token) from per-image encodings

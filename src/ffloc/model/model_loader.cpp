@@ -13,23 +13,11 @@
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/hash.h"
+#include "ffloc/core/random.h"
 #include "ffloc/model/parameter_table.h"
 
 namespace ffloc {
 namespace {
-
-// splitmix64: tiny, fast and identical everywhere, which std distributions are not.
-struct SplitMix64 {
-  uint64_t state;
-  uint64_t next() {
-    uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-  }
-  // Uniform in [-1, 1).
-  float symmetric() { return static_cast<float>(static_cast<double>(next() >> 11) * 0x1.0p-52 - 1.0); }
-};
 
 uint64_t hashString(const std::string& text, uint64_t seed = 0xcbf29ce484222325ULL) {
   return fnv1a64(reinterpret_cast<const uint8_t*>(text.data()), text.size(), seed);
@@ -114,18 +102,18 @@ void randomizeParameters(const ParameterTable& table, uint64_t seed, at::ScalarT
   for (const ParameterTable::Entry& entry : table.entries()) {
     at::Tensor tensor = at::empty(entry.shape, f32);
     // Seeded per name, so a tensor's values do not depend on the registration order.
-    SplitMix64 rng{hashString(entry.name, seed ^ 0x5eedULL)};
+    Rng rng(hashString(entry.name, seed ^ 0x5eedULL));
     float* data = tensor.data_ptr<float>();
     const int64_t count = tensor.numel();
     const bool is_bias = entry.name.size() >= 5 && entry.name.compare(entry.name.size() - 5, 5, ".bias") == 0;
     if (is_bias) {
-      for (int64_t i = 0; i < count; ++i) data[i] = 0.02f * rng.symmetric();
+      for (int64_t i = 0; i < count; ++i) data[i] = 0.02f * static_cast<float>(rng.uniform(-1.0, 1.0));
     } else if (entry.shape.size() == 1) {
-      for (int64_t i = 0; i < count; ++i) data[i] = 1.0f + 0.1f * rng.symmetric();  // LayerNorm gain
+      for (int64_t i = 0; i < count; ++i) data[i] = 1.0f + 0.1f * static_cast<float>(rng.uniform(-1.0, 1.0));  // LayerNorm gain
     } else {
       const int64_t fan_in = entry.shape.empty() || entry.shape[0] == 0 ? 1 : std::max<int64_t>(1, count / entry.shape[0]);
       const float bound = static_cast<float>(std::sqrt(3.0 / static_cast<double>(fan_in)));
-      for (int64_t i = 0; i < count; ++i) data[i] = bound * rng.symmetric();
+      for (int64_t i = 0; i < count; ++i) data[i] = bound * static_cast<float>(rng.uniform(-1.0, 1.0));
     }
     // Cast as soon as drawn: a bf16 model never holds a float32 copy of itself.
     *entry.tensor = dtype == at::kFloat ? tensor : tensor.to(dtype);

@@ -10,8 +10,7 @@
 
 #include "ffloc/classical/sift_features.h"
 #include "ffloc/core/error.h"
-#include "ffloc/geometry/rays.h"
-#include "ffloc/model/ray_encoding.h"
+#include "ffloc/model/map_assembly.h"
 #include "ffloc/pipeline/prepared_image.h"
 #include "ffloc/pipeline/query_descriptor.h"
 
@@ -105,21 +104,18 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
                                   const LocalizeOptions& options, QueryPrediction& out) const {
   out.camera = query.image.camera;
   out.selected = selected;
-  out.correspondences = {};
-  std::vector<Pose> poses;
-  std::vector<std::string> names;
+  std::vector<MapCamera> cameras;
   for (size_t index : selected) {
-    poses.push_back(map_.images[index].camera_to_world);
-    names.push_back(map_.images[index].name);
+    const MapImage& image = map_.images[index];
+    cameras.push_back({image.name, image.camera_to_world, image.intrinsics});
   }
-  // The first image is P_0: the normalised frame is then centred where the query most likely is.
-  out.normalization = SceneNormalization::fromMappingPoses(poses, 0, names);
-
   const int patch = static_cast<int>(model_.config().dust3r.patch_size);
+  // The first image is P_0: the normalised frame is then centred where the query most likely is.
+  const MapLayout layout = planMap(cameras, patch, options.num_features, seed);
+  out.normalization = layout.normalization;
+
   const at::ScalarType dtype = model_.dust3r().backboneDtype();
   std::vector<Dust3rEncoding> images;
-  std::vector<at::Tensor> rays;
-  std::vector<int64_t> tokens_per_image;
   for (size_t index : selected) {
     const MapImage& image = map_.images[index];
     const int64_t count = static_cast<int64_t>(image.tokenCount());
@@ -131,29 +127,10 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
     encoded.height = static_cast<int64_t>(image.grid_rows) * patch;
     encoded.width = static_cast<int64_t>(image.grid_cols) * patch;
     images.push_back(std::move(encoded));
-    rays.push_back(rayTensor(patchRays(image.intrinsics, out.normalization.normalize(image.camera_to_world), patch)));
-    tokens_per_image.push_back(count);
   }
-  const MapTokens map_tokens =
-      gatherMapTokens(images, rays, sampleMapTokenIndices(tokens_per_image, options.num_features, seed));
-  const FastForwardPrediction prediction = model_.forward(query.encoding, map_tokens);
-
-  const at::Tensor points = prediction.query.pts3d[0].to(at::kDouble).contiguous();  // (H, W, 3)
-  const at::Tensor confidence = prediction.query.conf[0].to(at::kFloat).contiguous();  // (H, W)
-  const int64_t height = points.size(0), width = points.size(1);
-  const double* xyz = points.data_ptr<double>();
-  const float* conf = confidence.data_ptr<float>();
-  const PreprocessGeometry& geometry = query.image.preprocessed.geometry;
-  out.correspondences.reserve(static_cast<size_t>(height * width));
-  for (int64_t y = 0; y < height; ++y) {
-    for (int64_t x = 0; x < width; ++x) {
-      const int64_t i = y * width + x;
-      const Eigen::Vector3d normalized(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
-      if (!normalized.allFinite() || !std::isfinite(conf[i])) continue;
-      out.correspondences.add(geometry.toOriginal(Eigen::Vector2d(static_cast<double>(x), static_cast<double>(y))),
-                              out.normalization.toWorld(normalized), conf[i]);
-    }
-  }
+  const FastForwardPrediction prediction = model_.forward(query.encoding, assembleMapTokens(layout, images));
+  out.correspondences =
+      queryCorrespondences(prediction.query, 0, out.normalization, &query.image.preprocessed.geometry);
 }
 
 QueryPrediction FastForwardLocalizer::firstPrediction(const cv::Mat& rgb, const Intrinsics& intrinsics,

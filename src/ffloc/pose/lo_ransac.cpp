@@ -106,7 +106,7 @@ Pose locallyOptimise(const std::vector<Eigen::Vector2d>& pixels,
 
 LoRansacOutput loRansacPnp(const std::vector<Eigen::Vector2d>& pixels,
                            const std::vector<Eigen::Vector3d>& points, const Intrinsics& camera,
-                           const PnpOptions& options, std::mt19937_64* rng) {
+                           const PnpOptions& options, Rng* rng) {
   LoRansacOutput output;
   const int n = static_cast<int>(pixels.size());
   if (n < 3) return output;
@@ -121,14 +121,13 @@ LoRansacOutput loRansacPnp(const std::vector<Eigen::Vector2d>& pixels,
   Score best;
   Pose best_pose;
   int needed = options.max_iterations;
-  std::uniform_int_distribution<int> pick(0, n - 1);
   std::vector<Pose> hypotheses;
   for (output.iterations = 0; output.iterations < needed; ++output.iterations) {
     std::array<int, 3> sample;
-    sample[0] = pick(*rng);
-    do sample[1] = pick(*rng);
+    sample[0] = rng->index(n);
+    do sample[1] = rng->index(n);
     while (sample[1] == sample[0]);
-    do sample[2] = pick(*rng);
+    do sample[2] = rng->index(n);
     while (sample[2] == sample[0] || sample[2] == sample[1]);
 
     hypotheses.clear();

@@ -1,9 +1,9 @@
 #pragma once
 
 #include <Eigen/Core>
-#include <random>
 #include <vector>
 
+#include "ffloc/core/random.h"
 #include "ffloc/geometry/camera.h"
 #include "ffloc/geometry/pose.h"
 #include "ffloc/pose/pnp.h"
@@ -24,6 +24,6 @@ struct LoRansacOutput {
 // deterministic. The inputs are the pairs left after filtering (no confidences).
 LoRansacOutput loRansacPnp(const std::vector<Eigen::Vector2d>& pixels,
                            const std::vector<Eigen::Vector3d>& points, const Intrinsics& camera,
-                           const PnpOptions& options, std::mt19937_64* rng);
+                           const PnpOptions& options, Rng* rng);
 
 }  // namespace ffloc

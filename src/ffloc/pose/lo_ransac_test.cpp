@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <random>
 
 namespace ffloc {
 namespace {
@@ -44,7 +45,7 @@ Pairs makePairs(int count, double outlier_fraction, uint64_t seed) {
 
 TEST(LoRansac, StopsAlmostAtOnceWhenEveryPairIsAnInlier) {
   const Pairs pairs = makePairs(500, 0.0, 1);
-  std::mt19937_64 rng(0);
+  Rng rng(0);
   const LoRansacOutput output = loRansacPnp(pairs.pixels, pairs.points, testCamera(), PnpOptions{}, &rng);
   ASSERT_TRUE(output.found);
   // Once a model explains every pair one sample suffices; a noisy first triple may need a second.
@@ -56,7 +57,7 @@ TEST(LoRansac, IterationCountFollowsTheInlierRatio) {
   // At 40% inliers, 0.9999 success needs log(1e-4) / log(1 - 0.4^3) = 140 samples; the ratio
   // estimate wobbles with the sample, so allow a margin but stay far below the cap.
   const Pairs pairs = makePairs(1000, 0.6, 2);
-  std::mt19937_64 rng(0);
+  Rng rng(0);
   const LoRansacOutput output = loRansacPnp(pairs.pixels, pairs.points, testCamera(), PnpOptions{}, &rng);
   ASSERT_TRUE(output.found);
   EXPECT_GT(output.iterations, 80);
@@ -69,14 +70,14 @@ TEST(LoRansac, NeverRunsPastTheIterationCap) {
   const Pairs pairs = makePairs(400, 1.0, 3);
   PnpOptions options;
   options.max_iterations = 37;
-  std::mt19937_64 rng(0);
+  Rng rng(0);
   const LoRansacOutput output = loRansacPnp(pairs.pixels, pairs.points, testCamera(), options, &rng);
   EXPECT_EQ(output.iterations, 37);
 }
 
 TEST(LoRansac, SameEngineStateGivesTheSameModel) {
   const Pairs pairs = makePairs(1500, 0.5, 4);
-  std::mt19937_64 first(99), second(99);
+  Rng first(99), second(99);
   const LoRansacOutput a = loRansacPnp(pairs.pixels, pairs.points, testCamera(), PnpOptions{}, &first);
   const LoRansacOutput b = loRansacPnp(pairs.pixels, pairs.points, testCamera(), PnpOptions{}, &second);
   ASSERT_TRUE(a.found);
@@ -87,7 +88,7 @@ TEST(LoRansac, SameEngineStateGivesTheSameModel) {
 
 TEST(LoRansac, FewerThanThreePairsFindNothing) {
   const Pairs pairs = makePairs(2, 0.0, 5);
-  std::mt19937_64 rng(0);
+  Rng rng(0);
   EXPECT_FALSE(loRansacPnp(pairs.pixels, pairs.points, testCamera(), PnpOptions{}, &rng).found);
 }
 

@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <optional>
-#include <random>
 #include <sstream>
 
 #include "ffloc/core/error.h"
@@ -97,7 +96,7 @@ PnpResult estimatePose(const Correspondences& correspondences, const Intrinsics&
     return result;
   };
 
-  std::mt19937_64 rng(options.seed);
+  Rng rng(options.seed);
   const std::vector<int> selected =
       selectCorrespondences(correspondences, options.confidence_threshold, options.max_correspondences, &rng,
                             options.min_correspondences);

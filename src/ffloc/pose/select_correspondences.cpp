@@ -5,7 +5,7 @@
 namespace ffloc {
 
 std::vector<int> selectCorrespondences(const Correspondences& correspondences, float confidence_threshold,
-                                       size_t max_count, std::mt19937_64* rng, size_t min_count) {
+                                       size_t max_count, Rng* rng, size_t min_count) {
   std::vector<int> finite, selected;
   finite.reserve(correspondences.size());
   selected.reserve(correspondences.size());
@@ -28,10 +28,7 @@ std::vector<int> selectCorrespondences(const Correspondences& correspondences, f
   }
   if (selected.size() <= max_count) return selected;
   // Partial Fisher-Yates: the first max_count slots become a uniform random subset.
-  for (size_t i = 0; i < max_count; ++i) {
-    std::uniform_int_distribution<size_t> pick(i, selected.size() - 1);
-    std::swap(selected[i], selected[pick(*rng)]);
-  }
+  for (size_t i = 0; i < max_count; ++i) std::swap(selected[i], selected[i + rng->below(selected.size() - i)]);
   selected.resize(max_count);
   std::sort(selected.begin(), selected.end());
   return selected;

@@ -1,8 +1,8 @@
 #pragma once
 
-#include <random>
 #include <vector>
 
+#include "ffloc/core/random.h"
 #include "ffloc/pose/correspondences.h"
 
 namespace ffloc {
@@ -14,6 +14,6 @@ namespace ffloc {
 // used instead (ties by index): a weakly trained network can sit below the paper's threshold
 // everywhere, and RANSAC, not the threshold, is what rejects wrong points.
 std::vector<int> selectCorrespondences(const Correspondences& correspondences, float confidence_threshold,
-                                       size_t max_count, std::mt19937_64* rng, size_t min_count = 0);
+                                       size_t max_count, Rng* rng, size_t min_count = 0);
 
 }  // namespace ffloc

@@ -20,7 +20,7 @@ TEST(SelectCorrespondences, KeepsConfidenceAtOrAboveTheThresholdAndFiniteValues)
   const float inf = std::numeric_limits<float>::infinity();
   Correspondences c = withConfidences({1.0f, 1.5f, 1.49f, 2.0f, inf, std::nanf(""), 3.0f});
   c.points[6].x() = std::numeric_limits<double>::quiet_NaN();
-  std::mt19937_64 rng(0);
+  Rng rng(0);
   EXPECT_EQ(selectCorrespondences(c, 1.5f, 5000, &rng), (std::vector<int>{1, 3, 4}));
 }
 
@@ -28,7 +28,7 @@ TEST(SelectCorrespondences, SubsamplesToADistinctSortedSubsetThatDependsOnTheSee
   std::vector<float> confidences(10000, 2.0f);
   for (size_t i = 0; i < confidences.size(); i += 2) confidences[i] = 1.0f;  // half filtered out
   const Correspondences c = withConfidences(confidences);
-  std::mt19937_64 rng(5), same(5), other(6);
+  Rng rng(5), same(5), other(6);
   const std::vector<int> a = selectCorrespondences(c, 1.5f, 1000, &rng);
   ASSERT_EQ(a.size(), 1000u);
   EXPECT_TRUE(std::is_sorted(a.begin(), a.end()));
@@ -43,7 +43,7 @@ TEST(SelectCorrespondences, SubsamplesToADistinctSortedSubsetThatDependsOnTheSee
 
 TEST(SelectCorrespondences, FallsBackToTheMostConfidentWhenTooFewPassTheThreshold) {
   Correspondences c = withConfidences({1.2f, 1.4f, 1.1f, 1.6f, 1.3f, 1.4f, std::nanf(""), 1.0f});
-  std::mt19937_64 rng(0);
+  Rng rng(0);
   // Only index 3 passes 1.5; with min_count 4 the four most confident finite pairs are used,
   // the tie at 1.4 broken by index and NaN never taken.
   EXPECT_EQ(selectCorrespondences(c, 1.5f, 5000, &rng, 4), (std::vector<int>{1, 3, 4, 5}));

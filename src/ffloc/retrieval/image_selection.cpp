@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <limits>
 #include <numeric>
-#include <random>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/random.h"
 #include "ffloc/retrieval/global_descriptor.h"
 
 namespace ffloc {
@@ -56,13 +56,9 @@ std::vector<size_t> randomSelection(size_t count, size_t k, uint64_t seed) {
   std::vector<size_t> all(count);
   std::iota(all.begin(), all.end(), 0);
   if (k >= count) return all;
-  // A partial Fisher-Yates shuffle with our own index draw, so the choice is the same with every
-  // standard library (std::uniform_int_distribution is implementation-defined).
-  std::mt19937_64 rng(seed);
-  for (size_t i = 0; i < k; ++i) {
-    const size_t j = i + static_cast<size_t>(rng() % (count - i));
-    std::swap(all[i], all[j]);
-  }
+  // A partial Fisher-Yates shuffle.
+  Rng rng(seed);
+  for (size_t i = 0; i < k; ++i) std::swap(all[i], all[i + rng.below(count - i)]);
   all.resize(k);
   std::sort(all.begin(), all.end());
   return all;

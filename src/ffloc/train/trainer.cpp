@@ -1,48 +1,60 @@
 #include "ffloc/train/trainer.h"
 
 #include <ATen/TensorOperators.h>
+#include <ATen/ops/cat.h>
+#include <ATen/ops/tensor.h>
 #include <c10/core/GradMode.h>
 
 #include <algorithm>
+#include <chrono>
+#include <map>
 #include <cmath>
 #include <limits>
 #include <set>
 
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/random.h"
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pose/pnp.h"
 #include "ffloc/train/autocast.h"
 #include "ffloc/train/confidence_loss.h"
+#include "ffloc/train/data_parallel.h"
 #include "ffloc/train/training_checkpoint.h"
 
 namespace ffloc {
 
 namespace {
 
-uint64_t splitMix(uint64_t z) {
-  z += 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  return z ^ (z >> 31);
-}
-
 // Settings that may change between a run and its resumption: they do not alter what the
 // optimiser sees (the step count changes the schedule's length, which is the user's call).
 const std::set<std::string>& resumableFields() {
-  static const std::set<std::string> fields = {"steps",           "log_every",        "checkpoint_every",
-                                               "keep_checkpoints", "validation_every", "validation_samples",
-                                               "threads",         "device",           "precision"};
+  static const std::set<std::string> fields = {
+      "steps",      "log_every", "checkpoint_every", "keep_checkpoints", "validation_every", "validation_samples",
+      "threads",    "device",    "precision",        "batch_size",       "accumulate",       "loader_threads",
+      "prefetch_samples"};
   return fields;
 }
 
-void checkResumable(const TrainingConfig& stored, const TrainingConfig& requested, const std::string& origin) {
-  const nlohmann::json a = toJson(stored), b = toJson(requested);
+int64_t globalBatchOf(const TrainingConfig& config, int world_size) {
+  return static_cast<int64_t>(config.batch_size) * config.accumulate * world_size;
+}
+
+void checkResumable(const CheckpointInfo& stored, const TrainingConfig& requested, int world_size,
+                    const std::string& origin) {
+  const nlohmann::json a = toJson(stored.config), b = toJson(requested);
   for (const auto& [key, value] : a.items()) {
     if (resumableFields().count(key) || b.at(key) == value) continue;
     throwInputError(origin, 0, "field '" + key + "': the checkpoint was trained with " + value.dump() +
                                    ", the resumed run asks for " + b.at(key).dump());
+  }
+  const int64_t before = globalBatchOf(stored.config, stored.world_size), now = globalBatchOf(requested, world_size);
+  if (before != now) {
+    throwInputError(origin, 0, "field 'batch_size': the checkpoint was trained with a global batch of " +
+                                   std::to_string(before) + " (batch_size x accumulate x " +
+                                   std::to_string(stored.world_size) + " ranks), the resumed run asks for " +
+                                   std::to_string(now));
   }
 }
 
@@ -59,24 +71,8 @@ void shrinkOutputLayers(FastForwardModel& model) {
   }
 }
 
-// Every query pixel of the preprocessed grid with its predicted point, back in the world frame.
-Correspondences worldCorrespondences(const FastForwardPrediction& prediction, const SceneNormalization& normalization) {
-  const at::Tensor points = prediction.query.pts3d[0].to(at::kDouble).contiguous();  // (H, W, 3)
-  const at::Tensor confidence = prediction.query.conf[0].to(at::kFloat).contiguous();
-  const int64_t height = points.size(0), width = points.size(1);
-  const double* xyz = points.data_ptr<double>();
-  const float* conf = confidence.data_ptr<float>();
-  Correspondences out;
-  out.reserve(static_cast<size_t>(height * width));
-  for (int64_t y = 0; y < height; ++y) {
-    for (int64_t x = 0; x < width; ++x) {
-      const int64_t i = y * width + x;
-      const Eigen::Vector3d point(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
-      if (!point.allFinite() || !std::isfinite(conf[i])) continue;
-      out.add(Eigen::Vector2d(static_cast<double>(x), static_cast<double>(y)), normalization.toWorld(point), conf[i]);
-    }
-  }
-  return out;
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 // Infinite values (failed poses) sort last; the median of an empty list is infinite.
@@ -104,27 +100,36 @@ SampleOptions sampleOptions(const TrainingConfig& config, int patch_size) {
   return options;
 }
 
-uint64_t trainingSampleSeed(uint64_t run_seed, int64_t step) {
-  return splitMix(splitMix(run_seed ^ 0x747261696e000000ULL) + static_cast<uint64_t>(step));
+uint64_t trainingSampleSeed(uint64_t run_seed, int64_t step, int64_t index) {
+  return mix64(mix64(mix64(run_seed ^ 0x747261696e000000ULL) + static_cast<uint64_t>(step)) + static_cast<uint64_t>(index));
 }
 
-uint64_t validationSampleSeed(uint64_t run_seed, int64_t index) {
-  return splitMix(splitMix(run_seed ^ 0x76616c6964000000ULL) + static_cast<uint64_t>(index));
+uint64_t stepTokenCountSeed(uint64_t run_seed, int64_t step) {
+  return mix64(mix64(run_seed ^ 0x746f6b656e000000ULL) + static_cast<uint64_t>(step));
+}
+
+uint64_t validationSampleSeed(uint64_t validation_seed, int64_t index) {
+  return mix64(mix64(validation_seed ^ 0x76616c6964000000ULL) + static_cast<uint64_t>(index));
 }
 
 struct Trainer::Losses {
-  at::Tensor total;
   ConfidenceLossTerm query, map;
+  at::Tensor total;
   double scale = 1;
-  int64_t map_tokens = 0;
 };
 
 Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const std::filesystem::path& run_dir,
-                 bool resume, std::vector<Scene> validation_scenes)
-    : config_(config), run_dir_(run_dir) {
+                 bool resume, std::vector<Scene> validation_scenes, DataParallel* parallel)
+    : config_(config), run_dir_(run_dir), parallel_(parallel) {
   config_.validate();
+  if (parallel_) {
+    rank_ = parallel_->environment().rank;
+    world_size_ = parallel_->environment().world_size;
+  }
   setTorchThreadCount(config_.threads);
-  device_ = config_.device == "cuda" ? at::Device(at::kCUDA) : at::Device(at::kCPU);
+  device_ = config_.device == "cuda" ? at::Device(at::kCUDA, static_cast<c10::DeviceIndex>(
+                                                                 parallel_ ? parallel_->environment().local_rank : 0))
+                                     : at::Device(at::kCPU);
   if (config_.precision == "bf16" && device_.is_cpu()) {
     warnIfBfloat16IsEmulated("train with precision fp32 (docs/training.md)");
   }
@@ -133,7 +138,7 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   if (resume) {
     checkpoint = latestTrainingCheckpoint(run_dir_);
     if (!checkpoint) throwInputError((run_dir_ / "checkpoints" / "latest").string(), 0, "no checkpoint to resume from");
-    checkResumable(checkpoint->config, config_, (checkpoint->folder / "model.safetensors").string());
+    checkResumable(*checkpoint, config_, world_size_, (checkpoint->folder / "model.safetensors").string());
   }
   ModelLoadOptions load;
   load.init_seed = config_.model_seed;
@@ -152,6 +157,14 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   adam.weight_decay = config_.weight_decay;
   optimizer_ = std::make_unique<AdamW>(std::move(trainable), adam);
   if (checkpoint) loadOptimizerState(*checkpoint, *optimizer_);
+  if (parallel_) {
+    // Every rank starts from rank 0's weights and moments, whatever each loaded.
+    at::NoGradGuard no_grad;
+    std::vector<at::Tensor> state;
+    for (const auto& entry : optimizer_->parameters()) state.push_back(entry.second);
+    for (const auto& entry : optimizer_->state()) state.push_back(entry.second);
+    parallel_->broadcastFromRankZero(state);
+  }
 
   const SampleOptions samples = sampleOptions(config_, static_cast<int>(model_->config().dust3r.patch_size));
   sampler_ = std::make_unique<TrainingSampler>(std::move(scenes), samples);
@@ -162,77 +175,218 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   }
 }
 
+Trainer::~Trainer() = default;
+
 int64_t Trainer::trainableParameterCount() const {
   int64_t count = 0;
   for (const auto& entry : optimizer_->parameters()) count += entry.second.numel();
   return count;
 }
 
-FastForwardPrediction Trainer::predict(const TrainingSample& sample) const {
+int64_t Trainer::globalBatch() const { return globalBatchOf(config_, world_size_); }
+
+std::vector<FastForwardPrediction> Trainer::predict(const std::vector<TrainingSample>& samples) const {
   const AutocastGuard mixed_precision(device_.type(), at::kBFloat16, config_.precision == "bf16");
   // A frozen encoder records no graph: its tokens are constants for the decoder's backward.
-  const auto encode = [&](const at::Tensor& image) {
-    if (config_.train_encoder) return model_->encode(image);
+  const auto encode = [&](const at::Tensor& images) {
+    if (config_.train_encoder) return model_->encode(images);
     at::NoGradGuard frozen;
-    return model_->encode(image);
+    return model_->encode(images);
   };
-  const Dust3rEncoding query = encode(sample.query_image);
-  std::vector<Dust3rEncoding> mapping;
-  for (const at::Tensor& image : sample.mapping_images) mapping.push_back(encode(image));
-  const MapTokens map = gatherMapTokens(mapping, sample.mapping_rays, sample.map_indices);
-  return model_->forward(query, map);
+  const auto sizeOf = [](const at::Tensor& image) { return std::make_pair(image.size(2), image.size(3)); };
+  // Images of one size share an encoder pass: the mapping images of all samples, then the queries.
+  std::map<std::pair<int64_t, int64_t>, std::vector<std::pair<size_t, size_t>>> mapping_by_size;
+  for (size_t s = 0; s < samples.size(); ++s) {
+    for (size_t k = 0; k < samples[s].mapping_images.size(); ++k) {
+      mapping_by_size[sizeOf(samples[s].mapping_images[k])].emplace_back(s, k);
+    }
+  }
+  std::vector<std::vector<Dust3rEncoding>> mapping(samples.size());
+  for (size_t s = 0; s < samples.size(); ++s) mapping[s].resize(samples[s].mapping_images.size());
+  for (const auto& [size, members] : mapping_by_size) {
+    std::vector<at::Tensor> images;
+    for (const auto& [s, k] : members) images.push_back(samples[s].mapping_images[k].to(device_));
+    const Dust3rEncoding encoded = encode(at::cat(images, 0));
+    for (size_t i = 0; i < members.size(); ++i) {
+      Dust3rEncoding& one = mapping[members[i].first][members[i].second];
+      one.tokens = encoded.tokens.narrow(0, static_cast<int64_t>(i), 1);
+      one.positions = encoded.positions.narrow(0, static_cast<int64_t>(i), 1);
+      one.height = encoded.height;
+      one.width = encoded.width;
+    }
+  }
+
+  std::map<std::pair<int64_t, int64_t>, std::vector<size_t>> queries_by_size;
+  for (size_t s = 0; s < samples.size(); ++s) queries_by_size[sizeOf(samples[s].query_image)].push_back(s);
+  std::vector<FastForwardPrediction> out(samples.size());
+  for (const auto& [size, members] : queries_by_size) {
+    std::vector<at::Tensor> images;
+    std::vector<MapTokens> maps;
+    for (size_t s : members) {
+      images.push_back(samples[s].query_image.to(device_));
+      maps.push_back(assembleMapTokens(samples[s].layout, mapping[s]));
+    }
+    if (members.size() > 1 && maps.front().features.size(1) != maps.back().features.size(1)) {
+      throw std::invalid_argument("Trainer: samples of one forward pass must share their map token count");
+    }
+    MapTokens map;
+    const auto stack = [&](at::Tensor MapTokens::*field) {
+      std::vector<at::Tensor> parts;
+      for (const MapTokens& one : maps) parts.push_back(one.*field);
+      return at::cat(parts, 0);
+    };
+    map.features = stack(&MapTokens::features);
+    map.positions = stack(&MapTokens::positions);
+    map.rays = stack(&MapTokens::rays);
+    map.image_index = stack(&MapTokens::image_index);
+    map.token_index = stack(&MapTokens::token_index);
+    const FastForwardPrediction batch = model_->forward(encode(at::cat(images, 0)), map);
+    for (size_t i = 0; i < members.size(); ++i) {
+      const int64_t row = static_cast<int64_t>(i);
+      FastForwardPrediction& one = out[members[i]];
+      one.query.pts3d = batch.query.pts3d.narrow(0, row, 1);
+      one.query.conf = batch.query.conf.narrow(0, row, 1);
+      one.map.pts3d = batch.map.pts3d.narrow(0, row, 1);
+      one.map.conf = batch.map.conf.narrow(0, row, 1);
+    }
+  }
+  return out;
 }
 
-Trainer::Losses Trainer::evaluate(const TrainingSample& sample) const { return lossesOf(predict(sample), sample); }
-
-Trainer::Losses Trainer::lossesOf(const FastForwardPrediction& prediction, const TrainingSample& sample) const {
+Trainer::Losses Trainer::lossesOf(const Dust3rPointMap& query, const Dust3rPointMap& map,
+                                  const TrainingSample& sample) const {
   Losses losses;
-  losses.query = confidenceLoss(prediction.query.pts3d, prediction.query.conf, sample.query_points,
-                                sample.query_valid, config_.alpha);
-  losses.map = confidenceLoss(prediction.map.pts3d, prediction.map.conf, sample.map_points, sample.map_valid,
-                              config_.alpha);
+  losses.query = confidenceLoss(query.pts3d, query.conf, sample.query_points, sample.query_valid, config_.alpha);
+  losses.map = confidenceLoss(map.pts3d, map.conf, sample.map_points, sample.map_valid, config_.alpha);
   losses.total = losses.query.loss + losses.map.loss;
-  losses.scale = sample.normalization.scale;
-  losses.map_tokens = sample.map_indices.size(0);
+  losses.scale = sample.layout.normalization.scale;
   return losses;
 }
 
-TrainingStepStats Trainer::step() { return step(sampler_->sample(trainingSampleSeed(config_.seed, stepsDone()))); }
+BatchLosses Trainer::accumulateGradients(const std::vector<TrainingSample>& samples, double weight) {
+  BatchLosses sums;
+  if (samples.empty()) return sums;
+  const std::vector<FastForwardPrediction> predictions = predict(samples);
+  std::vector<at::Tensor> totals;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    const Losses losses = lossesOf(predictions[i].query, predictions[i].map, samples[i]);
+    totals.push_back(losses.total);
+    sums.loss += losses.total.item<double>();
+    sums.query_loss += losses.query.loss.item<double>();
+    sums.map_loss += losses.map.loss.item<double>();
+    sums.query_error += losses.query.error.item<double>() * losses.scale;
+    sums.map_error += losses.map.error.item<double>() * losses.scale;
+    ++sums.samples;
+  }
+  at::Tensor total = totals[0];
+  for (size_t i = 1; i < totals.size(); ++i) total = total + totals[i];
+  (total * weight).backward();
+  return sums;
+}
 
-TrainingStepStats Trainer::step(const TrainingSample& sample) {
+TrainingSample Trainer::drawTrainingSample(int64_t ordinal) {
+  const int64_t per_step = static_cast<int64_t>(config_.batch_size) * config_.accumulate;
+  const int64_t step = prefetch_start_step_ + ordinal / per_step;
+  const int64_t position = ordinal % per_step;
+  const int64_t pass = position / config_.batch_size, slot = position % config_.batch_size;
+  const int64_t index = (pass * world_size_ + rank_) * config_.batch_size + slot;
+  return sampler_->sample(trainingSampleSeed(config_.seed, step, index),
+                          sampler_->mapTokenCount(stepTokenCountSeed(config_.seed, step)));
+}
+
+TrainingStepStats Trainer::step() {
+  const auto start = std::chrono::steady_clock::now();
+  if (!prefetcher_) {
+    prefetch_start_step_ = stepsDone();
+    prefetcher_ = std::make_unique<SamplePrefetcher>([this](int64_t ordinal) { return drawTrainingSample(ordinal); },
+                                                     config_.loader_threads, config_.prefetch_samples);
+  }
+  const double waited_before = prefetcher_->waitedSeconds();
+  BatchLosses sums;
+  const double weight = 1.0 / static_cast<double>(globalBatch());
+  for (int pass = 0; pass < config_.accumulate; ++pass) {
+    std::vector<TrainingSample> samples;
+    for (int i = 0; i < config_.batch_size; ++i) samples.push_back(prefetcher_->next());
+    const BatchLosses pass_sums = accumulateGradients(samples, weight);
+    sums.loss += pass_sums.loss;
+    sums.query_loss += pass_sums.query_loss;
+    sums.map_loss += pass_sums.map_loss;
+    sums.query_error += pass_sums.query_error;
+    sums.map_error += pass_sums.map_error;
+    sums.samples += pass_sums.samples;
+  }
+  TrainingStepStats stats = update(sums);
+  stats.data_wait_seconds = prefetcher_->waitedSeconds() - waited_before;
+  stats.step_seconds = secondsSince(start);
+  stats.map_tokens = sampler_->mapTokenCount(stepTokenCountSeed(config_.seed, stats.step - 1));
+  return stats;
+}
+
+TrainingStepStats Trainer::step(const std::vector<TrainingSample>& samples) {
+  if (parallel_) throw std::logic_error("Trainer::step(samples) is for a run of one process");
+  const auto start = std::chrono::steady_clock::now();
+  const BatchLosses sums = accumulateGradients(samples, 1.0 / static_cast<double>(samples.size()));
+  TrainingStepStats stats = update(sums);
+  stats.step_seconds = secondsSince(start);
+  stats.map_tokens = samples.empty() ? 0 : samples[0].layout.indices.size(0);
+  return stats;
+}
+
+TrainingStepStats Trainer::update(BatchLosses sums) {
   const int64_t index = stepsDone();
-  const Losses losses = evaluate(sample);
-  losses.total.backward();
   TrainingStepStats stats;
+  auto start = std::chrono::steady_clock::now();
+  if (parallel_) {
+    parallel_->allReduceSum(gradientsOf(optimizer_->parameters()));
+    at::Tensor totals = at::tensor(std::vector<double>{sums.loss, sums.query_loss, sums.map_loss, sums.query_error,
+                                                       sums.map_error, static_cast<double>(sums.samples),
+                                                       stop_requested_ ? 1.0 : 0.0},
+                                   at::TensorOptions().dtype(at::kDouble));
+    parallel_->allReduceSum({totals});
+    const double* reduced = totals.data_ptr<double>();
+    sums = {reduced[0], reduced[1], reduced[2], reduced[3], reduced[4], static_cast<int64_t>(reduced[5])};
+    stop_requested_ = reduced[6] > 0;
+    stats.allreduce_seconds = secondsSince(start);
+  }
+  start = std::chrono::steady_clock::now();
   stats.grad_norm = clipGradientNorm(optimizer_->parameters(), config_.clip_grad_norm);
   stats.learning_rate =
       cosineLearningRate(index, config_.steps, config_.warmup_steps, config_.learning_rate, config_.min_learning_rate);
   optimizer_->step(stats.learning_rate);
+  stats.optimizer_seconds = secondsSince(start);
   stats.step = stepsDone();
-  stats.loss = losses.total.item<double>();
-  stats.query_loss = losses.query.loss.item<double>();
-  stats.map_loss = losses.map.loss.item<double>();
-  stats.query_error = losses.query.error.item<double>() * losses.scale;
-  stats.map_error = losses.map.error.item<double>() * losses.scale;
-  stats.map_tokens = losses.map_tokens;
+  const double count = static_cast<double>(std::max<int64_t>(sums.samples, 1));
+  stats.loss = sums.loss / count;
+  stats.query_loss = sums.query_loss / count;
+  stats.map_loss = sums.map_loss / count;
+  stats.query_error = sums.query_error / count;
+  stats.map_error = sums.map_error / count;
+  stats.samples = sums.samples;
+  stats.stop_requested = stop_requested_;
   return stats;
+}
+
+TrainingSample Trainer::validationSample(int index) {
+  TrainingSampler& sampler = validation_sampler_ ? *validation_sampler_ : *sampler_;
+  const uint64_t seed = validationSampleSeed(config_.validation_seed, index);
+  return sampler.sample(seed, sampler.mapTokenCount(mix64(seed)));
 }
 
 ValidationStats Trainer::validate() {
   at::NoGradGuard no_grad;
-  TrainingSampler& sampler = validation_sampler_ ? *validation_sampler_ : *sampler_;
   ValidationStats stats;
   std::vector<double> translation_errors, rotation_errors;
   for (int i = 0; i < config_.validation_samples; ++i) {
-    const TrainingSample sample = sampler.sample(validationSampleSeed(config_.seed, i));
-    const FastForwardPrediction prediction = predict(sample);
-    const Losses losses = lossesOf(prediction, sample);
+    const TrainingSample sample = validationSample(i);
+    const FastForwardPrediction prediction = predict({sample}).front();
+    const Losses losses = lossesOf(prediction.query, prediction.map, sample);
     stats.loss += losses.total.item<double>();
     stats.query_error += losses.query.error.item<double>() * losses.scale;
     stats.map_error += losses.map.error.item<double>() * losses.scale;
     ++stats.samples;
 
-    const PnpResult pnp = estimatePose(worldCorrespondences(prediction, sample.normalization), sample.query_camera);
+    const PnpResult pnp =
+        estimatePose(queryCorrespondences(prediction.query, 0, sample.layout.normalization), sample.query_camera);
     const bool solved = pnp.status == PnpStatus::kSuccess;
     const double infinity = std::numeric_limits<double>::infinity();
     const double t = solved ? translationError(pnp.camera_to_world, sample.query_pose) : infinity;
@@ -253,7 +407,8 @@ ValidationStats Trainer::validate() {
 }
 
 std::filesystem::path Trainer::saveCheckpoint() {
-  return writeTrainingCheckpoint(run_dir_, *model_, *optimizer_, config_, config_.keep_checkpoints);
+  if (rank_ != 0) return run_dir_ / "checkpoints";
+  return writeTrainingCheckpoint(run_dir_, *model_, *optimizer_, config_, config_.keep_checkpoints, world_size_);
 }
 
 }  // namespace ffloc

@@ -56,22 +56,23 @@ const std::string& metadataField(const TensorArchive& archive, const std::string
   return found->second;
 }
 
-int64_t parseStep(const TensorArchive& archive) {
-  const std::string& text = metadataField(archive, "step");
+int64_t parseCount(const TensorArchive& archive, const std::string& key, int64_t minimum) {
+  const std::string& text = metadataField(archive, key);
   try {
     size_t used = 0;
-    const long long step = std::stoll(text, &used);
-    if (used != text.size() || step < 0) throw std::invalid_argument(text);
-    return step;
+    const long long value = std::stoll(text, &used);
+    if (used != text.size() || value < minimum) throw std::invalid_argument(text);
+    return value;
   } catch (const std::exception&) {
-    throwInputError(archive.path().string(), 0, "metadata 'step': not a step count: '" + text + "'");
+    throwInputError(archive.path().string(), 0, "metadata '" + key + "': not a count of at least " +
+                                                     std::to_string(minimum) + ": '" + text + "'");
   }
 }
 
 }  // namespace
 
 fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& model, const AdamW& optimizer,
-                                 const TrainingConfig& config, int keep_last) {
+                                 const TrainingConfig& config, int keep_last, int world_size) {
   const fs::path root = run_dir / "checkpoints";
   fs::create_directories(root);
   const int64_t step = optimizer.stepCount();
@@ -88,6 +89,7 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
                {{"format", "ffloc-fastforward"},
                 {"step", std::to_string(step)},
                 {"input_long_side", std::to_string(config.long_side)},
+                {"world_size", std::to_string(world_size)},
                 {"training_config", config_json}});
   writeTensors(partial / "optimizer.safetensors", optimizer.state(),
                {{"format", "ffloc-train-state"}, {"step", std::to_string(step)}, {"training_config", config_json}});
@@ -125,7 +127,9 @@ std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) 
     throwInputError(latest.string(), 1, "checkpoint folder '" + info.folder.string() + "' is incomplete");
   }
   const auto archive = openSafetensors(model_path);
-  info.step = parseStep(*archive);
+  info.step = parseCount(*archive, "step", 0);
+  // Checkpoints from before data-parallel training were written by one process.
+  info.world_size = archive->metadata().count("world_size") ? static_cast<int>(parseCount(*archive, "world_size", 1)) : 1;
   try {
     info.config = trainingConfigFromJson(nlohmann::json::parse(metadataField(*archive, "training_config")),
                                          model_path.string() + " metadata 'training_config'");
@@ -138,7 +142,7 @@ std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) 
 void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer) {
   const fs::path path = checkpoint.folder / "optimizer.safetensors";
   const auto archive = openSafetensors(path);
-  const int64_t step = parseStep(*archive);
+  const int64_t step = parseCount(*archive, "step", 0);
   if (step != checkpoint.step) {
     throwInputError(path.string(), 0, "metadata 'step' is " + std::to_string(step) + " but model.safetensors says " +
                                           std::to_string(checkpoint.step));

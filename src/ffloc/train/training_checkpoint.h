@@ -24,11 +24,12 @@ struct CheckpointInfo {
   std::filesystem::path folder;
   int64_t step = 0;
   TrainingConfig config;
+  int world_size = 1;  // ranks of the run that wrote it: with config, its global batch
 };
 
 std::filesystem::path writeTrainingCheckpoint(const std::filesystem::path& run_dir, FastForwardModel& model,
                                               const AdamW& optimizer, const TrainingConfig& config,
-                                              int keep_last);
+                                              int keep_last, int world_size = 1);
 
 // The checkpoint `latest` names; nullopt when run_dir has none. InputError naming the file for a
 // broken `latest`, a missing folder or unreadable metadata.

@@ -46,7 +46,12 @@ const std::map<std::string, FieldBinding>& fieldBindings() {
       {"adam_epsilon", bindField(&TrainingConfig::adam_epsilon)},
       {"clip_grad_norm", bindField(&TrainingConfig::clip_grad_norm)},
       {"train_encoder", bindField(&TrainingConfig::train_encoder)},
+      {"batch_size", bindField(&TrainingConfig::batch_size)},
+      {"accumulate", bindField(&TrainingConfig::accumulate)},
+      {"loader_threads", bindField(&TrainingConfig::loader_threads)},
+      {"prefetch_samples", bindField(&TrainingConfig::prefetch_samples)},
       {"seed", bindField(&TrainingConfig::seed)},
+      {"validation_seed", bindField(&TrainingConfig::validation_seed)},
       {"threads", bindField(&TrainingConfig::threads)},
       {"device", bindField(&TrainingConfig::device)},
       {"precision", bindField(&TrainingConfig::precision)},
@@ -88,6 +93,10 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (!(beta2 >= 0 && beta2 < 1)) fail("beta2", "must be in [0, 1)");
   if (!(adam_epsilon > 0)) fail("adam_epsilon", "must be positive");
   if (!(clip_grad_norm >= 0)) fail("clip_grad_norm", "must be non-negative (0: off)");
+  if (batch_size < 1) fail("batch_size", "must be at least 1");
+  if (accumulate < 1) fail("accumulate", "must be at least 1");
+  if (loader_threads < 1) fail("loader_threads", "must be at least 1");
+  if (prefetch_samples < 1) fail("prefetch_samples", "must be at least 1");
   if (threads < 0) fail("threads", "must be non-negative");
   if (device != "cpu" && device != "cuda") fail("device", "must be cpu or cuda");
   if (precision != "fp32" && precision != "bf16") fail("precision", "must be fp32 or bf16");

@@ -44,7 +44,17 @@ struct TrainingConfig {
   double clip_grad_norm = 1.0;  // 0: no clipping
   bool train_encoder = false;
 
+  // Batches (trainer.h): each optimiser step averages the loss over batch_size x accumulate x
+  // the number of ranks samples, which share one map token count.
+  int batch_size = 1;   // samples in one forward pass of one rank
+  int accumulate = 1;   // forward passes whose gradients add up before a step
+  int loader_threads = 1;     // background threads preparing samples (sample_prefetcher.h)
+  int prefetch_samples = 8;   // samples prepared ahead of the network per rank
+
   uint64_t seed = 0;  // samples and augmentation; the only source of randomness in a run
+  // Draws the validation samples, apart from `seed`, so runs with different seeds validate on
+  // the same samples and their validation losses compare.
+  uint64_t validation_seed = 0;
   int threads = 0;    // libtorch intra-op threads (0: all cores)
   std::string device = "cpu";
   // "fp32", or "bf16": mixed precision, with float32 weights, optimiser and loss and the network's

@@ -7,39 +7,20 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
-#include <random>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/random.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/data/overlap.h"
-#include "ffloc/geometry/rays.h"
-#include "ffloc/model/fastforward_model.h"
+#include "ffloc/model/map_assembly.h"
 #include "ffloc/model/image_tensor.h"
-#include "ffloc/model/ray_encoding.h"
 
 namespace ffloc {
 
 namespace {
 
-// Draws from raw 64-bit outputs only: std's distributions are implementation-defined, and a
-// run must replay identically wherever it resumes.
-class SampleRng {
- public:
-  explicit SampleRng(uint64_t seed) : engine_(seed) {}
-  uint64_t next() { return engine_(); }
-  double uniform() { return static_cast<double>(engine_() >> 11) * (1.0 / 9007199254740992.0); }
-  size_t index(size_t n) { return static_cast<size_t>(engine_() % n); }
-  template <typename T>
-  void shuffle(std::vector<T>& items) {
-    for (size_t i = items.size(); i > 1; --i) std::swap(items[i - 1], items[index(i)]);
-  }
-
- private:
-  std::mt19937_64 engine_;
-};
-
 // Brightness, contrast and saturation factors in [1 - strength, 1 + strength], in that order.
-cv::Mat jitterColour(const cv::Mat& rgb, double strength, SampleRng& rng) {
+cv::Mat jitterColour(const cv::Mat& rgb, double strength, Rng& rng) {
   if (strength <= 0) return rgb;
   const double brightness = 1 + strength * (2 * rng.uniform() - 1);
   const double contrast = 1 + strength * (2 * rng.uniform() - 1);
@@ -103,8 +84,15 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
 }
 
 const TrainingSampler::PreparedFrame& TrainingSampler::prepared(size_t scene, size_t frame) {
-  auto& slot = prepared_[{scene, frame}];
-  if (!slot) {
+  {
+    const std::lock_guard<std::mutex> lock(cache_mutex_);
+    const auto found = prepared_.find({scene, frame});
+    if (found != prepared_.end()) return *found->second;
+  }
+  // Prepared outside the lock so that loader threads work in parallel; a frame two threads
+  // prepare at once comes out the same, and the first one stored is kept.
+  std::unique_ptr<PreparedFrame> entry;
+  {
     const Frame& source = scenes_[scene].frames[frame];
     PreprocessOptions preprocess;
     preprocess.long_side = options_.long_side;
@@ -114,31 +102,42 @@ const TrainingSampler::PreparedFrame& TrainingSampler::prepared(size_t scene, si
     if (depth.cols != image.geometry.original_width || depth.rows != image.geometry.original_height) {
       throwInputError(source.depth->path.string(), 0, "depth size differs from the image of '" + source.name + "'");
     }
-    auto entry = std::make_unique<PreparedFrame>();
+    entry = std::make_unique<PreparedFrame>();
     entry->rgb = image.rgb;
     entry->frame = source;
     entry->frame.intrinsics = image.intrinsics;
     entry->depth = preprocessDepthNearest(depth, image.geometry);
-    slot = std::move(entry);
   }
+  const std::lock_guard<std::mutex> lock(cache_mutex_);
+  auto& slot = prepared_[{scene, frame}];
+  if (!slot) slot = std::move(entry);
   return *slot;
 }
 
 double TrainingSampler::overlap(size_t scene, size_t a, size_t b) {
   const auto key = std::make_tuple(scene, std::min(a, b), std::max(a, b));
-  const auto found = overlaps_.find(key);
-  if (found != overlaps_.end()) return found->second;
+  {
+    const std::lock_guard<std::mutex> lock(cache_mutex_);
+    const auto found = overlaps_.find(key);
+    if (found != overlaps_.end()) return found->second;
+  }
   const PreparedFrame& first = prepared(scene, std::get<1>(key));
   const PreparedFrame& second = prepared(scene, std::get<2>(key));
   OverlapOptions overlap_options;
   overlap_options.stride = options_.overlap_stride;
   const double value = pairOverlap(first.frame, first.depth, second.frame, second.depth, overlap_options);
+  const std::lock_guard<std::mutex> lock(cache_mutex_);
   overlaps_[key] = value;
   return value;
 }
 
-TrainingSample TrainingSampler::sample(uint64_t seed) {
-  SampleRng rng(seed);
+int64_t TrainingSampler::mapTokenCount(uint64_t seed) const {
+  Rng rng(seed);
+  return rng.between(options_.min_map_tokens, options_.max_map_tokens);
+}
+
+TrainingSample TrainingSampler::sample(uint64_t seed, int64_t map_tokens) {
+  Rng rng(seed);
   std::vector<size_t> usable_scenes;
   for (size_t s = 0; s < scenes_.size(); ++s) {
     if (frames_with_depth_[s].size() > static_cast<size_t>(options_.mapping_frames)) usable_scenes.push_back(s);
@@ -148,14 +147,14 @@ TrainingSample TrainingSampler::sample(uint64_t seed) {
                                             " frames with depth (query + mapping frames)");
   }
   for (int attempt = 0; attempt < options_.max_attempts; ++attempt) {
-    const size_t scene = usable_scenes[rng.index(usable_scenes.size())];
+    const size_t scene = usable_scenes[rng.below(usable_scenes.size())];
     const std::vector<size_t>& frames = frames_with_depth_[scene];
-    const size_t query = frames[rng.index(frames.size())];
+    const size_t query = frames[rng.below(frames.size())];
     std::vector<size_t> candidates;
     for (size_t f : frames) {
       if (f != query) candidates.push_back(f);
     }
-    rng.shuffle(candidates);
+    for (size_t i = candidates.size(); i > 1; --i) std::swap(candidates[i - 1], candidates[rng.below(i)]);
     candidates.resize(std::min(candidates.size(), static_cast<size_t>(options_.overlap_candidates)));
     std::vector<size_t> mapping;
     std::vector<double> overlaps;
@@ -173,12 +172,16 @@ TrainingSample TrainingSampler::sample(uint64_t seed) {
     out.scene = source.name;
     out.query = source.frames[query].name;
     out.overlaps = overlaps;
-    std::vector<Pose> poses;
+    std::vector<const PreparedFrame*> mapping_frames;
+    std::vector<MapCamera> cameras;
     for (size_t f : mapping) {
-      poses.push_back(source.frames[f].camera_to_world);
-      out.mapping.push_back(source.frames[f].name);
+      const PreparedFrame& m = prepared(scene, f);
+      mapping_frames.push_back(&m);
+      cameras.push_back({m.frame.name, m.frame.camera_to_world, m.frame.intrinsics});
+      out.mapping.push_back(m.frame.name);
     }
-    out.normalization = SceneNormalization::fromMappingPoses(poses, 0, out.mapping);
+    const int patch = options_.patch_size;
+    out.layout = planMap(cameras, patch, map_tokens, rng.next());
 
     // Query image and per-pixel ground truth.
     const PreparedFrame& q = prepared(scene, query);
@@ -194,32 +197,21 @@ TrainingSample TrainingSampler::sample(uint64_t seed) {
       for (int x = 0; x < width; ++x) {
         const float d = q.depth(y, x);
         if (d <= 0) continue;
-        const Eigen::Vector3d p = normalizedPoint(q.frame, out.normalization, x, y, d);
+        const Eigen::Vector3d p = normalizedPoint(q.frame, out.layout.normalization, x, y, d);
         const size_t i = static_cast<size_t>(y) * width + x;
         for (int c = 0; c < 3; ++c) points[3 * i + c] = static_cast<float>(p[c]);
         valid[i] = true;
       }
     }
 
-    // Mapping images, their rays in the normalised frame, and the sampled tokens.
-    const int patch = options_.patch_size;
-    std::vector<int64_t> tokens_per_image;
-    std::vector<const PreparedFrame*> mapping_frames;
-    for (size_t f : mapping) {
-      const PreparedFrame& m = prepared(scene, f);
-      mapping_frames.push_back(&m);
-      out.mapping_images.push_back(normalizedImageTensor(jitterColour(m.rgb, options_.colour_jitter, rng)));
-      out.mapping_rays.push_back(
-          rayTensor(patchRays(m.frame.intrinsics, out.normalization.normalize(m.frame.camera_to_world), patch)));
-      tokens_per_image.push_back(static_cast<int64_t>(m.depth.rows / patch) * (m.depth.cols / patch));
+    // Mapping images and the ground truth of the sampled tokens.
+    for (const PreparedFrame* m : mapping_frames) {
+      out.mapping_images.push_back(normalizedImageTensor(jitterColour(m->rgb, options_.colour_jitter, rng)));
     }
-    const int64_t span = options_.max_map_tokens - options_.min_map_tokens + 1;
-    const int64_t count = options_.min_map_tokens + static_cast<int64_t>(rng.index(static_cast<size_t>(span)));
-    out.map_indices = sampleMapTokenIndices(tokens_per_image, count, rng.next());
-    const int64_t n = out.map_indices.size(0);
+    const int64_t n = out.layout.indices.size(0);
     out.map_points = at::zeros({1, n, 3}, at::kFloat);
     out.map_valid = at::zeros({1, n}, at::kBool);
-    const int64_t* pairs = out.map_indices.data_ptr<int64_t>();
+    const int64_t* pairs = out.layout.indices.data_ptr<int64_t>();
     float* map_points = out.map_points.data_ptr<float>();
     bool* map_valid = out.map_valid.data_ptr<bool>();
     for (int64_t i = 0; i < n; ++i) {
@@ -230,7 +222,7 @@ TrainingSample TrainingSampler::sample(uint64_t seed) {
       const double u = (col + 0.5) * patch - 0.5, v = (row + 0.5) * patch - 0.5;
       const float d = m.depth(static_cast<int>(std::lround(v)), static_cast<int>(std::lround(u)));
       if (d <= 0) continue;
-      const Eigen::Vector3d p = normalizedPoint(m.frame, out.normalization, u, v, d);
+      const Eigen::Vector3d p = normalizedPoint(m.frame, out.layout.normalization, u, v, d);
       for (int c = 0; c < 3; ++c) map_points[3 * i + c] = static_cast<float>(p[c]);
       map_valid[i] = true;
     }

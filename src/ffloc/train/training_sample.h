@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -16,6 +17,7 @@
 #include "ffloc/data/scene.h"
 #include "ffloc/geometry/normalization.h"
 #include "ffloc/io/image.h"
+#include "ffloc/model/map_assembly.h"
 
 namespace ffloc {
 
@@ -39,13 +41,11 @@ struct SampleOptions {
 struct TrainingSample {
   at::Tensor query_image;                   // (1, 3, H, W) float32 in [-1, 1]
   std::vector<at::Tensor> mapping_images;   // K x (1, 3, H_k, W_k)
-  std::vector<at::Tensor> mapping_rays;     // K x (1, T_k, 6) normalised rays of the patch centres
-  at::Tensor map_indices;                   // (N, 2) int64 (mapping image, token)
+  MapLayout layout;                         // normalisation, rays of the patch centres, sampled tokens
   at::Tensor query_points;                  // (1, H, W, 3) float32, normalised frame; 0 where invalid
   at::Tensor query_valid;                   // (1, H, W) bool, pixels with depth
   at::Tensor map_points;                    // (1, N, 3) float32, the tokens' patch-centre points
   at::Tensor map_valid;                     // (1, N) bool
-  SceneNormalization normalization;
   Intrinsics query_camera;  // of the preprocessed query image
   Pose query_pose;          // camera-to-world, in the dataset's world frame
   std::string scene;
@@ -63,9 +63,13 @@ class TrainingSampler {
   // InputError when no scene has a frame with depth, or a frame has lens distortion.
   TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options);
 
-  // InputError naming the scene when no query with K overlapping mapping frames was found in
-  // options.max_attempts tries.
-  TrainingSample sample(uint64_t seed);
+  // The sample of `seed` with `map_tokens` map tokens (at most all of the mapping images'). Safe to
+  // call from several threads. InputError naming the scene when no query with K overlapping
+  // mapping frames was found in options.max_attempts tries.
+  TrainingSample sample(uint64_t seed, int64_t map_tokens);
+  // A map token count in [min_map_tokens, max_map_tokens] drawn from `seed`: samples that share a
+  // forward pass share it (trainer.h).
+  int64_t mapTokenCount(uint64_t seed) const;
 
   const std::vector<Scene>& scenes() const { return scenes_; }
 
@@ -81,6 +85,7 @@ class TrainingSampler {
   std::vector<Scene> scenes_;
   SampleOptions options_;
   std::vector<std::vector<size_t>> frames_with_depth_;
+  std::mutex cache_mutex_;  // guards the two caches
   std::map<std::pair<size_t, size_t>, std::unique_ptr<PreparedFrame>> prepared_;
   std::map<std::tuple<size_t, size_t, size_t>, double> overlaps_;
 };

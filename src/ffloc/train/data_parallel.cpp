@@ -1,0 +1,165 @@
+#include "ffloc/train/data_parallel.h"
+
+#include <ATen/ops/cat.h>
+#include <ATen/ops/zeros_like.h>
+#include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
+#include <torch/csrc/distributed/c10d/TCPStore.hpp>
+#ifdef FFLOC_WITH_NCCL
+#include <torch/csrc/distributed/c10d/ProcessGroupNCCL.hpp>
+#endif
+
+#include <chrono>
+#include <cstdlib>
+#include <functional>
+#include <stdexcept>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+namespace {
+
+int integerVariable(const char* name, int fallback, int minimum, int maximum) {
+  const char* text = std::getenv(name);
+  if (!text || !*text) return fallback;
+  char* end = nullptr;
+  const long value = std::strtol(text, &end, 10);
+  if (*end != '\0' || value < minimum || value > maximum) {
+    throwInputError("environment variable " + std::string(name), 0,
+                    "'" + std::string(text) + "' is not a whole number in [" + std::to_string(minimum) + ", " +
+                        std::to_string(maximum) + "]");
+  }
+  return static_cast<int>(value);
+}
+
+bool isLoopback(const std::string& address) {
+  return address == "localhost" || address.rfind("127.", 0) == 0 || address == "::1";
+}
+
+// Gloo binds to the interface torch's launcher would use: GLOO_SOCKET_IFNAME when set, loopback
+// for a run on one machine, else the address this host's name resolves to.
+std::shared_ptr<::gloo::transport::Device> glooDevice(const DistributedEnvironment& environment) {
+  if (const char* interface = std::getenv("GLOO_SOCKET_IFNAME"); interface && *interface) {
+    return c10d::ProcessGroupGloo::createDeviceForInterface(interface);
+  }
+  if (isLoopback(environment.master_addr)) return c10d::ProcessGroupGloo::createDeviceForHostname("127.0.0.1");
+  return c10d::ProcessGroupGloo::createDefaultDevice();
+}
+
+}  // namespace
+
+DistributedEnvironment DistributedEnvironment::fromProcessEnvironment() {
+  DistributedEnvironment environment;
+  environment.world_size = integerVariable("WORLD_SIZE", 1, 1, 1 << 20);
+  environment.rank = integerVariable("RANK", 0, 0, environment.world_size - 1);
+  environment.local_world_size = integerVariable("LOCAL_WORLD_SIZE", 1, 1, environment.world_size);
+  environment.local_rank = integerVariable("LOCAL_RANK", 0, 0, environment.local_world_size - 1);
+  environment.master_port = integerVariable("MASTER_PORT", environment.master_port, 1, 65535);
+  if (const char* address = std::getenv("MASTER_ADDR"); address && *address) environment.master_addr = address;
+  return environment;
+}
+
+// The collectives of whichever c10d process group the run uses; in libtorch 1.x that is a
+// ProcessGroup, in 2.x a Backend, so only the calls every version shares are kept.
+struct DataParallel::Backend {
+  c10::intrusive_ptr<c10d::Store> store;
+  std::function<void(std::vector<at::Tensor>&)> all_reduce_sum;
+  std::function<void(std::vector<at::Tensor>&)> broadcast;
+  std::function<void()> barrier;
+
+  template <typename Group>
+  void bind(const c10::intrusive_ptr<Group>& group) {
+    all_reduce_sum = [group](std::vector<at::Tensor>& tensors) {
+      c10d::AllreduceOptions options;
+      options.reduceOp = c10d::ReduceOp::SUM;
+      group->allreduce(tensors, options)->wait();
+    };
+    broadcast = [group](std::vector<at::Tensor>& tensors) {
+      c10d::BroadcastOptions options;
+      options.rootRank = 0;
+      group->broadcast(tensors, options)->wait();
+    };
+    barrier = [group] { group->barrier()->wait(); };
+  }
+};
+
+DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda, double timeout_s)
+    : environment_(environment), backend_(std::make_unique<Backend>()) {
+  const auto timeout = std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000));
+  c10d::TCPStoreOptions store_options;
+  store_options.port = static_cast<uint16_t>(environment.master_port);
+  store_options.isServer = environment.rank == 0;
+  store_options.numWorkers = static_cast<size_t>(environment.world_size);
+  store_options.waitWorkers = true;
+  store_options.timeout = timeout;
+  try {
+    backend_->store = c10::make_intrusive<c10d::TCPStore>(environment.master_addr, store_options);
+    if (cuda) {
+#ifdef FFLOC_WITH_NCCL
+      auto options = c10d::ProcessGroupNCCL::Options::create();
+      options->timeout = timeout;
+      backend_->bind(
+          c10::make_intrusive<c10d::ProcessGroupNCCL>(backend_->store, environment.rank, environment.world_size, options));
+#else
+      throw InputError("device 'cuda': this build's libtorch has no NCCL; train on cpu or rebuild against a CUDA libtorch");
+#endif
+    } else {
+      auto options = c10d::ProcessGroupGloo::Options::create(timeout);
+      options->devices.push_back(glooDevice(environment));
+      backend_->bind(
+          c10::make_intrusive<c10d::ProcessGroupGloo>(backend_->store, environment.rank, environment.world_size, options));
+    }
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throwInputError("rendezvous at " + environment.master_addr + ":" + std::to_string(environment.master_port), 0,
+                    "rank " + std::to_string(environment.rank) + " of " + std::to_string(environment.world_size) +
+                        " could not join: " + e.what());
+  }
+}
+
+DataParallel::~DataParallel() = default;
+
+void DataParallel::allReduceSum(const std::vector<at::Tensor>& tensors, int64_t bucket_bytes) {
+  size_t begin = 0;
+  while (begin < tensors.size()) {
+    size_t end = begin;
+    int64_t bytes = 0;
+    std::vector<at::Tensor> flat;
+    while (end < tensors.size() && (end == begin || bytes + tensors[end].nbytes() <= bucket_bytes)) {
+      bytes += static_cast<int64_t>(tensors[end].nbytes());
+      flat.push_back(tensors[end].reshape({-1}));
+      ++end;
+    }
+    std::vector<at::Tensor> bucket = {at::cat(flat)};
+    backend_->all_reduce_sum(bucket);
+    int64_t offset = 0;
+    for (size_t i = begin; i < end; ++i) {
+      const int64_t count = tensors[i].numel();
+      tensors[i].copy_(bucket[0].narrow(0, offset, count).view(tensors[i].sizes()));
+      offset += count;
+    }
+    begin = end;
+  }
+}
+
+void DataParallel::broadcastFromRankZero(const std::vector<at::Tensor>& tensors) {
+  for (const at::Tensor& tensor : tensors) {
+    std::vector<at::Tensor> one = {tensor};
+    backend_->broadcast(one);
+  }
+}
+
+void DataParallel::barrier() { backend_->barrier(); }
+
+std::vector<at::Tensor> gradientsOf(const std::vector<std::pair<std::string, at::Tensor>>& parameters) {
+  std::vector<at::Tensor> gradients;
+  for (const auto& entry : parameters) {
+    at::Tensor parameter = entry.second;
+    if (!parameter.grad().defined()) parameter.mutable_grad() = at::zeros_like(parameter);
+    gradients.push_back(parameter.grad());
+  }
+  return gradients;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,259 @@
+// Batches and data-parallel training: a batch's gradient is the mean of its samples' gradients,
+// two Gloo ranks reproduce one rank with twice the batch, and a run resumes on another world size.
+#include <ATen/TensorOperators.h>
+#include <ATen/ops/equal.h>
+#include <ATen/ops/zeros_like.h>
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+
+#include <cstdlib>
+#include <map>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "ffloc/core/error.h"
+#include "ffloc/model/model_loader.h"
+#include "ffloc/train/data_parallel.h"
+#include "ffloc/train/local_launcher.h"
+#include "ffloc/train/trainer.h"
+#include "ffloc/train/training_test_util.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::smallConfig;
+using testing::smallScene;
+
+// A second scene whose images preprocess to another size than smallScene's, so that one batch
+// needs two forward passes.
+const Scene& wideScene() {
+  static const Scene scene = [] {
+    SyntheticOptions options;
+    options.seed = 6;
+    options.width = 160;
+    options.height = 96;
+    options.mapping_frames = 10;
+    options.query_frames = 1;
+    return generateSyntheticScene(options, testing::makeTempDir("ffloc-train-wide"));
+  }();
+  return scene;
+}
+
+std::vector<at::Tensor> gradientSnapshot(Trainer& trainer) {
+  std::vector<at::Tensor> out;
+  for (const at::Tensor& gradient : gradientsOf(trainer.optimizer().parameters())) out.push_back(gradient.clone());
+  return out;
+}
+
+void clearGradients(Trainer& trainer) {
+  for (const at::Tensor& gradient : gradientsOf(trainer.optimizer().parameters())) gradient.zero_();
+}
+
+double relativeDifference(const at::Tensor& a, const at::Tensor& b) {
+  const double scale = b.norm().item<double>();
+  return (a - b).norm().item<double>() / (scale > 0 ? scale : 1.0);
+}
+
+void expectSameTensors(const std::vector<at::Tensor>& a, const std::vector<at::Tensor>& b, double tolerance,
+                       const std::string& what) {
+  ASSERT_EQ(a.size(), b.size());
+  double worst = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    const double difference = relativeDifference(a[i], b[i]);
+    worst = std::max(worst, difference);
+    EXPECT_LE(difference, tolerance) << what << " tensor " << i;
+  }
+  std::printf("%s: largest relative difference %.3g over %zu tensors\n", what.c_str(), worst, a.size());
+}
+
+TEST(BatchTraining, BatchGradientIsTheMeanOfSingleSampleGradients) {
+  const TrainingConfig config = smallConfig();
+  Trainer trainer(config, {smallScene(), wideScene()}, testing::makeTempDir("ffloc-batch-gradient"));
+  TrainingSampler small({smallScene()}, sampleOptions(config, 16));
+  TrainingSampler wide({wideScene()}, sampleOptions(config, 16));
+  const int64_t tokens = 90;
+  const std::vector<TrainingSample> samples = {small.sample(1, tokens), small.sample(2, tokens),
+                                               wide.sample(3, tokens), small.sample(4, tokens)};
+  ASSERT_NE(samples[0].query_image.sizes(), samples[2].query_image.sizes());
+  const double weight = 1.0 / static_cast<double>(samples.size());
+
+  clearGradients(trainer);
+  const BatchLosses batch = trainer.accumulateGradients(samples, weight);
+  const std::vector<at::Tensor> batched = gradientSnapshot(trainer);
+  clearGradients(trainer);
+  double single_loss = 0;
+  for (const TrainingSample& sample : samples) single_loss += trainer.accumulateGradients({sample}, weight).loss;
+  const std::vector<at::Tensor> singles = gradientSnapshot(trainer);
+
+  EXPECT_EQ(batch.samples, 4);
+  EXPECT_NEAR(batch.loss, single_loss, 1e-5 * std::abs(single_loss));
+  expectSameTensors(batched, singles, 1e-5, "batch of 4 vs 4 single samples");
+}
+
+// Two ranks in two threads of this process, each with its own Gloo process group over loopback.
+TEST(DataParallelTraining, TwoRanksAllReduceTheGradientsOfOneRankWithTwiceTheBatch) {
+  const TrainingConfig config = smallConfig();
+  TrainingSampler sampler({smallScene()}, sampleOptions(config, 16));
+  const std::vector<TrainingSample> samples = {sampler.sample(21, 70), sampler.sample(22, 70)};
+
+  Trainer single(config, {smallScene()}, testing::makeTempDir("ffloc-dp-single"));
+  clearGradients(single);
+  single.accumulateGradients(samples, 0.5);
+  const std::vector<at::Tensor> expected = gradientSnapshot(single);
+
+  const int port = freeLoopbackPort();
+  std::vector<std::vector<at::Tensor>> reduced(2);
+  std::vector<std::string> errors(2);
+  std::vector<std::thread> ranks;
+  for (int rank = 0; rank < 2; ++rank) {
+    ranks.emplace_back([&, rank] {
+      try {
+        DistributedEnvironment environment;
+        environment.rank = environment.local_rank = rank;
+        environment.world_size = environment.local_world_size = 2;
+        environment.master_port = port;
+        DataParallel parallel(environment, /*cuda=*/false, /*timeout_s=*/120);
+        Trainer trainer(config, {smallScene()}, testing::makeTempDir("ffloc-dp-rank"), false, {}, &parallel);
+        clearGradients(trainer);
+        trainer.accumulateGradients({samples[static_cast<size_t>(rank)]}, 0.5);
+        parallel.allReduceSum(gradientsOf(trainer.optimizer().parameters()), /*bucket_bytes=*/1 << 16);
+        reduced[static_cast<size_t>(rank)] = gradientSnapshot(trainer);
+      } catch (const std::exception& e) {
+        errors[static_cast<size_t>(rank)] = e.what();
+      }
+    });
+  }
+  for (std::thread& rank : ranks) rank.join();
+  ASSERT_EQ(errors[0], "");
+  ASSERT_EQ(errors[1], "");
+  expectSameTensors(reduced[0], expected, 1e-5, "rank 0 all-reduced vs one rank of batch 2");
+  expectSameTensors(reduced[1], reduced[0], 0.0, "rank 1 vs rank 0");
+}
+
+TEST(DataParallelTraining, EnvironmentIsReadAsTorchrunWritesIt) {
+  ::setenv("WORLD_SIZE", "4", 1);
+  ::setenv("RANK", "3", 1);
+  ::setenv("LOCAL_WORLD_SIZE", "2", 1);
+  ::setenv("LOCAL_RANK", "1", 1);
+  ::setenv("MASTER_ADDR", "node0", 1);
+  ::setenv("MASTER_PORT", "29611", 1);
+  const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
+  EXPECT_EQ(environment.rank, 3);
+  EXPECT_EQ(environment.world_size, 4);
+  EXPECT_EQ(environment.local_rank, 1);
+  EXPECT_EQ(environment.local_world_size, 2);
+  EXPECT_EQ(environment.master_addr, "node0");
+  EXPECT_EQ(environment.master_port, 29611);
+  ::setenv("RANK", "4", 1);
+  try {
+    DistributedEnvironment::fromProcessEnvironment();
+    ADD_FAILURE() << "RANK 4 of 4 was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("RANK"), std::string::npos) << e.what();
+  }
+  for (const char* name : {"WORLD_SIZE", "RANK", "LOCAL_WORLD_SIZE", "LOCAL_RANK", "MASTER_ADDR", "MASTER_PORT"}) {
+    ::unsetenv(name);
+  }
+  EXPECT_FALSE(DistributedEnvironment::fromProcessEnvironment().distributed());
+}
+
+#ifdef FFLOC_CLI_PATH
+// The CLI end to end: `ffloc train --nproc-per-node 2` starts two ranks the way torchrun would.
+class TrainCommandRanks : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    root_ = testing::makeTempDir("ffloc-train-cli");
+    TrainingConfig config = smallConfig();
+    config.steps = 4;
+    config.warmup_steps = 1;
+    config.log_every = 1;
+    config.checkpoint_every = 2;
+    config.keep_checkpoints = 5;
+    std::ofstream(root_ / "config.json") << toJson(config).dump(2);
+  }
+
+  static int train(const std::string& out, const std::string& extra) {
+    const std::string command = std::string(FFLOC_CLI_PATH) + " train --quiet --config " + (root_ / "config.json").string() +
+                                " --data " + smallScene().root.string() + " --out " + (root_ / out).string() + " " +
+                                extra + " > " + (root_ / (out + ".log")).string() + " 2>&1";
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+  static std::string output(const std::string& out) {
+    std::ifstream in(root_ / (out + ".log"));
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  }
+
+  // step -> loss, from the run's log.csv (a resumed run's later rows win).
+  static std::map<int64_t, double> losses(const std::string& out) {
+    std::ifstream in(root_ / out / "log.csv");
+    std::string line;
+    std::getline(in, line);
+    std::map<int64_t, double> out_losses;
+    while (std::getline(in, line)) {
+      std::stringstream row(line);
+      std::string step, loss;
+      std::getline(row, step, ',');
+      std::getline(row, loss, ',');
+      out_losses[std::stoll(step)] = std::stod(loss);
+    }
+    return out_losses;
+  }
+
+  static std::vector<at::Tensor> weights(const std::string& out, int64_t step) {
+    char folder[32];
+    std::snprintf(folder, sizeof(folder), "step_%08lld", static_cast<long long>(step));
+    LoadedModel model = loadModel((root_ / out / "checkpoints" / folder / "model.safetensors").string());
+    std::vector<at::Tensor> tensors;
+    const ParameterTable table = model.model->parameterTable();
+    for (const auto& entry : table.entries()) tensors.push_back(entry.tensor->clone());
+    return tensors;
+  }
+
+  static void expectSameLosses(const std::map<int64_t, double>& a, const std::map<int64_t, double>& b) {
+    ASSERT_EQ(a.size(), b.size());
+    for (const auto& [step, loss] : b) {
+      ASSERT_TRUE(a.count(step)) << "step " << step;
+      EXPECT_NEAR(a.at(step), loss, 1e-4 * std::abs(loss)) << "step " << step;
+    }
+  }
+
+  static fs::path root_;
+};
+
+fs::path TrainCommandRanks::root_;
+
+TEST_F(TrainCommandRanks, TwoRanksOfBatchOneTrainAsOneRankOfBatchTwo) {
+  ASSERT_EQ(train("one_rank", "--batch-size 2"), 0) << output("one_rank");
+  ASSERT_EQ(train("two_ranks", "--batch-size 1 --nproc-per-node 2"), 0) << output("two_ranks");
+  const auto straight = losses("one_rank");
+  ASSERT_EQ(straight.size(), 4u);
+  expectSameLosses(losses("two_ranks"), straight);
+  // AdamW may flip the sign of an update whose gradient is at rounding level: compare norms.
+  const std::vector<at::Tensor> a = weights("one_rank", 4), b = weights("two_ranks", 4);
+  expectSameTensors(b, a, 1e-3, "parameters after 4 steps, 2 ranks x 1 vs 1 rank x 2");
+
+  // Resumed from step 2 on one rank of batch 2: the same global batch, so the same run.
+  fs::copy(root_ / "two_ranks", root_ / "resumed", fs::copy_options::recursive);
+  std::ofstream(root_ / "resumed" / "checkpoints" / "latest", std::ios::trunc) << "step_00000002\n";
+  ASSERT_EQ(train("resumed", "--resume --batch-size 2"), 0) << output("resumed");
+  expectSameLosses(losses("resumed"), straight);
+  expectSameTensors(weights("resumed", 4), a, 1e-3, "parameters after resuming on another world size");
+
+  // Another global batch is refused, naming the field.
+  fs::copy(root_ / "two_ranks", root_ / "refused", fs::copy_options::recursive);
+  EXPECT_EQ(train("refused", "--resume --batch-size 1"), 2);
+  EXPECT_NE(output("refused").find("batch_size"), std::string::npos) << output("refused");
+}
+#endif
+
+}  // namespace
+}  // namespace ffloc

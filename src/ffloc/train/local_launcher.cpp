@@ -1,0 +1,111 @@
+#include "ffloc/train/local_launcher.h"
+
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+
+namespace ffloc {
+
+int freeLoopbackPort() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) throw std::runtime_error(std::string("socket: ") + std::strerror(errno));
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  address.sin_port = 0;
+  socklen_t length = sizeof(address);
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length) != 0) {
+    const int error = errno;
+    ::close(fd);
+    throw std::runtime_error(std::string("choosing a port for MASTER_PORT: ") + std::strerror(error));
+  }
+  ::close(fd);
+  return ntohs(address.sin_port);
+}
+
+namespace {
+
+int exitStatusOf(int status) {
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  if (WIFSIGNALED(status)) return 128 + WTERMSIG(status);
+  return 1;
+}
+
+}  // namespace
+
+int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
+  if (arguments.empty() || ranks < 1) throw std::invalid_argument("runLocalRanks: no program or no ranks");
+  const char* address = std::getenv("MASTER_ADDR");
+  const char* port = std::getenv("MASTER_PORT");
+  const std::string master_addr = address && *address ? address : "127.0.0.1";
+  const std::string master_port = port && *port ? port : std::to_string(freeLoopbackPort());
+
+  std::vector<char*> argv;
+  for (const std::string& argument : arguments) argv.push_back(const_cast<char*>(argument.c_str()));
+  argv.push_back(nullptr);
+  std::fflush(nullptr);
+
+  std::vector<pid_t> children;
+  for (int rank = 0; rank < ranks; ++rank) {
+    const pid_t pid = ::fork();
+    if (pid < 0) {
+      for (pid_t child : children) ::kill(child, SIGTERM);
+      for (pid_t child : children) ::waitpid(child, nullptr, 0);
+      throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
+    }
+    if (pid == 0) {
+      const std::string rank_text = std::to_string(rank), size_text = std::to_string(ranks);
+      ::setenv("RANK", rank_text.c_str(), 1);
+      ::setenv("LOCAL_RANK", rank_text.c_str(), 1);
+      ::setenv("WORLD_SIZE", size_text.c_str(), 1);
+      ::setenv("LOCAL_WORLD_SIZE", size_text.c_str(), 1);
+      ::setenv("MASTER_ADDR", master_addr.c_str(), 1);
+      ::setenv("MASTER_PORT", master_port.c_str(), 1);
+      ::execv("/proc/self/exe", argv.data());
+      std::fprintf(stderr, "rank %d: cannot start %s: %s\n", rank, arguments[0].c_str(), std::strerror(errno));
+      ::_exit(127);
+    }
+    children.push_back(pid);
+  }
+
+  int result = 0;
+  size_t running = children.size();
+  while (running > 0) {
+    int status = 0;
+    const pid_t done = ::waitpid(-1, &status, 0);
+    if (done < 0) {
+      if (errno == EINTR) continue;
+      break;
+    }
+    bool ours = false;
+    for (pid_t& child : children) {
+      if (child == done) {
+        child = 0;
+        ours = true;
+      }
+    }
+    if (!ours) continue;
+    --running;
+    const int code = exitStatusOf(status);
+    if (code != 0 && result == 0) {
+      result = code;
+      // A rank that failed leaves the others waiting in a collective: stop them.
+      for (pid_t child : children) {
+        if (child > 0) ::kill(child, SIGTERM);
+      }
+    }
+  }
+  return result;
+}
+
+}  // namespace ffloc
