@@ -2,12 +2,14 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <filesystem>
 #include <csignal>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 
 #include "command_model.h"
 #include "command_options.h"
@@ -22,7 +24,9 @@ namespace ffloc::cli {
 namespace {
 
 struct ServeArguments {
-  std::string map_path;
+  std::vector<std::string> maps;
+  std::string maps_folder;
+  std::string keys_path;
   ModelArguments model;
   QueryArguments query;
   std::string host = "127.0.0.1";
@@ -97,16 +101,41 @@ int runServe(const ServeArguments& args) {
   options.localize = localizeOptions(args.query);
   options.log = &std::cerr;
 
-  const MapLocalizer opened = openMapLocalizer(args.map_path, [&] { return loadCommandModel(args.model); });
-  std::cerr << "map: " << args.map_path << ", " << opened.description << "; K = " << options.localize.top_k;
-  if (opened.model) std::cerr << ", N = " << options.localize.num_features;
-  std::cerr << " unless a request says\n";
+  std::vector<MapCatalog::Source> sources;
+  for (const std::string& map : args.maps) sources.push_back(MapCatalog::parseSource(map));
+  if (!args.maps_folder.empty()) {
+    for (MapCatalog::Source& source : MapCatalog::sourcesInFolder(args.maps_folder)) sources.push_back(std::move(source));
+  }
+  if (sources.empty()) throw InputError("--map: give at least one map (--map [NAME=]PATH or --maps DIR)");
+  // Each map keeps the model it was built with alive through its localizer's owner.
+  const MapOpener open = [&](const std::filesystem::path& path) {
+    auto opened = std::make_shared<MapLocalizer>(openMapLocalizer(path, [&] { return loadCommandModel(args.model); }));
+    ServedMap map;
+    map.model_description = opened->model ? opened->model->description : opened->description;
+    map.localizer = std::shared_ptr<const Localizer>(opened, opened->localizer.get());
+    std::cerr << "map: " << path.string() << ", " << opened->description << "\n";
+    return map;
+  };
+  MapCatalog catalog(std::move(sources), open);
+  catalog.setLog([](const std::string& line) { std::cerr << line << "\n"; });
+  std::cerr << "K = " << options.localize.top_k << ", N = " << options.localize.num_features
+            << " (FastForward maps) unless a request says\n";
+  if (!args.keys_path.empty()) {
+    options.keys = ApiKeys::read(args.keys_path, catalog.names());
+  } else {
+    std::cerr << "no --keys: every client that reaches " << args.host << ":" << args.port << " may use every map"
+              << (args.host == "127.0.0.1" || args.host == "localhost" || args.host == "::1"
+                      ? " (loopback only: other machines cannot)"
+                      : " (not loopback: any machine on the network can)")
+              << "\n";
+  }
 
-  LocalizationServer server(*opened.localizer, options, opened.model ? opened.model->description : opened.description);
+  LocalizationServer server(catalog, options);
   const int port = server.bind();
   StopOnSignal stop_on_signal(server);
-  std::cerr << "listening on http://" << args.host << ":" << port
-            << " (GET /health, GET /map, POST /localize; Ctrl-C stops)\n";
+  std::cerr << "listening on http://" << args.host << ":" << port << " (" << catalog.names().size()
+            << " map(s): GET /health, GET /maps, GET /maps/NAME, POST /maps/NAME/localize"
+            << (catalog.names().size() == 1 ? ", GET /map, POST /localize" : "") << "; Ctrl-C stops)\n";
   server.serve();
   std::cerr << "stopped\n";
   return 0;
@@ -120,10 +149,17 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
       "serve",
       "Serve a map over HTTP: the model and the map are loaded once, then each POST /localize (an image and its "
       "intrinsics) answers the pose as 'ffloc localize --json' prints it (docs/server.md).");
-  cmd->add_option("--map", args->map_path, "Map file from 'ffloc map'")->required();
+  cmd->add_option("--map", args->maps,
+                  "Map file from 'ffloc map', as [NAME=]PATH (NAME: the file's stem); repeat for more maps. A file "
+                  "replaced on disk is reloaded without a restart");
+  cmd->add_option("--maps", args->maps_folder, "A folder whose *.ffmap files are all served, named by stem");
+  cmd->add_option("--keys", args->keys_path,
+                  "API keys: one '<key> <map>[,<map>...]' or '<key> *' a line; clients send 'Authorization: Bearer "
+                  "<key>' (without it every client may use every map)");
   addModelOptions(*cmd, args->model, "fastforward maps: the model the map was built with (as for 'ffloc map')");
   addQueryOptions(*cmd, args->query);
-  cmd->add_option("--host", args->host, "Address to listen on (0.0.0.0: every interface)")->capture_default_str();
+  cmd->add_option("--host", args->host, "Address to listen on (0.0.0.0: every interface; with --keys, as a rule)")
+      ->capture_default_str();
   cmd->add_option("--port", args->port, "TCP port (0: any free one, printed at start)")
       ->check(CLI::Range(0, 65535))
       ->capture_default_str();

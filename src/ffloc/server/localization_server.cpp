@@ -61,7 +61,9 @@ std::string libraryErrorMessage(const httplib::Request& request, int status, siz
   switch (status) {
     case 400: return "bad request: the HTTP library could not parse the request (malformed headers or multipart form)";
     case 404:
-      return "not found: " + request.method + " " + request.path + " (known: GET /health, GET /map, POST /localize)";
+      return "not found: " + request.method + " " + request.path +
+             " (known: GET /health, GET /maps, GET /maps/NAME, POST /maps/NAME/localize, and GET /map, POST /localize on "
+             "a server of one map)";
     case 413:
       if (isUrlEncodedForm(request)) return "payload too large: " + kUrlEncodedFormError;
       return "payload too large: the body is over the server's limit of " + std::to_string(max_body_bytes) + " bytes";
@@ -91,13 +93,28 @@ class QueryTicket {
   bool admitted_ = false;
 };
 
+// The map a request names: NAME of /maps/NAME/..., or the only map of the server for /map and
+// /localize. Empty with the error already set when there is none.
+std::string requestedMap(const httplib::Request& request, const MapCatalog& maps, httplib::Response& response) {
+  if (request.matches.size() > 1) return request.matches[1];
+  if (maps.names().size() == 1) return maps.names().front();
+  replyError(response, 404,
+             "this server holds " + std::to_string(maps.names().size()) +
+                 " maps: name one, as GET /maps/NAME or POST /maps/NAME/localize (GET /maps lists them)");
+  return "";
+}
+
+nlohmann::json mapSummary(const std::string& name, const ServedMap& map) {
+  return {{"name", name},
+          {"method", toString(map.localizer->method())},
+          {"images", map.localizer->cameras().size()},
+          {"model", map.model_description}};
+}
+
 }  // namespace
 
-LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions options, std::string model_description)
-    : localizer_(localizer),
-      options_(std::move(options)),
-      model_description_(std::move(model_description)),
-      http_(std::make_unique<Http>()) {
+LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions options)
+    : maps_(maps), options_(std::move(options)), http_(std::make_unique<Http>()) {
   httplib::Server& server = http_->server;
   server.set_payload_max_length(options_.max_body_bytes);
   // Without it, small answers wait on Nagle's algorithm: 28 ms per GET /health over loopback
@@ -117,32 +134,68 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     *options_.log << line << std::endl;
   };
 
+  // The map of a request, when the client may use it; null with the refusal set otherwise.
+  auto authorizedMap = [this](const httplib::Request& request,
+                              httplib::Response& response) -> std::shared_ptr<const ServedMap> {
+    const std::string name = requestedMap(request, maps_, response);
+    if (name.empty()) return nullptr;
+    if (options_.keys) {
+      switch (options_.keys->decide(request.get_header_value("Authorization"), name)) {
+        case ApiKeys::Decision::kAllowed: break;
+        case ApiKeys::Decision::kUnauthenticated:
+          replyError(response, 401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server");
+          return nullptr;
+        case ApiKeys::Decision::kForbidden:
+          replyError(response, 403, "forbidden: this key may not use map '" + name + "'");
+          return nullptr;
+      }
+    }
+    std::shared_ptr<const ServedMap> map = maps_.get(name);
+    if (!map) replyError(response, 404, "map '" + name + "': no such map (GET /maps lists them)");
+    return map;
+  };
+
+  // Open to every client, for load balancers: says nothing a key would protect beyond the count.
   server.Get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
-    const nlohmann::json body = {{"status", "ok"},
-                                 {"model", model_description_},
-                                 {"method", toString(localizer_.method())},
-                                 {"map_images", localizer_.cameras().size()}};
-    response.set_content(jsonText(body), kJson);
+    response.set_content(jsonText({{"status", "ok"}, {"maps", maps_.names().size()}}), kJson);
     log(request.method + " " + request.path + " 200");
   });
 
-  server.Get("/map", [this, log](const httplib::Request& request, httplib::Response& response) {
-    nlohmann::json names = nlohmann::json::array();
-    for (const MapCamera& camera : localizer_.cameras()) names.push_back(camera.name);
-    const nlohmann::json body = {
-        {"method", toString(localizer_.method())},
-        {"images", localizer_.cameras().size()},
-        {"names", names},
-        {"metric", localizer_.metric()},
-        {"model_id", localizer_.modelId()},
-        {"defaults",
-         {{"top_k", options_.localize.top_k},
-          {"features", options_.localize.num_features},
-          {"seed", options_.localize.seed},
-          {"selection", toString(options_.localize.selection)}}}};
-    response.set_content(jsonText(body), kJson);
+  server.Get("/maps", [this, log](const httplib::Request& request, httplib::Response& response) {
+    std::vector<std::string> names = maps_.names();
+    if (options_.keys) {
+      const std::string authorization = request.get_header_value("Authorization");
+      if (options_.keys->decide(authorization, "") != ApiKeys::Decision::kAllowed) {
+        replyError(response, 401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server");
+        return;
+      }
+      names = options_.keys->allowedMaps(authorization, names);
+    }
+    nlohmann::json list = nlohmann::json::array();
+    for (const std::string& name : names) list.push_back(mapSummary(name, *maps_.get(name)));
+    response.set_content(jsonText({{"maps", list}}), kJson);
     log(request.method + " " + request.path + " 200");
   });
+
+  const auto describeMap = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
+    const std::shared_ptr<const ServedMap> map = authorizedMap(request, response);
+    if (!map) return;
+    const Localizer& localizer = *map->localizer;
+    nlohmann::json names = nlohmann::json::array();
+    for (const MapCamera& camera : localizer.cameras()) names.push_back(camera.name);
+    nlohmann::json body = mapSummary(requestedMap(request, maps_, response), *map);
+    body["names"] = names;
+    body["metric"] = localizer.metric();
+    body["model_id"] = localizer.modelId();
+    body["defaults"] = {{"top_k", options_.localize.top_k},
+                        {"features", options_.localize.num_features},
+                        {"seed", options_.localize.seed},
+                        {"selection", toString(options_.localize.selection)}};
+    response.set_content(jsonText(body), kJson);
+    log(request.method + " " + request.path + " 200");
+  };
+  server.Get("/map", describeMap);
+  server.Get(R"(/maps/([^/]+))", describeMap);
 
   // The body limit of the HTTP library holds only for bodies that announce their length, so a
   // chunked upload or one without Content-Length is refused before it is read.
@@ -152,8 +205,10 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     return httplib::Server::HandlerResponse::Handled;
   });
 
-  server.Post("/localize", [this, log](const httplib::Request& request, httplib::Response& response) {
+  const auto localize = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
     const auto start = std::chrono::steady_clock::now();
+    const std::shared_ptr<const ServedMap> map = authorizedMap(request, response);
+    if (!map) return;
     const QueryTicket ticket(queries_in_flight_, options_.max_waiting_queries);
     if (!ticket.admitted()) {
       replyError(response, 503,
@@ -172,8 +227,8 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     nlohmann::json body;
     try {
       std::lock_guard<std::mutex> lock(localize_mutex_);
-      const LocalizationResult result = localizer_.localize(query.rgb, query.intrinsics, query.name, query.options);
-      body = localizationJson(query.name, result, localizer_);
+      const LocalizationResult result = map->localizer->localize(query.rgb, query.intrinsics, query.name, query.options);
+      body = localizationJson(query.name, result, *map->localizer);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
       return;
@@ -182,7 +237,9 @@ LocalizationServer::LocalizationServer(const Localizer& localizer, ServerOptions
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     log(request.method + " " + request.path + " 200 " + query.name + " " + body["status"].get<std::string>() + " " +
         std::to_string(body["inliers"].get<int>()) + " inliers, " + std::to_string(static_cast<int>(ms)) + " ms");
-  });
+  };
+  server.Post("/localize", localize);
+  server.Post(R"(/maps/([^/]+)/localize)", localize);
 
   // Every status >= 400, ours and the library's (404, 413, ...), answers JSON and is logged.
   server.set_error_handler([this, log](const httplib::Request& request, httplib::Response& response) {

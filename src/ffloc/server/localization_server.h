@@ -4,23 +4,29 @@
 #include <cstddef>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <ostream>
 #include <string>
 
 #include "ffloc/localization/localizer.h"
+#include "ffloc/server/api_keys.h"
 #include "ffloc/server/localize_request.h"
+#include "ffloc/server/map_catalog.h"
 
 namespace ffloc {
 
-// HTTP front of a Localizer: the map and the model are loaded once, then every request is one
-// query (docs/server.md).
-//   GET  /health    {"status": "ok", ...}
-//   GET  /map       the map's images, model and the request defaults
-//   POST /localize  an encoded image as the body (fields as URL parameters) or as the "image"
-//                   part of a multipart form (fields as URL parameters or form fields);
-//                   answers what `ffloc localize --json` prints
-// Bad requests get status 400 and {"error": "<field>: <what>"}; a body over max_body_bytes 413,
-// a POST without Content-Length 411, a query beyond max_waiting_queries 503.
+// HTTP front of one or more maps (a MapCatalog): maps and models are loaded once, then every
+// request is one query (docs/server.md).
+//   GET  /health                {"status": "ok", ...}, open to every client
+//   GET  /maps                  the maps this client may use: name, method, images, model
+//   GET  /maps/NAME             a map's images, model and the request defaults
+//   POST /maps/NAME/localize    an encoded image as the body (fields as URL parameters) or as
+//                               the "image" part of a multipart form (fields as URL parameters
+//                               or form fields); answers what `ffloc localize --json` prints
+//   GET  /map, POST /localize   the same for a server of one map
+// Bad requests get status 400 and {"error": "<field>: <what>"}; without a valid key (when the
+// server has keys) 401, a map the key may not use 403, an unknown map 404, a body over
+// max_body_bytes 413, a POST without Content-Length 411, a query beyond max_waiting_queries 503.
 struct ServerOptions {
   std::string host = "127.0.0.1";  // loopback: serving other machines is a choice (0.0.0.0)
   int port = 8080;                 // 0: any free port, see LocalizationServer::bind()
@@ -30,13 +36,14 @@ struct ServerOptions {
   size_t max_waiting_queries = 4;
   RequestLimits limits;
   LocalizeOptions localize;  // per-request defaults; requests may override K, N, seed, selection
-  std::ostream* log = nullptr;  // one line per request when set
+  std::ostream* log = nullptr;  // one line per request when set (never a key)
+  std::optional<ApiKeys> keys;  // none: every client may use every map
 };
 
 class LocalizationServer {
  public:
-  // `localizer` must outlive the server. `model_description` is reported by /health.
-  LocalizationServer(const Localizer& localizer, ServerOptions options, std::string model_description);
+  // `maps` must outlive the server.
+  LocalizationServer(const MapCatalog& maps, ServerOptions options);
   ~LocalizationServer();
   LocalizationServer(const LocalizationServer&) = delete;
   LocalizationServer& operator=(const LocalizationServer&) = delete;
@@ -52,9 +59,8 @@ class LocalizationServer {
 
  private:
   struct Http;
-  const Localizer& localizer_;
+  const MapCatalog& maps_;
   ServerOptions options_;
-  std::string model_description_;
   std::unique_ptr<Http> http_;
   int bound_port_ = -1;
   std::atomic<bool> stop_requested_{false};

@@ -151,6 +151,11 @@ TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
   EXPECT_EQ(requestErrorOf(pinholeFields(), huge).rfind("image: 30000x30000 is more", 0), 0u);
 }
 
+// A localizer the test owns, served without the catalog owning it.
+ServedMap unownedMap(const Localizer& localizer, const std::string& model) {
+  return {std::shared_ptr<const Localizer>(&localizer, [](const Localizer*) {}), model};
+}
+
 // The server against the library it fronts: a synthetic scene, a random tiny model (its pose is
 // meaningless, but deterministic), every route and every refusal over real sockets.
 class ServerTest : public ::testing::Test {
@@ -175,9 +180,11 @@ class ServerTest : public ::testing::Test {
       if (scene_->frames[i].split == Split::kMapping) mapping_frames.push_back(i);
     addToMap(map, *model_, *scene_, mapping_frames, mapping);
     localizer_ = new FastForwardLocalizer(*model_->model, std::move(map));
+    catalog_ = new MapCatalog("scene", unownedMap(*localizer_, "random tiny"));
   }
 
   static void TearDownTestSuite() {
+    delete catalog_;
     delete localizer_;
     delete model_;
     delete scene_;
@@ -192,7 +199,7 @@ class ServerTest : public ::testing::Test {
     options_.localize.top_k = 4;
     options_.localize.num_features = 300;
     options_.localize.long_side = kLongSide;
-    server_ = std::make_unique<LocalizationServer>(*localizer_, options_, "random tiny");
+    server_ = std::make_unique<LocalizationServer>(*catalog_, options_);
     port_ = server_->bind();
     serving_ = std::thread([this] { server_->serve(); });
     client_ = std::make_unique<httplib::Client>("127.0.0.1", port_);
@@ -232,6 +239,7 @@ class ServerTest : public ::testing::Test {
   static inline Scene* scene_ = nullptr;
   static inline LoadedModel* model_ = nullptr;
   static inline FastForwardLocalizer* localizer_ = nullptr;
+  static inline MapCatalog* catalog_ = nullptr;
   ServerOptions options_;
   std::unique_ptr<LocalizationServer> server_;
   int port_ = 0;
@@ -244,7 +252,20 @@ TEST_F(ServerTest, HealthAndMapDescribeWhatIsServed) {
   ASSERT_TRUE(health);
   EXPECT_EQ(health->status, 200);
   EXPECT_EQ(body(health)["status"], "ok");
-  EXPECT_EQ(body(health)["map_images"], 6);
+  EXPECT_EQ(body(health)["maps"], 1);
+
+  const auto maps = client_->Get("/maps");
+  ASSERT_TRUE(maps);
+  EXPECT_EQ(maps->status, 200);
+  ASSERT_EQ(body(maps)["maps"].size(), 1u);
+  EXPECT_EQ(body(maps)["maps"][0]["name"], "scene");
+  EXPECT_EQ(body(maps)["maps"][0]["images"], 6);
+  EXPECT_EQ(body(maps)["maps"][0]["method"], "fastforward");
+  EXPECT_EQ(body(maps)["maps"][0]["model"], "random tiny");
+  const auto named = client_->Get("/maps/scene");
+  ASSERT_TRUE(named);
+  EXPECT_EQ(named->status, 200);
+  EXPECT_EQ(body(named)["images"], 6);
 
   const auto map = client_->Get("/map");
   ASSERT_TRUE(map);
@@ -335,7 +356,7 @@ TEST_F(ServerTest, QueriesBeyondTheWaitingLimitAreBusy) {
 
 TEST_F(ServerTest, StopBeforeServeReturnsAtOnce) {
   ServerOptions options = options_;
-  LocalizationServer early(*localizer_, options, "random tiny");
+  LocalizationServer early(*catalog_, options);
   early.bind();
   early.stop();
   std::thread serving([&] { early.serve(); });
@@ -431,15 +452,16 @@ TEST_F(ServerTest, ServesAClassicalMapAsTheLibraryLocalizesIt) {
   addToClassicalMap(map, *scene_, scene_->mappingIndices(), mapping);
   const ClassicalLocalizer classical(std::move(map));
   ServerOptions options = options_;
-  LocalizationServer server(classical, options, "classical");
+  const MapCatalog classical_catalog("classical", unownedMap(classical, "none"));
+  LocalizationServer server(classical_catalog, options);
   const int port = server.bind();
   std::thread serving([&] { server.serve(); });
   httplib::Client client("127.0.0.1", port);
   client.set_read_timeout(60);
 
-  const auto health = client.Get("/health");
-  ASSERT_TRUE(health);
-  EXPECT_EQ(body(health)["method"], "classical");
+  const auto described = client.Get("/map");
+  ASSERT_TRUE(described);
+  EXPECT_EQ(body(described)["method"], "classical");
   const LocalizationResult direct =
       classical.localize(readImageRgb(query().image_path), query().intrinsics, "q", options.localize);
   const auto answer = client.Post(("/localize?name=q&" + intrinsicsParameters()).c_str(), queryFileBytes(), "image/png");
@@ -461,7 +483,7 @@ TEST_F(ServerTest, ServesAClassicalMapAsTheLibraryLocalizesIt) {
 TEST_F(ServerTest, SecondServerOnTheSamePortIsAnInputError) {
   ServerOptions taken = options_;
   taken.port = port_;
-  LocalizationServer second(*localizer_, taken, "random tiny");
+  LocalizationServer second(*catalog_, taken);
   try {
     second.bind();
     FAIL() << "bound a port already in use";

@@ -32,15 +32,7 @@ using testing::smallScene;
 // A second scene whose images preprocess to another size than smallScene's, so that one batch
 // needs two forward passes.
 const Scene& wideScene() {
-  static const Scene scene = [] {
-    SyntheticOptions options;
-    options.seed = 6;
-    options.width = 160;
-    options.height = 96;
-    options.mapping_frames = 10;
-    options.query_frames = 1;
-    return generateSyntheticScene(options, testing::makeTempDir("ffloc-train-wide"));
-  }();
+  static const Scene scene = testing::renderTestScene(6, 160, 96, 10, 1);
   return scene;
 }
 

@@ -6,17 +6,19 @@
 
 namespace ffloc::testing {
 
+inline Scene renderTestScene(uint64_t seed, int width, int height, int mapping_frames, int query_frames) {
+  SyntheticOptions options;
+  options.seed = seed;
+  options.width = width;
+  options.height = height;
+  options.mapping_frames = mapping_frames;
+  options.query_frames = query_frames;
+  return generateSyntheticScene(options, makeTempDir("ffloc-train-scene"));
+}
+
 // One small indoor scene shared by the tests of this binary (rendered once).
 inline const Scene& smallScene() {
-  static const Scene scene = [] {
-    SyntheticOptions options;
-    options.seed = 5;
-    options.width = 128;
-    options.height = 96;
-    options.mapping_frames = 12;
-    options.query_frames = 2;
-    return generateSyntheticScene(options, makeTempDir("ffloc-train-scene"));
-  }();
+  static const Scene scene = renderTestScene(5, 128, 96, 12, 2);
   return scene;
 }
 

@@ -1,0 +1,134 @@
+#include "ffloc/server/map_catalog.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+namespace {
+
+// What tells a replaced file from the one that was opened: an atomic rename brings a new inode.
+struct FileStamp {
+  dev_t device = 0;
+  ino_t inode = 0;
+  off_t size = -1;
+  int64_t modified_ns = 0;
+  bool operator==(const FileStamp& other) const {
+    return device == other.device && inode == other.inode && size == other.size && modified_ns == other.modified_ns;
+  }
+};
+
+bool stampOf(const std::filesystem::path& path, FileStamp& stamp) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0) return false;
+  stamp.device = info.st_dev;
+  stamp.inode = info.st_ino;
+  stamp.size = info.st_size;
+  stamp.modified_ns = static_cast<int64_t>(info.st_mtim.tv_sec) * 1000000000 + info.st_mtim.tv_nsec;
+  return true;
+}
+
+}  // namespace
+
+struct MapCatalog::Slot {
+  Source source;
+  mutable std::mutex mutex;  // guards current, stamp, last_check
+  std::shared_ptr<const ServedMap> current;
+  FileStamp stamp;
+  std::chrono::steady_clock::time_point last_check;
+  mutable std::mutex reloading;  // one reload of a map at a time
+};
+
+MapCatalog::MapCatalog(std::vector<Source> sources, MapOpener open, std::chrono::milliseconds reload_check)
+    : open_(std::move(open)), reload_check_(reload_check) {
+  if (sources.empty()) throw InputError("maps: no map to serve");
+  for (Source& source : sources) {
+    if (source.name.empty() || source.name.find('/') != std::string::npos) {
+      throwInputError(source.path.string(), 0, "map name '" + source.name + "' must be non-empty and hold no '/'");
+    }
+    if (std::find(names_.begin(), names_.end(), source.name) != names_.end()) {
+      throwInputError(source.path.string(), 0, "map name '" + source.name + "' given twice");
+    }
+    auto slot = std::make_unique<Slot>();
+    stampOf(source.path, slot->stamp);
+    slot->current = std::make_shared<const ServedMap>(open_(source.path));
+    slot->last_check = std::chrono::steady_clock::now();
+    slot->source = std::move(source);
+    names_.push_back(slot->source.name);
+    slots_.push_back(std::move(slot));
+  }
+}
+
+MapCatalog::MapCatalog(std::string name, ServedMap map) {
+  auto slot = std::make_unique<Slot>();
+  slot->source.name = name;
+  slot->current = std::make_shared<const ServedMap>(std::move(map));
+  names_.push_back(std::move(name));
+  slots_.push_back(std::move(slot));
+}
+
+MapCatalog::~MapCatalog() = default;
+
+std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const {
+  const auto found = std::find(names_.begin(), names_.end(), name);
+  if (found == names_.end()) return nullptr;
+  Slot& slot = *slots_[static_cast<size_t>(found - names_.begin())];
+  {
+    const std::lock_guard<std::mutex> lock(slot.mutex);
+    const auto now = std::chrono::steady_clock::now();
+    if (!open_ || now - slot.last_check < reload_check_) return slot.current;
+    slot.last_check = now;
+  }
+  FileStamp stamp;
+  std::unique_lock<std::mutex> reload(slot.reloading, std::try_to_lock);
+  {
+    const std::lock_guard<std::mutex> lock(slot.mutex);
+    // Another request is reopening it, or the file is missing (mid-replacement) or unchanged.
+    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || stamp == slot.stamp) return slot.current;
+  }
+  std::shared_ptr<const ServedMap> reopened;
+  try {
+    reopened = std::make_shared<const ServedMap>(open_(slot.source.path));
+  } catch (const std::exception& e) {
+    if (log_) log_("map '" + slot.source.name + "': the replaced file does not open, still serving the previous one: " + e.what());
+  }
+  const std::lock_guard<std::mutex> lock(slot.mutex);
+  slot.stamp = stamp;  // a broken replacement is not retried until the file changes again
+  if (reopened) {
+    slot.current = std::move(reopened);
+    if (log_) log_("map '" + slot.source.name + "': reloaded " + slot.source.path.string());
+  }
+  return slot.current;
+}
+
+MapCatalog::Source MapCatalog::parseSource(const std::string& text) {
+  const size_t equals = text.find('=');
+  Source source;
+  if (equals == std::string::npos) {
+    source.path = text;
+    source.name = source.path.stem().string();
+  } else {
+    source.name = text.substr(0, equals);
+    source.path = text.substr(equals + 1);
+  }
+  return source;
+}
+
+std::vector<MapCatalog::Source> MapCatalog::sourcesInFolder(const std::filesystem::path& folder) {
+  std::error_code error;
+  if (!std::filesystem::is_directory(folder, error)) throwInputError(folder.string(), 0, "not a folder of maps");
+  std::vector<Source> sources;
+  for (const auto& entry : std::filesystem::directory_iterator(folder, error)) {
+    if (entry.path().extension() == ".ffmap" && entry.is_regular_file(error)) {
+      sources.push_back({entry.path().stem().string(), entry.path()});
+    }
+  }
+  if (sources.empty()) throwInputError(folder.string(), 0, "holds no .ffmap file");
+  std::sort(sources.begin(), sources.end(), [](const Source& a, const Source& b) { return a.name < b.name; });
+  return sources;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,295 @@
+// A server of several maps from files: API keys (401, 403), maps replaced on disk while
+// requests run, and a stop while queries are in flight.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <sstream>
+#include <thread>
+#include <nlohmann/json.hpp>
+
+#include "ffloc/classical/classical_localizer.h"
+#include "ffloc/classical/classical_mapper.h"
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/server/api_keys.h"
+#include "ffloc/server/localization_server.h"
+#include "ffloc/synthetic/synthetic.h"
+// Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kKitchenKey = "kitchen-only-0123456789";
+const std::string kEveryMapKey = "every-map-abcdefghijklmn";
+
+std::string errorOf(const std::function<void()>& run) {
+  try {
+    run();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+class MapServing : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new fs::path(testing::makeTempDir("ffloc_map_serving"));
+    SyntheticOptions synthetic;
+    synthetic.seed = 8;
+    synthetic.mapping_frames = 8;
+    synthetic.query_frames = 1;
+    scene_ = new Scene(generateSyntheticScene(synthetic, *dir_ / "scene"));
+    writeMap(*dir_ / "kitchen.ffmap", 4);
+    writeMap(*dir_ / "office.ffmap", 6);
+    std::ofstream(*dir_ / "keys.txt") << "# who may use what\n"
+                                      << kKitchenKey << " kitchen\n\n"
+                                      << kEveryMapKey << " *\n";
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    fs::remove_all(*dir_);
+    delete dir_;
+  }
+
+  // A classical map of the scene's first `images` mapping frames, written as `ffloc map` writes.
+  static void writeMap(const fs::path& path, size_t images) {
+    ClassicalMappingOptions mapping;
+    mapping.quiet = true;
+    ClassicalMap map = emptyClassicalMap(true, mapping);
+    std::vector<size_t> frames = scene_->mappingIndices();
+    frames.resize(images);
+    addToClassicalMap(map, *scene_, frames, mapping);
+    writeClassicalMap(map, path);
+  }
+
+  static ServedMap openClassical(const fs::path& path) {
+    return {std::make_shared<const ClassicalLocalizer>(readClassicalMap(path)), "none"};
+  }
+
+  void SetUp() override {
+    catalog_ = std::make_unique<MapCatalog>(
+        std::vector<MapCatalog::Source>{{"kitchen", *dir_ / "kitchen.ffmap"}, {"office", *dir_ / "office.ffmap"}},
+        openClassical, std::chrono::milliseconds(0));
+    catalog_->setLog([this](const std::string& line) {
+      const std::lock_guard<std::mutex> lock(catalog_log_mutex_);
+      catalog_log_ << line << "\n";
+    });
+    ServerOptions options;
+    options.port = 0;
+    options.max_waiting_queries = 8;
+    options.keys = ApiKeys::read(*dir_ / "keys.txt", catalog_->names());
+    options.log = &log_;
+    server_ = std::make_unique<LocalizationServer>(*catalog_, options);
+    port_ = server_->bind();
+    serving_ = std::thread([this] { server_->serve(); });
+  }
+
+  void TearDown() override {
+    server_->stop();
+    serving_.join();
+  }
+
+  httplib::Client client(const std::string& key = "") const {
+    httplib::Client client("127.0.0.1", port_);
+    client.set_read_timeout(60);
+    if (!key.empty()) client.set_bearer_token_auth(key.c_str());
+    return client;
+  }
+
+  const Frame& query() const {
+    for (const Frame& frame : scene_->frames)
+      if (frame.split == Split::kQuery) return frame;
+    throw std::logic_error("no query");
+  }
+
+  std::string localizePath(const std::string& map) const {
+    const Intrinsics& k = query().intrinsics;
+    char text[200];
+    std::snprintf(text, sizeof(text), "/maps/%s/localize?fx=%.17g&fy=%.17g&cx=%.17g&cy=%.17g", map.c_str(), k.fx, k.fy,
+                  k.cx, k.cy);
+    return text;
+  }
+
+  std::string queryBytes() const {
+    std::ifstream file(query().image_path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(file), {});
+  }
+
+  static nlohmann::json body(const httplib::Result& result) { return nlohmann::json::parse(result->body); }
+
+  std::string catalogLog() {
+    const std::lock_guard<std::mutex> lock(catalog_log_mutex_);
+    return catalog_log_.str();
+  }
+
+  static inline fs::path* dir_ = nullptr;
+  static inline Scene* scene_ = nullptr;
+  std::unique_ptr<MapCatalog> catalog_;
+  std::unique_ptr<LocalizationServer> server_;
+  std::ostringstream log_;
+  std::mutex catalog_log_mutex_;
+  std::ostringstream catalog_log_;  // reloads, written from request threads
+  int port_ = 0;
+  std::thread serving_;
+};
+
+TEST_F(MapServing, KeysDecideWhoUsesWhichMap) {
+  EXPECT_EQ(client().Get("/health")->status, 200);  // open to load balancers
+  EXPECT_EQ(client().Get("/maps")->status, 401);
+  EXPECT_EQ(client("not-a-key-of-this-server").Get("/maps")->status, 401);
+
+  const auto kitchen_only = client(kKitchenKey).Get("/maps");
+  ASSERT_EQ(kitchen_only->status, 200);
+  ASSERT_EQ(body(kitchen_only)["maps"].size(), 1u);
+  EXPECT_EQ(body(kitchen_only)["maps"][0]["name"], "kitchen");
+  EXPECT_EQ(body(kitchen_only)["maps"][0]["images"], 4);
+  const auto every_map = client(kEveryMapKey).Get("/maps");
+  ASSERT_EQ(body(every_map)["maps"].size(), 2u);
+  EXPECT_EQ(body(every_map)["maps"][1]["images"], 6);
+
+  const auto forbidden = client(kKitchenKey).Post(localizePath("office").c_str(), queryBytes(), "image/png");
+  ASSERT_TRUE(forbidden);
+  EXPECT_EQ(forbidden->status, 403);
+  EXPECT_NE(body(forbidden)["error"].get<std::string>().find("office"), std::string::npos);
+  EXPECT_EQ(client().Post(localizePath("kitchen").c_str(), queryBytes(), "image/png")->status, 401);
+  const auto allowed = client(kKitchenKey).Post(localizePath("kitchen").c_str(), queryBytes(), "image/png");
+  ASSERT_TRUE(allowed);
+  EXPECT_EQ(allowed->status, 200) << allowed->body;
+  EXPECT_EQ(body(allowed)["method"], "classical");
+  EXPECT_EQ(client(kEveryMapKey).Post(localizePath("office").c_str(), queryBytes(), "image/png")->status, 200);
+  EXPECT_EQ(client(kEveryMapKey).Get("/maps/attic")->status, 404);
+
+  // With two maps the single-map routes do not guess which one.
+  const auto ambiguous = client(kEveryMapKey).Get("/map");
+  EXPECT_EQ(ambiguous->status, 404);
+  EXPECT_NE(body(ambiguous)["error"].get<std::string>().find("2 maps"), std::string::npos);
+
+  // Keys never reach the log.
+  EXPECT_EQ(log_.str().find(kKitchenKey), std::string::npos);
+  EXPECT_EQ(log_.str().find(kEveryMapKey), std::string::npos);
+  EXPECT_NE(log_.str().find("403"), std::string::npos);
+}
+
+TEST_F(MapServing, AMapReplacedOnDiskIsServedWithoutARestartAndNoRequestFails) {
+  std::atomic<bool> done{false};
+  std::atomic<int> answered{0};
+  std::mutex failures_mutex;
+  std::vector<std::string> failures;
+  std::thread load([&] {
+    httplib::Client http = client(kEveryMapKey);
+    while (!done) {
+      const auto answer = http.Post(localizePath("kitchen").c_str(), queryBytes(), "image/png");
+      if (!answer || answer->status != 200) {
+        const std::lock_guard<std::mutex> lock(failures_mutex);
+        failures.push_back(answer ? std::to_string(answer->status) + " " + answer->body : "no answer");
+      }
+      ++answered;
+    }
+  });
+  while (answered < 2) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+
+  // As `ffloc map` replaces a map: written beside it, then renamed over it.
+  writeMap(*dir_ / "kitchen.next.ffmap", 7);
+  fs::rename(*dir_ / "kitchen.next.ffmap", *dir_ / "kitchen.ffmap");
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  int images = 0;
+  while (images != 7 && std::chrono::steady_clock::now() < deadline) {
+    images = body(client(kEveryMapKey).Get("/maps/kitchen"))["images"].get<int>();
+  }
+  const int before = answered;
+  while (answered < before + 2) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  done = true;
+  load.join();
+  EXPECT_EQ(images, 7);
+  EXPECT_TRUE(failures.empty()) << failures.size() << " failed, first: " << failures.front();
+  EXPECT_NE(catalogLog().find("reloaded"), std::string::npos);
+
+  // A broken replacement leaves the previous map serving.
+  std::ofstream(*dir_ / "kitchen.broken", std::ios::binary) << "not a map";
+  fs::rename(*dir_ / "kitchen.broken", *dir_ / "kitchen.ffmap");
+  EXPECT_EQ(client(kEveryMapKey).Post(localizePath("kitchen").c_str(), queryBytes(), "image/png")->status, 200);
+  EXPECT_EQ(body(client(kEveryMapKey).Get("/maps/kitchen"))["images"], 7);
+  EXPECT_NE(catalogLog().find("does not open"), std::string::npos);
+  writeMap(*dir_ / "kitchen.ffmap", 4);
+}
+
+TEST_F(MapServing, StopAnswersEveryAcceptedQuery) {
+  constexpr int kClients = 6;
+  std::vector<httplib::Error> errors(kClients, httplib::Error::Unknown);
+  std::vector<int> statuses(kClients, 0);
+  std::vector<std::thread> clients;
+  for (int i = 0; i < kClients; ++i) {
+    clients.emplace_back([&, i] {
+      const auto answer = client(kEveryMapKey).Post(localizePath("office").c_str(), queryBytes(), "image/png");
+      errors[static_cast<size_t>(i)] = answer.error();
+      if (answer) statuses[static_cast<size_t>(i)] = answer->status;
+    });
+  }
+  // Queries take tens of milliseconds one at a time: stop while some run and others wait.
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  server_->stop();
+  for (std::thread& thread : clients) thread.join();
+  int answered = 0;
+  for (int i = 0; i < kClients; ++i) {
+    const size_t c = static_cast<size_t>(i);
+    // A client that came after the stop finds no listener (Error::Connection); one the server
+    // had accepted must get its answer, not a closed connection.
+    if (errors[c] == httplib::Error::Connection) continue;
+    EXPECT_EQ(errors[c], httplib::Error::Success) << "client " << i << ": " << httplib::to_string(errors[c]);
+    EXPECT_TRUE(statuses[c] == 200 || statuses[c] == 503) << "client " << i << ": " << statuses[c];
+    ++answered;
+  }
+  EXPECT_GE(answered, 1);
+}
+
+TEST(ApiKeys, FileErrorsNameTheLine) {
+  const fs::path dir = testing::makeTempDir("ffloc_keys");
+  const auto errorFor = [&](const std::string& text) {
+    std::ofstream(dir / "keys.txt", std::ios::trunc) << text;
+    return errorOf([&] { ApiKeys::read(dir / "keys.txt", {"kitchen", "office"}); });
+  };
+  EXPECT_NE(errorFor("short kitchen\n").find("keys.txt:1"), std::string::npos);
+  EXPECT_NE(errorFor("short kitchen\n").find("shorter than 16"), std::string::npos);
+  EXPECT_NE(errorFor("# c\n0123456789abcdef attic\n").find("keys.txt:2"), std::string::npos);
+  EXPECT_NE(errorFor("0123456789abcdef attic\n").find("'attic'"), std::string::npos);
+  EXPECT_NE(errorFor("0123456789abcdef *\n0123456789abcdef kitchen\n").find("given twice"), std::string::npos);
+  EXPECT_NE(errorFor("0123456789abcdef\n").find("expected"), std::string::npos);
+  EXPECT_NE(errorFor("\n# nothing\n").find("holds no key"), std::string::npos);
+
+  std::ofstream(dir / "keys.txt", std::ios::trunc) << "0123456789abcdef kitchen,office\r\n";
+  const ApiKeys keys = ApiKeys::read(dir / "keys.txt", {"kitchen", "office"});
+  EXPECT_EQ(keys.decide("Bearer 0123456789abcdef", "office"), ApiKeys::Decision::kAllowed);
+  EXPECT_EQ(keys.decide("bearer 0123456789abcdef", "kitchen"), ApiKeys::Decision::kAllowed);
+  EXPECT_EQ(keys.decide("Bearer 0123456789abcde", "kitchen"), ApiKeys::Decision::kUnauthenticated);
+  EXPECT_EQ(keys.decide("Bearer 0123456789abcdefg", "kitchen"), ApiKeys::Decision::kUnauthenticated);
+  EXPECT_EQ(keys.decide("0123456789abcdef", "kitchen"), ApiKeys::Decision::kUnauthenticated);
+  EXPECT_EQ(keys.decide("", ""), ApiKeys::Decision::kUnauthenticated);
+  fs::remove_all(dir);
+}
+
+TEST(MapCatalogSources, NamesComeFromTheFlagOrTheFileStem) {
+  EXPECT_EQ(MapCatalog::parseSource("kitchen=/maps/k.ffmap").name, "kitchen");
+  EXPECT_EQ(MapCatalog::parseSource("kitchen=/maps/k.ffmap").path, "/maps/k.ffmap");
+  EXPECT_EQ(MapCatalog::parseSource("/maps/office.ffmap").name, "office");
+  const fs::path dir = testing::makeTempDir("ffloc_catalog");
+  EXPECT_NE(errorOf([&] { MapCatalog::sourcesInFolder(dir); }).find("no .ffmap"), std::string::npos);
+  const auto empty = [](const fs::path&) { return ServedMap{}; };
+  EXPECT_NE(errorOf([&] { MapCatalog({{"a", dir / "x.ffmap"}, {"a", dir / "y.ffmap"}}, empty); }).find("given twice"),
+            std::string::npos);
+  EXPECT_NE(errorOf([&] { MapCatalog({{"a/b", dir / "x.ffmap"}}, empty); }).find("'a/b'"), std::string::npos);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace ffloc
