@@ -53,7 +53,8 @@ struct ServedScene {
   fs::path dir = fs::temp_directory_path() / "ffloc_server_bench";
   Scene scene;
   LoadedModel model;
-  std::unique_ptr<Localizer> localizer;
+  std::shared_ptr<Localizer> localizer;
+  std::unique_ptr<MapCatalog> catalog;
   std::unique_ptr<LocalizationServer> server;
   std::thread serving;
   int port = 0;
@@ -75,14 +76,15 @@ struct ServedScene {
     mapping.long_side = 256;
     MapFile map = emptyMap(model, true);
     addToMap(map, model, scene, {0, 1, 2, 3, 4, 5}, mapping);
-    localizer = std::make_unique<FastForwardLocalizer>(*model.model, std::move(map));
+    localizer = std::make_shared<FastForwardLocalizer>(*model.model, std::move(map));
+    catalog = std::make_unique<MapCatalog>("scene", ServedMap{localizer, "random tiny"});
     options.top_k = 4;
     options.num_features = 300;
     options.long_side = 256;
     ServerOptions server_options;
     server_options.port = 0;
     server_options.localize = options;
-    server = std::make_unique<LocalizationServer>(*localizer, server_options, "random tiny");
+    server = std::make_unique<LocalizationServer>(*catalog, server_options);
     port = server->bind();
     serving = std::thread([this] { server->serve(); });
     query = &scene.frames.back();
