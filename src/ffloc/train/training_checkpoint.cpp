@@ -69,6 +69,29 @@ int64_t parseCount(const TensorArchive& archive, const std::string& key, int64_t
   }
 }
 
+// The folder name `latest` holds, or empty.
+std::string readLatestName(const fs::path& latest) {
+  std::ifstream in(latest);
+  std::string name;
+  std::getline(in, name);
+  return name;
+}
+
+// Keeps the newest `keep_last` complete checkpoint folders and `keep` whatever its age.
+void pruneCheckpoints(const fs::path& root, const fs::path& keep, int keep_last) {
+  std::vector<fs::path> existing;
+  for (const auto& entry : fs::directory_iterator(root)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.is_directory() && name.rfind("step_", 0) == 0 && name.find('.') == std::string::npos) {
+      existing.push_back(entry.path());
+    }
+  }
+  std::sort(existing.begin(), existing.end());
+  for (size_t i = 0; i + static_cast<size_t>(keep_last) < existing.size(); ++i) {
+    if (existing[i] != keep) fs::remove_all(existing[i]);
+  }
+}
+
 }  // namespace
 
 fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& model, const AdamW& optimizer,
@@ -78,6 +101,12 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   const int64_t step = optimizer.stepCount();
   const fs::path folder = root / folderName(step);
   const fs::path partial = root / (folderName(step) + ".partial");
+  // The checkpoint `latest` names is the state this run was resumed from, so it already holds
+  // this step; rewriting it would leave `latest` naming a missing folder for a moment.
+  if (fs::is_directory(folder) && readLatestName(root / "latest") == folderName(step)) {
+    pruneCheckpoints(root, folder, keep_last);
+    return folder;
+  }
   fs::remove_all(partial);
   fs::create_directories(partial);
   const std::string config_json = toJson(config).dump();
@@ -93,30 +122,22 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
                 {"training_config", config_json}});
   writeTensors(partial / "optimizer.safetensors", optimizer.state(),
                {{"format", "ffloc-train-state"}, {"step", std::to_string(step)}, {"training_config", config_json}});
-  fs::remove_all(folder);
+  // A folder of this step that `latest` does not name (left by a run that stopped before updating
+  // `latest`) is replaced; `latest` names another folder meanwhile, so a crash here loses nothing.
+  const fs::path replaced = root / (folderName(step) + ".replaced");
+  fs::remove_all(replaced);
+  if (fs::exists(folder)) fs::rename(folder, replaced);
   fs::rename(partial, folder);
+  fs::remove_all(replaced);
   writeTextAtomically(root / "latest", folderName(step) + "\n");
-
-  std::vector<fs::path> existing;
-  for (const auto& entry : fs::directory_iterator(root)) {
-    const std::string name = entry.path().filename().string();
-    if (entry.is_directory() && name.rfind("step_", 0) == 0 && name.find('.') == std::string::npos) {
-      existing.push_back(entry.path());
-    }
-  }
-  std::sort(existing.begin(), existing.end());
-  for (size_t i = 0; i + static_cast<size_t>(keep_last) < existing.size(); ++i) {
-    if (existing[i] != folder) fs::remove_all(existing[i]);
-  }
+  pruneCheckpoints(root, folder, keep_last);
   return folder;
 }
 
 std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) {
   const fs::path latest = run_dir / "checkpoints" / "latest";
   if (!fs::exists(latest)) return std::nullopt;
-  std::ifstream in(latest);
-  std::string name;
-  std::getline(in, name);
+  const std::string name = readLatestName(latest);
   if (name.rfind("step_", 0) != 0 || name.find('/') != std::string::npos) {
     throwInputError(latest.string(), 1, "expected the name of a step_<n> folder, got '" + name + "'");
   }
