@@ -26,7 +26,8 @@ struct SummaryTable {
   std::vector<std::string> header;
   std::vector<std::vector<std::string>> rows;
 };
-SummaryTable summaryTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric_datasets = {});
+SummaryTable summaryTable(const std::vector<MethodSummary>& summaries,
+                          const std::vector<std::string>& non_metric_datasets = {});
 
 // summaryTable as a markdown table like the paper's.
 std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric_datasets = {});
