@@ -329,6 +329,13 @@ std::string thumbnailDataUri(const std::filesystem::path& path) {
   return "data:image/jpeg;base64," + base64(jpeg);
 }
 
+// Long frame names wrap after a folder before anywhere else.
+std::string breakableAtSlashes(const std::string& html) {
+  std::string out;
+  for (char c : html) out += c == '/' ? std::string("/<wbr>") : std::string(1, c);
+  return out;
+}
+
 std::string worstQueries(const Series& series, const ReportDataset& dataset) {
   // Positions in evaluation order, which the captions give to find a query on the error plots.
   std::vector<size_t> ranked(series.frames.size());
@@ -353,7 +360,8 @@ std::string worstQueries(const Series& series, const ReportDataset& dataset) {
     else
       out << "<img alt=\"" << escapeHtml(f->frame) << "\" src=\"" << uri << "\">";
     out << "<figcaption>query " << q << " · <span class=\"status\" style=\"color:" << statusColour(f->verdict) << "\">"
-        << toString(f->verdict) << "</span><br><span class=\"name\">" << escapeHtml(f->frame) << "</span><br>";
+        << toString(f->verdict) << "</span><br><span class=\"name\">" << breakableAtSlashes(escapeHtml(f->frame))
+        << "</span><br>";
     if (f->succeeded())
       out << "t " << formatted("%.3g", f->translation_error) << units << ", r "
           << formatted("%.3g", f->rotation_error_deg) << "°";
