@@ -440,9 +440,8 @@ std::string htmlReport(const std::vector<MethodSummary>& summaries, const std::v
         << perQueryChart(of_dataset, false, metric, metric ? "translation error (m)" : "translation error")
         << perQueryChart(of_dataset, true, metric, "rotation error (deg)") << "</div>\n";
   }
-  out << "<h2 id=\"top-view\">Top view</h2>\n<p class=\"note\">Camera centres on the two world axes along which they "
-         "spread most; "
-         "lines join each query's true centre to its estimate, coloured by the verdict.</p>\n";
+  out << "<h2 id=\"top-view\">Top view</h2>\n<p class=\"note\">Camera centres on the two world axes along which "
+         "they spread most; lines join each query's true centre to its estimate, coloured by the verdict.</p>\n";
   for (const std::string& name : datasetNames(series)) {
     out << "<h3>" << escapeHtml(name) << "</h3><div class=\"charts\">";
     for (const Series* s : seriesOfDataset(series, name)) out << topView(*s, datasetNamed(name));
