@@ -12,6 +12,7 @@
 #include "ffloc/data/dataset.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/eval/exports.h"
+#include "ffloc/eval/html_report.h"
 #include "ffloc/eval/oracle_depth_source.h"
 #include "ffloc/eval/protocol.h"
 #include "ffloc/eval/report.h"
@@ -31,7 +32,7 @@ struct EvalArguments {
   std::vector<std::string> datasets;
   std::string format = "auto";
   std::string methods;  // empty: classical, or only the map with --map
-  std::string json_path, csv_path, markdown_path;
+  std::string json_path, csv_path, markdown_path, html_path;
   double outliers = 0.0;
   double noise_px = 0.0;
   double point_noise = 0.0;
@@ -163,10 +164,12 @@ int runEval(const EvalArguments& args) {
   std::vector<FrameResult> all_frames;
   std::vector<MethodSummary> summaries;
   std::vector<std::string> non_metric;
+  std::vector<ReportDataset> report_datasets;
   for (const std::string& dataset : args.datasets) {
     Scene scene = loadDataset(dataset, args.format);
     if (!args.protocol.empty()) thinMappingFrames(scene, benchmarkProtocol(args.protocol).mapping_stride);
     if (!scene.metric) non_metric.push_back(scene.name);
+    if (!args.html_path.empty()) report_datasets.push_back(reportDataset(scene));
     auto record = [&](const std::vector<FrameResult>& frames, const std::string& method, const Correspondences* points) {
       summaries.push_back(summarize(frames));
       all_frames.insert(all_frames.end(), frames.begin(), frames.end());
@@ -241,6 +244,10 @@ int runEval(const EvalArguments& args) {
     writeTextFile(args.poses_path, hlocPoseList(all_frames));
     std::cerr << "wrote " << args.poses_path << "\n";
   }
+  if (!args.html_path.empty()) {
+    writeTextFile(args.html_path, htmlReport(summaries, all_frames, report_datasets));
+    std::cerr << "wrote " << args.html_path << "\n";
+  }
   return 0;
 }
 
@@ -273,6 +280,9 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
                   "(<stem>.md) go beside it unless --csv/--markdown say otherwise");
   cmd->add_option("--csv", args->csv_path, "Write the per-frame CSV here");
   cmd->add_option("--markdown", args->markdown_path, "Write the markdown table here");
+  cmd->add_option("--html", args->html_path,
+                  "Write a self-contained HTML report here: the table, cumulative error curves, errors per query, "
+                  "a top view of the cameras and the worst queries' thumbnails (docs/report.md)");
   cmd->add_option("--outliers", args->outliers, "oracle-depth: fraction of 3D points replaced at random")
       ->capture_default_str();
   cmd->add_option("--noise-px", args->noise_px, "oracle-depth: Gaussian pixel noise (sigma, px)")->capture_default_str();

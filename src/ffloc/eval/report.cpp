@@ -47,22 +47,46 @@ nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries) {
   return {{"results", results}};
 }
 
-std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric) {
-  std::ostringstream out;
-  out << "| dataset | method | frames | failed | median t | median r (deg) | 5cm,5deg | 10cm,10deg | "
-         "20cm,20deg | 10cm,1deg | 25cm,5deg | latency median (ms) | latency p90 (ms) | localized | "
-         "precision | recall |\n";
-  out << "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n";
+SummaryTable summaryTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric) {
+  SummaryTable table;
+  table.header = {"dataset", "method", "frames", "failed", "median t", "median r (deg)"};
+  for (const AccuracyThreshold& threshold : accuracyThresholds()) {
+    std::string key = threshold.key;
+    std::replace(key.begin(), key.end(), '_', ',');
+    table.header.push_back(key);
+  }
+  for (const char* column : {"latency median (ms)", "latency p90 (ms)", "localized", "precision", "recall"})
+    table.header.push_back(column);
   for (const MethodSummary& s : summaries) {
     const bool metric = std::find(non_metric.begin(), non_metric.end(), s.dataset) == non_metric.end();
-    out << "| " << s.dataset << (metric ? "" : " (units not metric)") << " | " << s.method << " | " << s.frames
-        << " | " << s.failed << " | " << formatNumber(s.median_translation, 4) << (metric ? " m" : "") << " | "
-        << formatNumber(s.median_rotation_deg, 3);
-    for (double a : s.accuracy_percent) out << " | " << formatNumber(a, 1) << "%";
-    out << " | " << formatNumber(s.latency_median_ms, 1) << " | " << formatNumber(s.latency_p90_ms, 1) << " | "
-        << s.localized << " | "
-        << (s.localized > 0 ? formatNumber(100.0 * s.localized_correct / s.localized, 1) + "%" : "-") << " | "
-        << (s.correct > 0 ? formatNumber(100.0 * s.localized_correct / s.correct, 1) + "%" : "-") << " |\n";
+    std::vector<std::string> row = {s.dataset + (metric ? "" : " (units not metric)"), s.method,
+                                    std::to_string(s.frames), std::to_string(s.failed),
+                                    formatNumber(s.median_translation, 4) + (metric ? " m" : ""),
+                                    formatNumber(s.median_rotation_deg, 3)};
+    for (double a : s.accuracy_percent) row.push_back(formatNumber(a, 1) + "%");
+    row.push_back(formatNumber(s.latency_median_ms, 1));
+    row.push_back(formatNumber(s.latency_p90_ms, 1));
+    row.push_back(std::to_string(s.localized));
+    row.push_back(s.localized > 0 ? formatNumber(100.0 * s.localized_correct / s.localized, 1) + "%" : "-");
+    row.push_back(s.correct > 0 ? formatNumber(100.0 * s.localized_correct / s.correct, 1) + "%" : "-");
+    table.rows.push_back(std::move(row));
+  }
+  return table;
+}
+
+std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric) {
+  const SummaryTable table = summaryTable(summaries, non_metric);
+  std::ostringstream out;
+  out << "|";
+  for (const std::string& column : table.header) out << " " << column << " |";
+  out << "\n|";
+  // The dataset and method columns are text, the others numbers.
+  for (size_t c = 0; c < table.header.size(); ++c) out << (c < 2 ? "---|" : "---:|");
+  out << "\n";
+  for (const std::vector<std::string>& row : table.rows) {
+    out << "|";
+    for (const std::string& cell : row) out << " " << cell << " |";
+    out << "\n";
   }
   return out.str();
 }

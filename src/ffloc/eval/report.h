@@ -19,8 +19,17 @@ namespace ffloc {
 // (more than half the frames failed) is written as null, since JSON has no infinity.
 nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries);
 
-// A markdown table like the paper's, one row per (dataset, method); datasets whose units are not
-// metres are marked so the thresholds are read in their units.
+// The summary table's cells, one row per (dataset, method), numbers formatted as every report
+// shows them; datasets whose units are not metres are marked so the thresholds are read in their
+// units.
+struct SummaryTable {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+};
+SummaryTable summaryTable(const std::vector<MethodSummary>& summaries,
+                          const std::vector<std::string>& non_metric_datasets = {});
+
+// summaryTable as a markdown table like the paper's.
 std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric_datasets = {});
 
 // One row per (method, frame): errors, status, inliers, timings and the estimated pose.
