@@ -10,7 +10,8 @@ for module in pytest numpy; do
     exit 77
   fi
 done
-"$python" -m pytest -q -p no:cacheprovider "$tests"
+# Nothing written into the source tree: no .pytest_cache, no __pycache__.
+PYTHONDONTWRITEBYTECODE=1 "$python" -m pytest -q -p no:cacheprovider "$tests"
 status=$?
 if [ "$status" -eq 5 ]; then
   echo "pytest collected no test in $tests"

@@ -174,8 +174,9 @@ def test_the_gil_is_released_while_a_map_is_built(scene_dir, tmp_path):
     done.set()
     ticker.join()
     during = [t for t in ticks if start < t < end]
-    # Held by the call, the GIL would let the ticker run only at the call's edges.
-    assert len(during) >= 0.3 * (end - start) / 0.005
+    # Held by the call, the GIL would keep the ticker from running at all until the call returns;
+    # a loose bound, as a loaded machine may give the ticker few turns.
+    assert len(during) >= 5, f"{len(during)} ticks during a {end - start:.2f} s call"
 
 
 # The solver
