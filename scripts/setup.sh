@@ -12,6 +12,8 @@ packages=(
 # Without these the build still succeeds and leaves out what needs them (CMake says which).
 optional_packages=(
   libcpp-httplib-dev  # the HTTP server, ffloc serve
+  pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module (docs/python.md) and its tests
+  chromium  # the browser tests of the eval report and the server's viewer (web/)
 )
 
 not_installed() {

@@ -13,6 +13,7 @@ std::string withFlagName(const std::string& message) {
       {"selection", "--selection"},
       {"retrieval", "--retrieval"},
       {"method", "--method"},
+      {"methods", "--methods"},
       {"pnp.inlier_threshold_px", "--inlier-threshold"},
       {"pnp.confidence_threshold", "--confidence-threshold"},
       {"pnp.max_correspondences", "--max-correspondences"},
@@ -54,20 +55,16 @@ void addQueryOptions(CLI::App& command, QueryArguments& args) {
 }
 
 LocalizeOptions localizeOptions(const QueryArguments& args) {
-  LocalizeOptions options = LocalizeOptions::preset(args.preset);
-  if (args.top_k_option && args.top_k_option->count() > 0) {
-    if (args.top_k <= 0) throw InputError("top_k: must be positive, got " + std::to_string(args.top_k));
-    options.top_k = static_cast<size_t>(args.top_k);
-  }
-  if (args.features_option && args.features_option->count() > 0) options.num_features = args.features;
-  options.seed = args.seed;
-  options.pnp.seed = args.seed;
-  options.selection = parseImageSelection(args.selection);
-  options.retrieval = parseFastForwardRetrieval(args.retrieval);
-  options.pnp.solver = parsePnpSolver(args.solver);
-  options.verify_with_second_reference = !args.no_verify;
-  options.check();
-  return options;
+  QuerySettings settings;
+  settings.preset = args.preset;
+  if (args.top_k_option && args.top_k_option->count() > 0) settings.top_k = args.top_k;
+  if (args.features_option && args.features_option->count() > 0) settings.features = args.features;
+  settings.seed = args.seed;
+  settings.selection = args.selection;
+  settings.retrieval = args.retrieval;
+  settings.solver = args.solver;
+  settings.verify = !args.no_verify;
+  return ffloc::localizeOptions(settings);
 }
 
 }  // namespace ffloc::cli

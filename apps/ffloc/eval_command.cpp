@@ -6,23 +6,20 @@
 #include "command_options.h"
 #include "commands.h"
 #include "ffloc/classical/classical_localizer.h"
-#include "ffloc/classical/classical_mapper.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/html_report.h"
-#include "ffloc/eval/oracle_depth_source.h"
+#include "ffloc/eval/method_evaluation.h"
 #include "ffloc/eval/protocol.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/eval/scene_ply.h"
-#include "ffloc/eval/sift_baseline_source.h"
 #ifdef FFLOC_WITH_TORCH
 #include "command_model.h"
-#include "ffloc/pipeline/fastforward_localizer.h"
+#include "ffloc/pipeline/map_building.h"
 #include "ffloc/pipeline/map_localizer.h"
-#include "ffloc/pipeline/mapper.h"
 #endif
 
 namespace ffloc::cli {
@@ -71,53 +68,6 @@ const LoadedModel& sharedModel(const EvalArguments& args) {
 }
 #endif
 
-// The methods that answer through a CoordinateSource; the others go through a Localizer.
-std::unique_ptr<CoordinateSource> makeSource(const std::string& method, const EvalArguments& args) {
-  if (method == "oracle-depth") {
-    OracleDepthOptions options;
-    options.outlier_fraction = args.outliers;
-    options.pixel_noise_px = args.noise_px;
-    options.point_noise = args.point_noise;
-    options.stride = args.stride;
-    options.seed = args.query.seed;
-    return std::make_unique<OracleDepthSource>(options);
-  }
-  if (method == "sift-baseline") {
-    SiftBaselineOptions options;
-    options.seed = args.query.seed;
-    return std::make_unique<SiftBaselineSource>(options);
-  }
-  return nullptr;
-}
-
-// A map of the scene's mapping split in memory, for the methods that localize with one.
-std::unique_ptr<Localizer> makeInMemoryLocalizer(const std::string& method, const Scene& scene, const EvalArguments& args) {
-  if (method == "classical") {
-    ClassicalMappingOptions options;
-    options.use_depth = !args.no_depth;
-    options.quiet = args.quiet;
-    ClassicalMap map = emptyClassicalMap(scene.metric, options);
-    addToClassicalMap(map, scene, scene.mappingIndices(), options);
-    return std::make_unique<ClassicalLocalizer>(std::move(map));
-  }
-#ifdef FFLOC_WITH_TORCH
-  if (method == "fastforward") {
-    const LoadedModel& model = sharedModel(args);
-    MappingOptions options;
-    options.quiet = args.quiet;
-    options.vlad = parseFastForwardRetrieval(args.query.retrieval) == FastForwardRetrieval::kVlad;
-    MapFile map = emptyMap(model, scene.metric);
-    addToMap(map, model, scene, scene.mappingIndices(), options);
-    return std::make_unique<FastForwardLocalizer>(*model.model, std::move(map));
-  }
-#endif
-  throw InputError("--methods: unknown method '" + method + "' (known: oracle-depth, sift-baseline, classical" +
-#ifdef FFLOC_WITH_TORCH
-                   ", fastforward" +
-#endif
-                   ")");
-}
-
 int runEval(const EvalArguments& args) {
 #ifdef FFLOC_WITH_TORCH
   setLibraryThreadCount(args.model.threads);
@@ -156,6 +106,23 @@ int runEval(const EvalArguments& args) {
     checked.check();
   }
 
+  MethodEvaluationOptions method_options;
+  method_options.evaluation = options;
+  method_options.localize = localize;
+  method_options.oracle_depth.outlier_fraction = args.outliers;
+  method_options.oracle_depth.pixel_noise_px = args.noise_px;
+  method_options.oracle_depth.point_noise = args.point_noise;
+  method_options.oracle_depth.stride = args.stride;
+  method_options.use_depth = !args.no_depth;
+#ifdef FFLOC_WITH_TORCH
+  method_options.fastforward = [&](const Scene& scene) {
+    MappingOptions mapping;
+    mapping.quiet = args.quiet;
+    mapping.vlad = localize.retrieval == FastForwardRetrieval::kVlad;
+    return inMemoryFastForwardLocalizer(sharedModel(args), scene, mapping);
+  };
+#endif
+
   // The PLY shows one method's poses (and, for a localizer, the last query's points): the map's
   // when there is one, else fastforward's when it runs, else the first method's.
   std::string ply_method = methods.empty() ? "" : methods.front();
@@ -183,12 +150,9 @@ int runEval(const EvalArguments& args) {
       last_points = result.correspondences;
     };
     for (const std::string& method : methods) {
-      if (auto source = makeSource(method, args)) {
-        record(evaluate(scene, *source, options), method, nullptr);
-        continue;
-      }
-      const std::unique_ptr<Localizer> localizer = makeInMemoryLocalizer(method, scene, args);
-      record(evaluateLocalizer(scene, *localizer, method, localize, options, keep_points), method, &last_points);
+      const std::vector<FrameResult> frames = evaluateMethod(scene, method, method_options, keep_points);
+      const bool localizes = method == "classical" || method == "fastforward";
+      record(frames, method, localizes ? &last_points : nullptr);
     }
     if (!args.map_path.empty()) {
 #ifdef FFLOC_WITH_TORCH

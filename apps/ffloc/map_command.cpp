@@ -6,13 +6,9 @@
 #include "command_model.h"
 #include "command_options.h"
 #include "commands.h"
-#include "ffloc/classical/classical_mapper.h"
-#include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
-#include "ffloc/io/map_file.h"
-#include "ffloc/localization/localizer.h"
-#include "ffloc/pipeline/mapper.h"
+#include "ffloc/pipeline/map_building.h"
 
 namespace ffloc::cli {
 namespace {
@@ -40,60 +36,30 @@ void printSummary(size_t added, size_t duplicates, double seconds, size_t images
             << std::filesystem::file_size(output) / (1024.0 * 1024.0) << " MiB\n";
 }
 
-void requireAppendTarget(const MapArguments& args, LocalizationMethod method) {
-  const MapHeader header = readMapHeader(args.output);
-  if (header.method != toString(method))
-    throwInputError(args.output, 0, "--append: the map was built with the " + header.method + " method, not " +
-                                        toString(method) + " (--method)");
-}
-
-int mapClassical(const MapArguments& args, const Scene& scene, const std::vector<size_t>& frames) {
-  ClassicalMappingOptions options;
-  options.use_depth = !args.no_depth;
-  options.sift.max_image_size = args.max_image_size;
-  options.sift.max_features = args.max_features;
-  options.quiet = args.quiet;
-  options.check();
-  ClassicalMap map = emptyClassicalMap(scene.metric, options);
-  if (args.append && std::filesystem::exists(args.output)) {
-    requireAppendTarget(args, LocalizationMethod::kClassical);
-    map = readClassicalMap(args.output);
-    std::cerr << "appending to " << args.output << " (" << map.images.size() << " images)\n";
-  }
-  const ClassicalMappingReport report = addToClassicalMap(map, scene, frames, options);
-  writeClassicalMap(map, args.output);
-  if (report.skipped_featureless > 0)
-    std::cerr << report.skipped_featureless << " images with fewer than two SIFT keypoints left out\n";
-  std::cerr << report.points << " points (" << (options.use_depth ? "depth where the frames have it, " : "")
-            << "triangulated elsewhere), " << report.links << " links\n";
-  printSummary(report.added, report.skipped_duplicates, report.seconds, map.images.size(), args.output);
-  return 0;
-}
-
-int mapFastForward(const MapArguments& args, const Scene& scene, const std::vector<size_t>& frames) {
-  const LoadedModel model = loadCommandModel(args.model);
-  MapFile map = emptyMap(model, scene.metric);
-  if (args.append && std::filesystem::exists(args.output)) {
-    requireAppendTarget(args, LocalizationMethod::kFastForward);
-    map = readMapFile(args.output, model.id);
-    std::cerr << "appending to " << args.output << " (" << map.images.size() << " images)\n";
-  }
-  MappingOptions options;
-  options.quiet = args.quiet;
-  options.vlad = args.vlad;
-  const MappingReport report = addToMap(map, model, scene, frames, options);
-  writeMapFile(map, args.output);
-  printSummary(report.added, report.skipped_duplicates, report.seconds, map.images.size(), args.output);
-  return 0;
-}
-
 int runMap(const MapArguments& args) {
   setLibraryThreadCount(args.model.threads);
-  const LocalizationMethod method = parseLocalizationMethod(args.method);
+  MapBuildOptions options;
+  options.method = parseLocalizationMethod(args.method);
+  options.append = args.append;
+  options.classical.use_depth = !args.no_depth;
+  options.classical.sift.max_image_size = args.max_image_size;
+  options.classical.sift.max_features = args.max_features;
+  options.classical.quiet = args.quiet;
+  options.fastforward.quiet = args.quiet;
+  options.fastforward.vlad = args.vlad;
   const Scene scene = loadDataset(args.dataset, args.format);
-  const std::vector<size_t> frames = scene.mappingIndices();
-  if (frames.empty()) throwInputError(args.dataset, 0, "dataset has no mapping frames (split_mapping.txt or its native split)");
-  return method == LocalizationMethod::kClassical ? mapClassical(args, scene, frames) : mapFastForward(args, scene, frames);
+  const MapBuildReport report = buildMap(scene, args.output, options, [&] { return loadCommandModel(args.model); });
+  if (report.previous_images > 0)
+    std::cerr << "appended to " << args.output << " (" << report.previous_images << " images before)\n";
+  if (options.method == LocalizationMethod::kClassical) {
+    if (report.skipped_featureless > 0)
+      std::cerr << report.skipped_featureless << " images with fewer than two SIFT keypoints left out\n";
+    std::cerr << report.points << " points ("
+              << (options.classical.use_depth ? "depth where the frames have it, " : "") << "triangulated elsewhere), "
+              << report.links << " links\n";
+  }
+  printSummary(report.added, report.skipped_duplicates, report.seconds, report.images, args.output);
+  return 0;
 }
 
 }  // namespace

@@ -134,8 +134,9 @@ int runServe(const ServeArguments& args) {
   const int port = server.bind();
   StopOnSignal stop_on_signal(server);
   std::cerr << "listening on http://" << args.host << ":" << port << " (" << catalog.names().size()
-            << " map(s): GET /health, GET /maps, GET /maps/NAME, POST /maps/NAME/localize"
-            << (catalog.names().size() == 1 ? ", GET /map, POST /localize" : "") << "; Ctrl-C stops)\n";
+            << " map(s): GET /health, GET /maps, GET /maps/NAME, GET /maps/NAME/scene, POST /maps/NAME/localize"
+            << (catalog.names().size() == 1 ? ", GET /map, POST /localize" : "") << "; Ctrl-C stops)\n"
+            << "map viewer: http://" << args.host << ":" << port << "/\n";
   server.serve();
   std::cerr << "stopped\n";
   return 0;

@@ -1,5 +1,6 @@
 #include "ffloc/classical/classical_localizer.h"
 
+#include <algorithm>
 #include <chrono>
 
 #include "ffloc/core/error.h"
@@ -38,6 +39,23 @@ ClassicalLocalizer::ClassicalLocalizer(ClassicalMap map) : map_(std::move(map)) 
 }
 
 ClassicalLocalizer::~ClassicalLocalizer() = default;
+
+std::vector<Eigen::Vector3d> ClassicalLocalizer::mapPoints(size_t max_points) const {
+  size_t total = 0;
+  for (const ClassicalMapImage& image : map_.images) total += image.pointCount();
+  std::vector<Eigen::Vector3d> points;
+  if (total == 0 || max_points == 0) return points;
+  const size_t stride = (total + max_points - 1) / max_points;
+  points.reserve(std::min(total, max_points));
+  size_t index = 0;
+  for (const ClassicalMapImage& image : map_.images) {
+    for (size_t k = 0; k < image.points.size(); ++k) {
+      if (image.point_views[k] == 0) continue;
+      if (index++ % stride == 0) points.push_back(image.points[k]);
+    }
+  }
+  return points;
+}
 
 void ClassicalLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                                  const LocalizeOptions& options, LocalizationResult& result,

@@ -20,6 +20,7 @@ class ClassicalLocalizer : public Localizer {
   LocalizationMethod method() const override { return LocalizationMethod::kClassical; }
   bool metric() const override { return map_.metric; }
   const std::vector<MapCamera>& cameras() const override { return cameras_; }
+  std::vector<Eigen::Vector3d> mapPoints(size_t max_points) const override;
   const ClassicalMap& map() const { return map_; }
 
  protected:

@@ -54,6 +54,23 @@ void LocalizeOptions::check() const {
   verdict.check();
 }
 
+LocalizeOptions localizeOptions(const QuerySettings& settings) {
+  LocalizeOptions options = LocalizeOptions::preset(settings.preset);
+  if (settings.top_k) {
+    if (*settings.top_k <= 0) throw InputError("top_k: must be positive, got " + std::to_string(*settings.top_k));
+    options.top_k = static_cast<size_t>(*settings.top_k);
+  }
+  if (settings.features) options.num_features = *settings.features;
+  options.seed = settings.seed;
+  options.pnp.seed = settings.seed;
+  options.selection = parseImageSelection(settings.selection);
+  options.retrieval = parseFastForwardRetrieval(settings.retrieval);
+  options.pnp.solver = parsePnpSolver(settings.solver);
+  options.verify_with_second_reference = settings.verify;
+  options.check();
+  return options;
+}
+
 void checkQueryIntrinsics(const Intrinsics& k, int width, int height) {
   if ((k.width != 0 || k.height != 0) && (k.width != width || k.height != height))
     throw InputError("width, height: the intrinsics are for a " + std::to_string(k.width) + "x" +

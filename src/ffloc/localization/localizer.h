@@ -53,6 +53,21 @@ struct LocalizeOptions {
   void check() const;
 };
 
+// A query's options as a user names them (the CLI's flags, the Python keyword arguments): a
+// preset, then overrides. top_k and features replace the preset's only when given.
+struct QuerySettings {
+  std::string preset = "indoor";
+  std::optional<int64_t> top_k;
+  std::optional<int64_t> features;
+  uint64_t seed = 0;  // RANSAC, token sampling and random selection alike
+  std::string selection = "retrieval";
+  std::string retrieval = "encoder";
+  std::string solver = "lo-ransac";
+  bool verify = true;  // LocalizeOptions::verify_with_second_reference
+};
+// The checked options. InputError naming the field (preset, top_k, selection, retrieval, ...).
+LocalizeOptions localizeOptions(const QuerySettings& settings);
+
 // Wall-clock seconds of each stage of one query.
 struct QueryTimings {
   double preprocessing = 0;  // image reading aside: undistortion, resize, crop
@@ -85,6 +100,9 @@ class Localizer {
   virtual std::string modelId() const { return ""; }  // empty for methods without a network
   virtual bool metric() const = 0;
   virtual const std::vector<MapCamera>& cameras() const = 0;
+  // At most `max_points` of the map's world points, taken evenly over the map (what the server's
+  // viewer draws); none for a method whose map holds no points.
+  virtual std::vector<Eigen::Vector3d> mapPoints(size_t /*max_points*/) const { return {}; }
 
   LocalizationResult localize(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                               const LocalizeOptions& options) const;

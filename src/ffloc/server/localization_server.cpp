@@ -1,14 +1,17 @@
 #include "ffloc/server/localization_server.h"
 
 #include <chrono>
+#include <deque>
 #include <map>
 #include <stdexcept>
 #include <thread>
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/json_fields.h"
 #include "ffloc/localization/localization_json.h"
 #include "ffloc/server/localize_request.h"
+#include "ffloc/server/viewer_assets.h"
 
 // Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
 #include <httplib.h>
@@ -18,6 +21,10 @@ namespace ffloc {
 struct LocalizationServer::Http {
   httplib::Server server;
   std::mutex log_mutex;
+  // The last answers of each map, oldest first, each with the query's intrinsics (the viewer
+  // draws the query camera with them).
+  std::mutex recent_mutex;
+  std::map<std::string, std::deque<nlohmann::json>> recent;
 };
 
 namespace {
@@ -62,8 +69,8 @@ std::string libraryErrorMessage(const httplib::Request& request, int status, siz
     case 400: return "bad request: the HTTP library could not parse the request (malformed headers or multipart form)";
     case 404:
       return "not found: " + request.method + " " + request.path +
-             " (known: GET /health, GET /maps, GET /maps/NAME, POST /maps/NAME/localize, and GET /map, POST /localize on "
-             "a server of one map)";
+             " (known: GET /, GET /health, GET /maps, GET /maps/NAME, GET /maps/NAME/scene, POST /maps/NAME/localize, "
+             "and GET /map, GET /map/scene, POST /localize on a server of one map)";
     case 413:
       if (isUrlEncodedForm(request)) return "payload too large: " + kUrlEncodedFormError;
       return "payload too large: the body is over the server's limit of " + std::to_string(max_body_bytes) + " bytes";
@@ -109,6 +116,33 @@ nlohmann::json mapSummary(const std::string& name, const ServedMap& map) {
           {"method", toString(map.localizer->method())},
           {"images", map.localizer->cameras().size()},
           {"model", map.model_description}};
+}
+
+nlohmann::json intrinsicsJson(const Intrinsics& k) {
+  return {{"fx", k.fx}, {"fy", k.fy}, {"cx", k.cx}, {"cy", k.cy}, {"width", k.width}, {"height", k.height}};
+}
+
+// GET /maps/NAME/scene: points as one flat array x0, y0, z0, x1, ... in single precision, which is
+// what the page uploads to the graphics card and a third of the text of [x, y, z] triples at
+// full precision.
+nlohmann::json sceneJson(const std::string& name, const Localizer& localizer, size_t max_points,
+                         const std::deque<nlohmann::json>& recent) {
+  nlohmann::json cameras = nlohmann::json::array();
+  for (const MapCamera& camera : localizer.cameras()) {
+    cameras.push_back({{"name", camera.name},
+                       {"camera_to_world", matrix4Json(camera.camera_to_world.matrix())},
+                       {"intrinsics", intrinsicsJson(camera.intrinsics)}});
+  }
+  nlohmann::json points = nlohmann::json::array();
+  for (const Eigen::Vector3d& point : localizer.mapPoints(max_points)) {
+    for (int axis = 0; axis < 3; ++axis) points.push_back(static_cast<float>(point[axis]));
+  }
+  return {{"name", name},
+          {"method", toString(localizer.method())},
+          {"metric", localizer.metric()},
+          {"cameras", cameras},
+          {"points", points},
+          {"recent", nlohmann::json(recent)}};
 }
 
 }  // namespace
@@ -197,6 +231,28 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   server.Get("/map", describeMap);
   server.Get(R"(/maps/([^/]+))", describeMap);
 
+  const auto describeScene = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
+    const std::shared_ptr<const ServedMap> map = authorizedMap(request, response);
+    if (!map) return;
+    const std::string name = requestedMap(request, maps_, response);
+    std::deque<nlohmann::json> recent;
+    {
+      std::lock_guard<std::mutex> lock(http_->recent_mutex);
+      const auto found = http_->recent.find(name);
+      if (found != http_->recent.end()) recent = found->second;
+    }
+    response.set_content(jsonText(sceneJson(name, *map->localizer, options_.max_scene_points, recent)), kJson);
+    log(request.method + " " + request.path + " 200");
+  };
+  server.Get("/map/scene", describeScene);
+  server.Get(R"(/maps/([^/]+)/scene)", describeScene);
+
+  for (const ViewerAsset& asset : viewerAssets()) {
+    server.Get(asset.route, [asset](const httplib::Request&, httplib::Response& response) {
+      response.set_content(reinterpret_cast<const char*>(asset.bytes), asset.size, asset.content_type);
+    });
+  }
+
   // The body limit of the HTTP library holds only for bodies that announce their length, so a
   // chunked upload or one without Content-Length is refused before it is read.
   server.set_pre_routing_handler([](const httplib::Request& request, httplib::Response& response) {
@@ -234,6 +290,13 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       return;
     }
     response.set_content(jsonText(body), kJson);
+    if (options_.recent_answers > 0) {
+      const std::string name = requestedMap(request, maps_, response);
+      std::lock_guard<std::mutex> lock(http_->recent_mutex);
+      std::deque<nlohmann::json>& recent = http_->recent[name];
+      recent.push_back({{"answer", body}, {"intrinsics", intrinsicsJson(query.intrinsics)}});
+      while (recent.size() > options_.recent_answers) recent.pop_front();
+    }
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     log(request.method + " " + request.path + " 200 " + query.name + " " + body["status"].get<std::string>() + " " +
         std::to_string(body["inliers"].get<int>()) + " inliers, " + std::to_string(static_cast<int>(ms)) + " ms");

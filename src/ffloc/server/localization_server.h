@@ -23,7 +23,11 @@ namespace ffloc {
 //   POST /maps/NAME/localize    an encoded image as the body (fields as URL parameters) or as
 //                               the "image" part of a multipart form (fields as URL parameters
 //                               or form fields); answers what `ffloc localize --json` prints
-//   GET  /map, POST /localize   the same for a server of one map
+//   GET  /maps/NAME/scene       what the viewer draws: the mapping cameras, a subsample of the
+//                               map's points and the last answers of POST /maps/NAME/localize
+//   GET  /map, GET /map/scene, POST /localize   the same for a server of one map
+//   GET  /                      the map viewer, a page (with its scripts under /viewer/) compiled
+//                               into the server; open to every client, as it holds no map data
 // Bad requests get status 400 and {"error": "<field>: <what>"}; without a valid key (when the
 // server has keys) 401, a map the key may not use 403, an unknown map 404, a body over
 // max_body_bytes 413, a POST without Content-Length 411, a query beyond max_waiting_queries 503.
@@ -38,6 +42,8 @@ struct ServerOptions {
   LocalizeOptions localize;  // per-request defaults; requests may override K, N, seed, selection
   std::ostream* log = nullptr;  // one line per request when set (never a key)
   std::optional<ApiKeys> keys;  // none: every client may use every map
+  size_t recent_answers = 20;     // kept per map for GET /maps/NAME/scene
+  size_t max_scene_points = 20000;  // points in GET /maps/NAME/scene, spread over the map
 };
 
 class LocalizationServer {

@@ -291,5 +291,50 @@ TEST(MapCatalogSources, NamesComeFromTheFlagOrTheFileStem) {
   fs::remove_all(dir);
 }
 
+TEST_F(MapServing, TheViewerPageIsOpenAndTheSceneNeedsAKey) {
+  const auto page = client().Get("/");
+  ASSERT_TRUE(page);
+  EXPECT_EQ(page->status, 200);
+  EXPECT_EQ(page->get_header_value("Content-Type"), "text/html");
+  EXPECT_NE(page->body.find("/viewer/viewer.js"), std::string::npos);
+  const auto script = client().Get("/viewer/three.module.min.js");
+  ASSERT_TRUE(script);
+  EXPECT_EQ(script->status, 200);
+  EXPECT_GT(script->body.size(), 100000u);
+  EXPECT_EQ(client().Get("/viewer/three.LICENSE")->status, 200);
+  EXPECT_EQ(client().Get("/maps/kitchen/scene")->status, 401);
+  EXPECT_EQ(client(kKitchenKey).Get("/maps/office/scene")->status, 403);
+}
+
+TEST_F(MapServing, TheSceneHoldsTheCamerasPointsAndTheLastAnswers) {
+  const auto empty = client(kKitchenKey).Get("/maps/kitchen/scene");
+  ASSERT_TRUE(empty);
+  ASSERT_EQ(empty->status, 200) << empty->body;
+  const nlohmann::json before = body(empty);
+  EXPECT_EQ(before["method"], "classical");
+  ASSERT_EQ(before["cameras"].size(), 4u);
+  EXPECT_EQ(before["cameras"][0]["camera_to_world"].size(), 4u);
+  EXPECT_GT(before["cameras"][0]["intrinsics"]["width"].get<int>(), 0);
+  EXPECT_GT(before["points"].size(), 0u);
+  EXPECT_EQ(before["points"].size() % 3, 0u);
+  EXPECT_TRUE(before["recent"].empty());
+
+  // More answers than kept: the oldest go, the newest is last, the other map keeps none.
+  const size_t kept = ServerOptions().recent_answers;
+  nlohmann::json last;
+  for (size_t i = 0; i < kept + 2; ++i) {
+    const auto answer = client(kKitchenKey).Post((localizePath("kitchen") + "&name=q" + std::to_string(i)).c_str(),
+                                                 queryBytes(), "image/png");
+    ASSERT_EQ(answer->status, 200);
+    last = body(answer);
+  }
+  const nlohmann::json after = body(client(kKitchenKey).Get("/maps/kitchen/scene"));
+  ASSERT_EQ(after["recent"].size(), kept);
+  EXPECT_EQ(after["recent"].back()["answer"], last);
+  EXPECT_EQ(after["recent"].front()["answer"]["name"], "q2");
+  EXPECT_DOUBLE_EQ(after["recent"].back()["intrinsics"]["fx"].get<double>(), query().intrinsics.fx);
+  EXPECT_TRUE(body(client(kEveryMapKey).Get("/maps/office/scene"))["recent"].empty());
+}
+
 }  // namespace
 }  // namespace ffloc

@@ -1,0 +1,555 @@
+// The Python module ffloc._ffloc (docs/python.md): the library's datasets, maps, localization, PnP
+// solver and evaluation, called exactly as the CLI calls them.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/threads.h"
+#include "ffloc/data/dataset.h"
+#include "ffloc/eval/method_evaluation.h"
+#include "ffloc/eval/report.h"
+#include "ffloc/io/image.h"
+#include "ffloc/localization/localization_json.h"
+#include "ffloc/model/model_options.h"
+#include "ffloc/model/torch_threads.h"
+#include "ffloc/pipeline/map_building.h"
+#include "ffloc/pipeline/map_localizer.h"
+#include "ffloc/pose/reprojection.h"
+
+namespace py = pybind11;
+
+namespace ffloc::python {
+namespace {
+
+// Thread pools are per process: every call that computes sets them, so the last call's
+// `threads=` holds while it runs (0: every core).
+void useThreads(int threads, bool network) {
+  setLibraryThreadCount(threads);
+  if (network) setTorchThreadCount(threads);
+}
+
+std::function<LoadedModel()> modelLoader(const std::string& model, const std::string& dtype, int threads) {
+  return [=] {
+    setTorchThreadCount(threads);
+    ModelLoadOptions options;
+    options.dtype = parseNetworkDtype(dtype);
+    return loadModel(model, options);
+  };
+}
+
+// The library's JSON as Python objects, through Python's own parser so numbers keep every digit.
+py::object toPython(const nlohmann::json& value) { return py::module_::import("json").attr("loads")(jsonText(value)); }
+
+std::string shapeText(const py::array& array) {
+  std::string text = "(";
+  for (py::ssize_t d = 0; d < array.ndim(); ++d) text += (d ? ", " : "") + std::to_string(array.shape(d));
+  return text + (array.ndim() == 1 ? ",)" : ")");
+}
+
+std::string dtypeText(const py::array& array) { return py::str(array.dtype()).cast<std::string>(); }
+
+// A float64 view of `value` (converted when it is another numeric type), with `field` named when
+// it is not numbers at all.
+py::array_t<double, py::array::c_style | py::array::forcecast> floatArray(const py::handle& value, const std::string& field) {
+  auto array = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(value);
+  if (!array) throw InputError(field + ": expected numbers");  // ensure() gives a null array instead of raising
+  return array;
+}
+
+py::array_t<double> toArray(const Eigen::Matrix4d& matrix) {
+  py::array_t<double> array({4, 4});
+  auto out = array.mutable_unchecked<2>();
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 4; ++c) out(r, c) = matrix(r, c);
+  return array;
+}
+
+py::array_t<double> toArray(const Eigen::Matrix3d& matrix) {
+  py::array_t<double> array({3, 3});
+  auto out = array.mutable_unchecked<2>();
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out(r, c) = matrix(r, c);
+  return array;
+}
+
+// Intrinsics from a 3x3 matrix or (fx, fy, cx, cy), with optional OpenCV distortion.
+Intrinsics intrinsicsFrom(const py::handle& value, const py::handle& distortion) {
+  if (value.is_none()) throw InputError("intrinsics: required (a 3x3 matrix or fx, fy, cx, cy)");
+  const auto array = floatArray(value, "intrinsics");
+  Intrinsics k;
+  if (array.ndim() == 2 && array.shape(0) == 3 && array.shape(1) == 3) {
+    const auto K = array.unchecked<2>();
+    if (K(0, 1) != 0 || K(1, 0) != 0 || K(2, 0) != 0 || K(2, 1) != 0 || K(2, 2) != 1)
+      throw InputError("intrinsics: a 3x3 matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]");
+    k.fx = K(0, 0);
+    k.fy = K(1, 1);
+    k.cx = K(0, 2);
+    k.cy = K(1, 2);
+  } else if (array.ndim() == 1 && array.shape(0) == 4) {
+    const auto v = array.unchecked<1>();
+    k.fx = v(0);
+    k.fy = v(1);
+    k.cx = v(2);
+    k.cy = v(3);
+  } else {
+    throw InputError("intrinsics: expected a 3x3 matrix or (fx, fy, cx, cy), got shape " + shapeText(array));
+  }
+  if (!distortion.is_none()) {
+    const auto coefficients = floatArray(distortion, "distortion");
+    const py::ssize_t n = coefficients.ndim() == 1 ? coefficients.shape(0) : -1;
+    if (n != 4 && n != 5 && n != 8)
+      throw InputError("distortion: expected 4, 5 or 8 OpenCV coefficients (k1, k2, p1, p2[, k3[, k4, k5, k6]]), got shape " +
+                       shapeText(coefficients));
+    k.distortion.assign(coefficients.data(), coefficients.data() + n);
+  }
+  return k;
+}
+
+// Points as an N x `columns` float64 array, copied into the solver's layout.
+template <typename Vector>
+std::vector<Vector> pointsFrom(const py::handle& value, const std::string& field) {
+  constexpr int columns = Vector::RowsAtCompileTime;
+  const auto array = floatArray(value, field);
+  if (array.ndim() != 2 || array.shape(1) != columns)
+    throw InputError(field + ": expected an N x " + std::to_string(columns) + " array, got shape " + shapeText(array));
+  std::vector<Vector> points(static_cast<size_t>(array.shape(0)));
+  const auto v = array.unchecked<2>();
+  for (size_t i = 0; i < points.size(); ++i)
+    for (int c = 0; c < columns; ++c) points[i][c] = v(static_cast<py::ssize_t>(i), c);
+  return points;
+}
+
+// An image as a path (read as `ffloc localize` reads it) or an H x W x 3 uint8 RGB array, which
+// the returned Mat shares without copying while `keep` holds it.
+cv::Mat imageFrom(const py::handle& image, py::object& keep, std::string& name) {
+  if (py::isinstance<py::str>(image) || py::hasattr(image, "__fspath__")) {
+    // The GIL is released only once the path is a C++ string.
+    const std::string path = py::str(py::module_::import("os").attr("fspath")(image)).cast<std::string>();
+    if (name.empty()) name = path;
+    py::gil_scoped_release unlocked;
+    return readImageRgb(path);
+  }
+  if (!py::isinstance<py::array>(image)) throw InputError("image: expected a path or an H x W x 3 uint8 array");
+  py::array array = py::reinterpret_borrow<py::array>(image);
+  if (!array.dtype().is(py::dtype::of<uint8_t>()))
+    throw InputError("image: dtype must be uint8, got " + dtypeText(array));
+  if (array.ndim() != 3 || array.shape(2) != 3)
+    throw InputError("image: shape must be H x W x 3 (RGB), got " + shapeText(array));
+  if (array.shape(0) == 0 || array.shape(1) == 0) throw InputError("image: is empty, shape " + shapeText(array));
+  // Rows may be strided (a crop of a larger array); pixels within a row must be packed.
+  if (array.strides(2) != 1 || array.strides(1) != 3 || array.strides(0) < 3 * array.shape(1))
+    array = py::module_::import("numpy").attr("ascontiguousarray")(array);
+  keep = array;
+  if (name.empty()) name = "query";
+  return cv::Mat(static_cast<int>(array.shape(0)), static_cast<int>(array.shape(1)), CV_8UC3,
+                 const_cast<void*>(array.data()), static_cast<size_t>(array.strides(0)));
+}
+
+// A Mat handed to NumPy without copying: the array owns the Mat's reference.
+py::array imageArray(cv::Mat rgb) {
+  auto* owner = new cv::Mat(std::move(rgb));
+  py::capsule free_when_done(owner, [](void* mat) { delete static_cast<cv::Mat*>(mat); });
+  return py::array_t<uint8_t>({owner->rows, owner->cols, 3},
+                              {static_cast<py::ssize_t>(owner->step[0]), py::ssize_t{3}, py::ssize_t{1}}, owner->data,
+                              free_when_done);
+}
+
+py::array pointArray(std::vector<Eigen::Vector3d> points) {
+  static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "Vector3d must be packed for a zero-copy view");
+  auto* owner = new std::vector<Eigen::Vector3d>(std::move(points));
+  py::capsule free_when_done(owner, [](void* vector) { delete static_cast<std::vector<Eigen::Vector3d>*>(vector); });
+  return py::array_t<double>({static_cast<py::ssize_t>(owner->size()), py::ssize_t{3}},
+                             owner->empty() ? nullptr : owner->front().data(), free_when_done);
+}
+
+// Query options from keyword arguments, named as the CLI's flags.
+QuerySettings querySettings(const py::kwargs& kwargs, std::vector<std::string>& unused) {
+  QuerySettings settings;
+  for (const auto& [key, value] : kwargs) {
+    const std::string name = py::str(key).cast<std::string>();
+    if (name == "preset") settings.preset = value.cast<std::string>();
+    else if (name == "top_k") settings.top_k = value.cast<int64_t>();
+    else if (name == "features") settings.features = value.cast<int64_t>();
+    else if (name == "seed") settings.seed = value.cast<uint64_t>();
+    else if (name == "selection") settings.selection = value.cast<std::string>();
+    else if (name == "retrieval") settings.retrieval = value.cast<std::string>();
+    else if (name == "solver") settings.solver = value.cast<std::string>();
+    else if (name == "verify") settings.verify = value.cast<bool>();
+    else unused.push_back(name);
+  }
+  return settings;
+}
+
+void refuseUnknown(const std::vector<std::string>& unused, const std::string& function) {
+  if (!unused.empty())
+    throw InputError(unused.front() + ": not an option of " + function +
+                     " (query options: preset, top_k, features, seed, selection, retrieval, solver, verify)");
+}
+
+Scene sceneFrom(const py::handle& value, const std::string& format) {
+  if (py::isinstance<Scene>(value)) return value.cast<Scene>();
+  if (!py::isinstance<py::str>(value) && !py::hasattr(value, "__fspath__"))
+    throw InputError("dataset: expected a folder path or an ffloc.Scene");
+  const std::string path = py::str(py::module_::import("os").attr("fspath")(value)).cast<std::string>();
+  py::gil_scoped_release unlocked;
+  return loadDataset(path, format);
+}
+
+// A map file opened for queries, with the model it needs.
+struct Map {
+  std::shared_ptr<const MapLocalizer> opened;
+  std::string path;
+  int threads = 0;
+  std::optional<MapBuildReport> build_report;
+
+  static Map load(const std::string& path, const std::string& model, const std::string& dtype, int threads) {
+    py::gil_scoped_release unlocked;
+    useThreads(threads, false);
+    Map map;
+    map.opened = std::make_shared<MapLocalizer>(openMapLocalizer(path, modelLoader(model, dtype, threads)));
+    map.path = path;
+    map.threads = threads;
+    return map;
+  }
+  const Localizer& localizer() const { return *opened->localizer; }
+};
+
+struct Result {
+  nlohmann::json answer;  // what `ffloc localize --json` prints
+  std::optional<Pose> camera_to_world;
+};
+
+class PyLocalizer {
+ public:
+  PyLocalizer(Map map, LocalizeOptions options) : map_(std::move(map)), options_(std::move(options)) {}
+
+  Result localize(const py::handle& image, const py::handle& intrinsics, const py::handle& distortion,
+                  std::string name) const {
+    py::object keep;
+    const Intrinsics camera = intrinsicsFrom(intrinsics, distortion);
+    const cv::Mat rgb = imageFrom(image, keep, name);
+    py::gil_scoped_release unlocked;
+    useThreads(map_.threads, map_.opened->model != nullptr);
+    const LocalizationResult result = map_.localizer().localize(rgb, camera, name, options_);
+    Result out;
+    out.answer = localizationJson(name, result, map_.localizer());
+    if (result.pnp.ok()) out.camera_to_world = result.pnp.camera_to_world;
+    return out;
+  }
+  const Map& map() const { return map_; }
+
+ private:
+  Map map_;
+  LocalizeOptions options_;
+};
+
+PnpOptions pnpOptions(const py::dict& given) {
+  PnpOptions options;
+  for (const auto& [key, value] : given) {
+    const std::string name = py::str(key).cast<std::string>();
+    if (name == "solver") options.solver = parsePnpSolver(value.cast<std::string>());
+    else if (name == "inlier_threshold_px") options.inlier_threshold_px = value.cast<double>();
+    else if (name == "max_iterations") options.max_iterations = value.cast<int>();
+    else if (name == "success_probability") options.success_probability = value.cast<double>();
+    else if (name == "min_inliers") options.min_inliers = value.cast<int>();
+    else if (name == "max_correspondences") options.max_correspondences = value.cast<size_t>();
+    else if (name == "refine") options.refine = value.cast<bool>();
+    else if (name == "seed") options.seed = value.cast<uint64_t>();
+    else
+      throw InputError("options: unknown key '" + name +
+                       "' (known: solver, inlier_threshold_px, max_iterations, success_probability, min_inliers, "
+                       "max_correspondences, refine, seed)");
+  }
+  LocalizeOptions checked;  // the solver's fields are checked where the localizer's are
+  checked.pnp = options;
+  checked.check();
+  return options;
+}
+
+py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& points3d, const py::handle& intrinsics,
+                               const py::object& options, const std::optional<std::pair<int, int>>& image_size,
+                               int threads) {
+  Correspondences pairs;
+  pairs.pixels = pointsFrom<Eigen::Vector2d>(points2d, "points2d");
+  pairs.points = pointsFrom<Eigen::Vector3d>(points3d, "points3d");
+  if (pairs.pixels.size() != pairs.points.size())
+    throw InputError("points3d: " + std::to_string(pairs.points.size()) + " points for " +
+                     std::to_string(pairs.pixels.size()) + " pixels in points2d");
+  // No confidences: every pair passes the confidence filter.
+  pairs.confidences.assign(pairs.size(), std::numeric_limits<float>::infinity());
+  Intrinsics camera = intrinsicsFrom(intrinsics, py::none());
+  // The solver's test against chance needs the image's area; without it, the principal point is
+  // taken to be the image's centre.
+  camera.width = image_size ? image_size->first : static_cast<int>(std::ceil(2 * camera.cx + 1));
+  camera.height = image_size ? image_size->second : static_cast<int>(std::ceil(2 * camera.cy + 1));
+  if (camera.width <= 0 || camera.height <= 0)
+    throw InputError("image_size: must be positive, got " + std::to_string(camera.width) + "x" +
+                     std::to_string(camera.height));
+  const PnpOptions pnp = pnpOptions(options.is_none() ? py::dict() : options.cast<py::dict>());
+  PnpResult result;
+  std::vector<int> inliers;
+  {
+    py::gil_scoped_release unlocked;
+    useThreads(threads, false);
+    result = estimatePose(pairs, camera, pnp);
+    if (result.ok())
+      inliers = findInliers(pairs.pixels, pairs.points, camera, result.camera_to_world.inverse(), pnp.inlier_threshold_px);
+  }
+  py::array_t<bool> mask(static_cast<py::ssize_t>(pairs.size()));
+  std::fill(mask.mutable_data(), mask.mutable_data() + pairs.size(), false);
+  for (int index : inliers) mask.mutable_data()[index] = true;
+  py::dict info;
+  info["status"] = toString(result.status);
+  info["success"] = result.ok();
+  info["inliers"] = result.inliers;
+  info["used_correspondences"] = result.used_correspondences;
+  info["seconds"] = result.seconds;
+  py::object pose = result.status == PnpStatus::kSuccess ? py::object(toArray(result.camera_to_world.matrix())) : py::none();
+  return py::make_tuple(pose, mask, info);
+}
+
+py::dict reportDict(const MapBuildReport& report) {
+  py::dict out;
+  out["images"] = report.images;
+  out["previous_images"] = report.previous_images;
+  out["added"] = report.added;
+  out["skipped_duplicates"] = report.skipped_duplicates;
+  out["skipped_featureless"] = report.skipped_featureless;
+  out["points"] = report.points;
+  out["links"] = report.links;
+  out["seconds"] = report.seconds;
+  return out;
+}
+
+}  // namespace
+}  // namespace ffloc::python
+
+PYBIND11_MODULE(_ffloc, m) {
+  using namespace ffloc;
+  using namespace ffloc::python;
+  m.doc() = "ffloc: visual relocalization (docs/python.md)";
+  // The library's InputError: a ValueError whose message names the file or field at fault.
+  py::register_exception<InputError>(m, "Error", PyExc_ValueError);
+
+  py::class_<Frame>(m, "Frame", "One posed image of a dataset")
+      .def_readonly("name", &Frame::name)
+      .def_property_readonly("image_path", [](const Frame& f) { return f.image_path.string(); })
+      .def_property_readonly("intrinsics", [](const Frame& f) { return toArray(f.intrinsics.K()); }, "3x3 K")
+      .def_property_readonly("width", [](const Frame& f) { return f.intrinsics.width; })
+      .def_property_readonly("height", [](const Frame& f) { return f.intrinsics.height; })
+      .def_property_readonly("distortion", [](const Frame& f) { return f.intrinsics.distortion; })
+      .def_property_readonly("camera_to_world", [](const Frame& f) { return toArray(f.camera_to_world.matrix()); },
+                             "4x4, OpenCV axes (x right, y down, z forward), scene units")
+      .def_property_readonly("depth_path",
+                             [](const Frame& f) -> py::object {
+                               return f.depth ? py::object(py::str(f.depth->path.string())) : py::none();
+                             })
+      .def_property_readonly("split", [](const Frame& f) { return std::string(toString(f.split)); })
+      .def("__repr__", [](const Frame& f) { return "<ffloc.Frame " + f.name + " (" + toString(f.split) + ")>"; });
+
+  py::class_<Scene>(m, "Scene", "A dataset: posed frames with their split")
+      .def_readonly("name", &Scene::name)
+      .def_property_readonly("root", [](const Scene& s) { return s.root.string(); })
+      .def_readonly("format", &Scene::format)
+      .def_readonly("metric", &Scene::metric)
+      .def_property_readonly("frames",
+                             [](py::object self) {
+                               py::list frames;
+                               for (const Frame& frame : self.cast<const Scene&>().frames)
+                                 frames.append(py::cast(frame, py::return_value_policy::reference_internal, self));
+                               return frames;
+                             })
+      .def("mapping_indices", &Scene::mappingIndices)
+      .def("query_indices", &Scene::queryIndices)
+      .def("__len__", [](const Scene& s) { return s.frames.size(); })
+      .def("__repr__", [](const Scene& s) {
+        return "<ffloc.Scene " + s.name + " (" + s.format + ", " + std::to_string(s.frames.size()) + " frames)>";
+      });
+
+  m.def("load_dataset", [](const py::handle& path, const std::string& format) { return sceneFrom(path, format); },
+        py::arg("path"), py::arg("format") = "auto", "Reads a dataset folder (format 'auto' detects it)");
+
+  m.def("read_image",
+        [](const std::string& path) {
+          cv::Mat rgb;
+          {
+            py::gil_scoped_release unlocked;
+            rgb = readImageRgb(path);
+          }
+          return imageArray(std::move(rgb));
+        },
+        py::arg("path"), "An image file as ffloc reads it: H x W x 3 uint8 RGB");
+
+  py::class_<Map>(m, "Map", "A map file opened for queries")
+      .def_static("load", &Map::load, py::arg("path"), py::arg("model") = "default", py::arg("dtype") = "f32",
+                  py::arg("threads") = 0, "Opens a map from 'ffloc map' (model: for fastforward maps)")
+      .def_readonly("path", &Map::path)
+      .def_property_readonly("method", [](const Map& map) { return std::string(toString(map.localizer().method())); })
+      .def_property_readonly("description", [](const Map& map) { return map.opened->description; })
+      .def_property_readonly("metric", [](const Map& map) { return map.localizer().metric(); })
+      .def_property_readonly("names",
+                             [](const Map& map) {
+                               std::vector<std::string> names;
+                               for (const MapCamera& camera : map.localizer().cameras()) names.push_back(camera.name);
+                               return names;
+                             })
+      .def_property_readonly("camera_to_world",
+                             [](const Map& map) {
+                               const auto& cameras = map.localizer().cameras();
+                               py::array_t<double> poses({static_cast<py::ssize_t>(cameras.size()), py::ssize_t{4}, py::ssize_t{4}});
+                               auto out = poses.mutable_unchecked<3>();
+                               for (size_t i = 0; i < cameras.size(); ++i) {
+                                 const Eigen::Matrix4d T = cameras[i].camera_to_world.matrix();
+                                 for (int r = 0; r < 4; ++r)
+                                   for (int c = 0; c < 4; ++c) out(static_cast<py::ssize_t>(i), r, c) = T(r, c);
+                               }
+                               return poses;
+                             },
+                             "N x 4 x 4: the mapping cameras")
+      .def("points", [](const Map& map, size_t max_points) { return pointArray(map.localizer().mapPoints(max_points)); },
+           py::arg("max_points") = 100000, "At most max_points world points (N x 3); none for maps without points")
+      .def_property_readonly("build_report",
+                             [](const Map& map) -> py::object {
+                               return map.build_report ? py::object(reportDict(*map.build_report)) : py::none();
+                             })
+      .def("__len__", [](const Map& map) { return map.localizer().cameras().size(); })
+      .def("__repr__", [](const Map& map) { return "<ffloc.Map " + map.path + ": " + map.opened->description + ">"; });
+
+  m.def(
+      "build_map",
+      [](const py::handle& scene_or_path, const std::string& out, const std::string& method, const std::string& model,
+         const std::string& dtype, bool append, bool use_depth, int max_image_size, int max_features, bool vlad,
+         int threads, const std::string& format, bool quiet) {
+        const Scene scene = sceneFrom(scene_or_path, format);
+        MapBuildOptions options;
+        options.method = parseLocalizationMethod(method);
+        options.append = append;
+        options.classical.use_depth = use_depth;
+        options.classical.sift.max_image_size = max_image_size;
+        options.classical.sift.max_features = max_features;
+        options.classical.quiet = quiet;
+        options.fastforward.vlad = vlad;
+        options.fastforward.quiet = quiet;
+        MapBuildReport report;
+        {
+          py::gil_scoped_release unlocked;
+          useThreads(threads, false);
+          report = buildMap(scene, out, options, modelLoader(model, dtype, threads));
+        }
+        Map map = Map::load(out, model, dtype, threads);
+        map.build_report = report;
+        return map;
+      },
+      py::arg("scene_or_path"), py::arg("out"), py::arg("method") = "classical", py::arg("model") = "default",
+      py::arg("dtype") = "f32", py::arg("append") = false, py::arg("use_depth") = true,
+      py::arg("max_image_size") = SiftOptions().max_image_size, py::arg("max_features") = SiftOptions().max_features,
+      py::arg("vlad") = false, py::arg("threads") = 0, py::arg("format") = "auto", py::arg("quiet") = true,
+      "Maps the scene's mapping split into the file `out` (as 'ffloc map') and opens it");
+
+  py::class_<Result>(m, "Result", "One query's answer")
+      .def_property_readonly("pose",
+                             [](const Result& r) -> py::object {
+                               return r.camera_to_world ? py::object(toArray(r.camera_to_world->matrix())) : py::none();
+                             },
+                             "camera_to_world 4x4 (None when PnP found no pose)")
+      .def_property_readonly("quaternion",
+                             [](const Result& r) -> py::object {
+                               if (!r.camera_to_world) return py::none();
+                               return py::array_t<double>(4, r.answer["world_to_camera"]["qwxyz"].get<std::vector<double>>().data());
+                             },
+                             "world_to_camera rotation (w, x, y, z), as COLMAP and hloc write it")
+      .def_property_readonly("translation",
+                             [](const Result& r) -> py::object {
+                               if (!r.camera_to_world) return py::none();
+                               return py::array_t<double>(3, r.answer["world_to_camera"]["t"].get<std::vector<double>>().data());
+                             },
+                             "world_to_camera translation")
+      .def_property_readonly("status", [](const Result& r) { return r.answer["status"].get<std::string>(); })
+      .def_property_readonly("localized", [](const Result& r) { return r.answer["status"] == "localized"; })
+      .def_property_readonly("reason", [](const Result& r) { return r.answer.value("reason", std::string()); })
+      .def_property_readonly("inliers", [](const Result& r) { return r.answer["inliers"].get<int>(); })
+      .def_property_readonly("selected", [](const Result& r) { return r.answer["selected"].get<std::vector<std::string>>(); })
+      .def_property_readonly("timings", [](const Result& r) { return toPython(r.answer["timings_ms"]); }, "milliseconds per stage")
+      .def("to_dict", [](const Result& r) { return toPython(r.answer); }, "What 'ffloc localize --json' prints")
+      .def("__repr__", [](const Result& r) {
+        return "<ffloc.Result " + r.answer["status"].get<std::string>() + ", " +
+               std::to_string(r.answer["inliers"].get<int>()) + " inliers>";
+      });
+
+  py::class_<PyLocalizer>(m, "Localizer", "Localizes queries against a map with its method")
+      .def(py::init([](const py::handle& map, const std::string& model, const std::string& dtype, int threads,
+                       const py::kwargs& kwargs) {
+             std::vector<std::string> unused;
+             const LocalizeOptions options = localizeOptions(querySettings(kwargs, unused));
+             refuseUnknown(unused, "Localizer");
+             if (py::isinstance<Map>(map)) {
+               Map opened = map.cast<Map>();
+               opened.threads = threads;
+               return PyLocalizer(std::move(opened), options);
+             }
+             const std::string path = py::str(py::module_::import("os").attr("fspath")(map)).cast<std::string>();
+             return PyLocalizer(Map::load(path, model, dtype, threads), options);
+           }),
+           py::arg("map"), py::arg("model") = "default", py::arg("dtype") = "f32", py::arg("threads") = 0,
+           "map: a Map or a map file; keyword query options as the CLI's flags (preset, top_k, features, seed, "
+           "selection, retrieval, solver, verify)")
+      .def("localize", &PyLocalizer::localize, py::arg("image"), py::arg("intrinsics"),
+           py::arg("distortion") = py::none(), py::arg("name") = "",
+           "image: a path or an H x W x 3 uint8 RGB array; intrinsics: 3x3 or (fx, fy, cx, cy)")
+      .def_property_readonly("map", &PyLocalizer::map);
+
+  m.def("estimate_absolute_pose", &estimateAbsolutePose, py::arg("points2d"), py::arg("points3d"),
+        py::arg("intrinsics"), py::arg("options") = py::none(), py::arg("image_size") = py::none(),
+        py::arg("threads") = 0,
+        "PnP-RANSAC on N 2D-3D pairs (pixels undistorted, OpenCV convention): (camera_to_world 4x4 or None, "
+        "inlier mask, info dict). image_size (width, height) defaults to twice the principal point.");
+
+  m.def(
+      "evaluate",
+      [](const py::handle& dataset, const std::vector<std::string>& methods, size_t max_queries, bool use_depth,
+         const std::string& model, const std::string& dtype, int threads, const std::string& format, bool quiet,
+         const py::kwargs& kwargs) {
+        std::vector<std::string> unused;
+        const LocalizeOptions localize = localizeOptions(querySettings(kwargs, unused));
+        refuseUnknown(unused, "evaluate");
+        if (methods.empty()) throw InputError("methods: give at least one method");
+        const Scene scene = sceneFrom(dataset, format);
+        MethodEvaluationOptions options;
+        options.localize = localize;
+        options.evaluation.pnp = localize.pnp;
+        options.evaluation.verdict = localize.verdict;
+        options.evaluation.max_queries = max_queries;
+        options.evaluation.quiet = quiet;
+        options.use_depth = use_depth;
+        // Loaded on first use and shared by the methods that need it.
+        auto loaded = std::make_shared<std::optional<LoadedModel>>();
+        options.fastforward = [=](const Scene& scene) {
+          if (!*loaded) *loaded = modelLoader(model, dtype, threads)();
+          MappingOptions mapping;
+          mapping.quiet = quiet;
+          mapping.vlad = localize.retrieval == FastForwardRetrieval::kVlad;
+          return inMemoryFastForwardLocalizer(**loaded, scene, mapping);
+        };
+        std::vector<MethodSummary> summaries;
+        {
+          py::gil_scoped_release unlocked;
+          useThreads(threads, false);
+          for (const std::string& method : methods) summaries.push_back(summarize(evaluateMethod(scene, method, options)));
+        }
+        return toPython(summaryJson(summaries));
+      },
+      py::arg("dataset"), py::arg("methods") = std::vector<std::string>{"classical"}, py::arg("max_queries") = 0,
+      py::arg("use_depth") = true, py::arg("model") = "default", py::arg("dtype") = "f32", py::arg("threads") = 0,
+      py::arg("format") = "auto", py::arg("quiet") = true,
+      "Localizes the dataset's queries with each method; the summary as 'ffloc eval --json' writes it");
+}

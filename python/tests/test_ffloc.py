@@ -1,0 +1,264 @@
+"""Each function of the Python module against the CLI on the same inputs, and bad inputs."""
+import json
+import os
+import pathlib
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import ffloc
+from conftest import localize_with_cli, without_timings
+
+
+# Datasets
+
+def test_load_dataset_gives_the_frames_the_cli_maps(scene_dir, cli_map):
+    scene = ffloc.load_dataset(str(scene_dir))
+    assert scene.format == "manifest" or scene.format
+    mapping = [scene.frames[i] for i in scene.mapping_indices()]
+    assert [frame.split for frame in mapping] == ["mapping"] * len(mapping)
+    # The CLI's map holds the mapping frames by name, with their poses.
+    cli = ffloc.Map.load(str(cli_map))
+    assert cli.names == [frame.name for frame in mapping]
+    for frame, pose in zip(mapping, cli.camera_to_world):
+        np.testing.assert_array_equal(frame.camera_to_world, pose)
+    frame = mapping[0]
+    assert frame.camera_to_world.shape == (4, 4) and frame.camera_to_world.dtype == np.float64
+    assert frame.intrinsics.shape == (3, 3) and frame.intrinsics[2, 2] == 1
+    assert (frame.width, frame.height) == (320, 240)
+    assert pathlib.Path(frame.image_path).is_file()
+    assert frame.depth_path is None or pathlib.Path(frame.depth_path).is_file()
+
+
+def test_load_dataset_reads_the_shared_redkitchen():
+    folder = pathlib.Path(os.environ.get("FFLOC_SHARED_DIR", "")) / "data" / "7scenes_redkitchen"
+    if not folder.is_dir():
+        pytest.skip(f"{folder} not found")
+    scene = ffloc.load_dataset(folder, format="7scenes")
+    assert len(scene.mapping_indices()) == 150 and len(scene.query_indices()) == 100
+    assert scene.metric
+    assert all(frame.depth_path for frame in scene.frames[:3])
+
+
+def test_load_dataset_refuses_a_missing_folder_naming_it(tmp_path):
+    missing = tmp_path / "no-such-dataset"
+    with pytest.raises(ffloc.Error, match="no-such-dataset"):
+        ffloc.load_dataset(missing)
+    with pytest.raises(ValueError):  # ffloc.Error is a ValueError
+        ffloc.load_dataset(missing)
+    with pytest.raises(ffloc.Error, match="format"):
+        ffloc.load_dataset(missing, format="no-such-format")
+
+
+# Maps
+
+def test_build_map_writes_the_map_the_cli_writes(scene_dir, cli_map, tmp_path):
+    built = ffloc.build_map(str(scene_dir), out=str(tmp_path / "py.ffmap"), method="classical", threads=1)
+    cli = ffloc.Map.load(str(cli_map))
+    assert built.method == cli.method == "classical"
+    assert built.names == cli.names
+    np.testing.assert_array_equal(built.camera_to_world, cli.camera_to_world)
+    np.testing.assert_array_equal(built.points(), cli.points())
+    assert built.build_report["added"] == len(cli)
+    assert built.points(100).shape[1] == 3 and len(built.points(100)) <= 100
+
+
+def test_build_map_takes_a_scene_and_refuses_bad_options(scene_dir, tmp_path):
+    scene = ffloc.load_dataset(scene_dir)
+    with pytest.raises(ffloc.Error, match="method"):
+        ffloc.build_map(scene, out=str(tmp_path / "m.ffmap"), method="no-such-method")
+    with pytest.raises(ffloc.Error, match="no-such.ffmap"):
+        ffloc.Map.load(str(tmp_path / "no-such.ffmap"))
+
+
+# Localization
+
+def test_the_same_query_through_python_and_the_cli_gives_identical_poses(cli_map, query, cli_answer):
+    localizer = ffloc.Localizer(ffloc.Map.load(str(cli_map)), threads=1)
+    result = localizer.localize(query.image_path, query.intrinsics)
+    assert result.status == cli_answer["status"] != "failed"
+    np.testing.assert_array_equal(result.pose, np.array(cli_answer["camera_to_world"]))
+    np.testing.assert_array_equal(result.quaternion, cli_answer["world_to_camera"]["qwxyz"])
+    np.testing.assert_array_equal(result.translation, cli_answer["world_to_camera"]["t"])
+    assert without_timings(result.to_dict()) == without_timings(cli_answer)
+    assert result.inliers == cli_answer["inliers"]
+    assert set(result.timings) >= {"features", "pnp", "total"}
+
+
+def test_an_array_and_four_numbers_give_the_pose_of_the_path_and_matrix(cli_map, query, cli_answer):
+    localizer = ffloc.Localizer(str(cli_map), threads=1)
+    image = ffloc.read_image(query.image_path)
+    assert image.dtype == np.uint8 and image.shape == (query.height, query.width, 3)
+    k = query.intrinsics
+    result = localizer.localize(image, (k[0, 0], k[1, 1], k[0, 2], k[1, 2]), name=query.image_path)
+    np.testing.assert_array_equal(result.pose, np.array(cli_answer["camera_to_world"]))
+    # A crop's view (rows strided) is read in place, and so is a read-only array.
+    padded = np.zeros((query.height, query.width + 7, 3), np.uint8)
+    padded[:, : query.width] = image
+    view = padded[:, : query.width]
+    view.flags.writeable = False
+    again = localizer.localize(view, k, name=query.image_path)
+    np.testing.assert_array_equal(again.pose, result.pose)
+
+
+def test_query_options_are_the_cli_flags(cli_map, query):
+    k = query.intrinsics
+    intrinsics = (k[0, 0], k[1, 1], k[0, 2], k[1, 2])
+    cli = localize_with_cli(cli_map, query, "--top-k", 3, "--seed", 7)
+    result = ffloc.Localizer(str(cli_map), top_k=3, seed=7, threads=1).localize(query.image_path, intrinsics)
+    assert without_timings(result.to_dict()) == without_timings(cli)
+    with pytest.raises(ffloc.Error, match="top_k"):
+        ffloc.Localizer(str(cli_map), top_k=0)
+    with pytest.raises(ffloc.Error, match="no_such_option"):
+        ffloc.Localizer(str(cli_map), no_such_option=1)
+
+
+@pytest.mark.parametrize(
+    "image, message",
+    [
+        (np.zeros((240, 320, 3), np.float32), "image: dtype must be uint8, got float32"),
+        (np.zeros((240, 320), np.uint8), r"image: shape must be H x W x 3 \(RGB\), got \(240, 320\)"),
+        (np.zeros((240, 320, 4), np.uint8), "got \\(240, 320, 4\\)"),
+        ("/no/such/image.png", "/no/such/image.png"),
+        (42, "image: expected a path"),
+    ],
+)
+def test_bad_images_raise_errors_naming_the_image(cli_map, query, image, message):
+    localizer = ffloc.Localizer(str(cli_map))
+    with pytest.raises(ffloc.Error, match=message):
+        localizer.localize(image, query.intrinsics)
+
+
+@pytest.mark.parametrize(
+    "intrinsics, message",
+    [
+        (np.eye(4), "intrinsics: expected a 3x3 matrix or \\(fx, fy, cx, cy\\), got shape \\(4, 4\\)"),
+        ((100.0, 100.0, 80.0), "got shape \\(3,\\)"),
+        (np.array([[100, 1, 80], [0, 100, 60], [0, 0, 1]]), "intrinsics: a 3x3 matrix must be"),
+        (("a", "b", "c", "d"), "intrinsics: expected numbers"),
+        ((-100.0, 100.0, 80.0, 60.0), "fx"),
+        ((100.0, 100.0, 500.0, 60.0), "cx"),
+    ],
+)
+def test_bad_intrinsics_raise_errors_naming_the_field(cli_map, query, intrinsics, message):
+    localizer = ffloc.Localizer(str(cli_map))
+    with pytest.raises(ffloc.Error, match=message):
+        localizer.localize(query.image_path, intrinsics)
+
+
+def test_distortion_must_have_an_opencv_length(cli_map, query):
+    localizer = ffloc.Localizer(str(cli_map))
+    with pytest.raises(ffloc.Error, match="distortion: expected 4, 5 or 8"):
+        localizer.localize(query.image_path, query.intrinsics, distortion=[0.1, 0.2, 0.3])
+    # Zero distortion undistorts to the same pixels.
+    result = localizer.localize(query.image_path, query.intrinsics, distortion=[0, 0, 0, 0])
+    assert result.status in ("localized", "uncertain", "failed")
+
+
+def test_the_gil_is_released_while_a_map_is_built(scene_dir, tmp_path):
+    ticks = []
+    done = threading.Event()
+
+    def tick():
+        while not done.is_set():
+            ticks.append(time.monotonic())
+            time.sleep(0.005)
+
+    ticker = threading.Thread(target=tick)
+    ticker.start()
+    start = time.monotonic()
+    ffloc.build_map(scene_dir, out=str(tmp_path / "gil.ffmap"), threads=1)
+    end = time.monotonic()
+    done.set()
+    ticker.join()
+    during = [t for t in ticks if start < t < end]
+    # Held by the call, the GIL would keep the ticker from running at all until the call returns;
+    # a loose bound, as a loaded machine may give the ticker few turns.
+    assert len(during) >= 5, f"{len(during)} ticks during a {end - start:.2f} s call"
+
+
+# The solver
+
+def synthetic_pairs(count, outliers, seed=1):
+    rng = np.random.default_rng(seed)
+    k = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    angle = 0.3
+    rotation = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
+    camera_to_world = np.eye(4)
+    camera_to_world[:3, :3] = rotation
+    camera_to_world[:3, 3] = [0.5, -0.2, 0.1]
+    in_camera = np.column_stack([rng.uniform(-2, 2, count), rng.uniform(-1.5, 1.5, count), rng.uniform(2, 6, count)])
+    points3d = in_camera @ rotation.T + camera_to_world[:3, 3]
+    points2d = (in_camera[:, :2] / in_camera[:, 2:]) * [500, 500] + [320, 240]
+    wrong = rng.choice(count, outliers, replace=False)
+    points2d[wrong] = rng.uniform(0, 640, (outliers, 2))
+    return points2d, points3d, k, camera_to_world, wrong
+
+
+def test_estimate_absolute_pose_recovers_the_pose_and_flags_outliers():
+    points2d, points3d, k, truth, wrong = synthetic_pairs(400, 100)
+    pose, inliers, info = ffloc.estimate_absolute_pose(points2d, points3d, k, {"seed": 3}, image_size=(640, 480))
+    assert info["success"] and info["status"] == "success"
+    np.testing.assert_allclose(pose, truth, atol=1e-6)
+    assert inliers.dtype == np.bool_ and inliers.shape == (400,)
+    assert not inliers[wrong].any()
+    assert inliers.sum() == info["inliers"] == 300
+    # The same seed, the same answer; the solvers of the CLI's --solver are both there.
+    again, _, _ = ffloc.estimate_absolute_pose(points2d, points3d, k, {"seed": 3})
+    np.testing.assert_array_equal(pose, again)
+    usac, _, info = ffloc.estimate_absolute_pose(points2d, points3d, (500, 500, 320, 240), {"solver": "opencv-usac"})
+    np.testing.assert_allclose(usac, truth, atol=1e-6)
+
+
+def test_estimate_absolute_pose_fails_as_a_status_on_noise():
+    rng = np.random.default_rng(2)
+    pose, inliers, info = ffloc.estimate_absolute_pose(rng.uniform(0, 640, (200, 2)), rng.uniform(-1, 1, (200, 3)),
+                                                       (500, 500, 320, 240))
+    assert pose is None and not info["success"] and not inliers.any()
+
+
+@pytest.mark.parametrize(
+    "points2d, points3d, options, message",
+    [
+        (np.zeros((10, 3)), np.zeros((10, 3)), None, "points2d: expected an N x 2 array, got shape \\(10, 3\\)"),
+        (np.zeros((10, 2)), np.zeros((9, 3)), None, "points3d: 9 points for 10 pixels"),
+        (np.zeros((10, 2)), np.zeros(30), None, "points3d: expected an N x 3 array, got shape \\(30,\\)"),
+        (np.zeros((10, 2)), np.zeros((10, 3)), {"no_such_key": 1}, "options: unknown key 'no_such_key'"),
+        (np.zeros((10, 2)), np.zeros((10, 3)), {"solver": "magic"}, "magic"),
+        (np.zeros((10, 2)), np.zeros((10, 3)), {"inlier_threshold_px": -1.0}, "pnp.inlier_threshold_px"),
+        (np.zeros((10, 2)), np.zeros((10, 3)), {"seed": 1}, "image_size: must be positive, got 0x480"),
+    ],
+)
+def test_estimate_absolute_pose_refuses_bad_input(points2d, points3d, options, message):
+    size = (0, 480) if "image_size" in message else None
+    with pytest.raises(ffloc.Error, match=message):
+        ffloc.estimate_absolute_pose(points2d, points3d, (500, 500, 320, 240), options, image_size=size)
+
+
+# Evaluation
+
+def test_evaluate_gives_the_summary_the_cli_writes(scene_dir, cli, tmp_path):
+    summary_path = tmp_path / "eval.json"
+    cli("eval", "--dataset", scene_dir, "--methods", "oracle-depth,classical", "--json", summary_path, "--quiet",
+        "--threads", 1)
+    from_cli = json.loads(summary_path.read_text())
+    from_python = ffloc.evaluate(str(scene_dir), methods=["oracle-depth", "classical"], threads=1)
+    assert set(from_python) == set(from_cli) == {"results"}
+    assert len(from_python["results"]) == 2
+    for ours, theirs in zip(from_python["results"], from_cli["results"]):
+        assert set(ours) == set(theirs)
+        # Latency is measured, so it differs from run to run; everything else is equal.
+        ours.pop("latency_ms")
+        theirs.pop("latency_ms")
+        assert ours == theirs
+
+
+def test_evaluate_refuses_unknown_methods(scene_dir):
+    with pytest.raises(ffloc.Error, match="methods: unknown method 'magic'"):
+        ffloc.evaluate(scene_dir, methods=["magic"])
+    with pytest.raises(ffloc.Error, match="methods"):
+        ffloc.evaluate(scene_dir, methods=[])
+    with pytest.raises(ffloc.Error, match="dataset: expected a folder path"):
+        ffloc.evaluate(3.5)

@@ -1,0 +1,49 @@
+#include "ffloc/eval/method_evaluation.h"
+
+#include "ffloc/classical/classical_localizer.h"
+#include "ffloc/classical/classical_mapper.h"
+#include "ffloc/core/error.h"
+#include "ffloc/eval/sift_baseline_source.h"
+
+namespace ffloc {
+
+std::vector<std::string> evaluationMethods(const MethodEvaluationOptions& options) {
+  std::vector<std::string> methods = {"oracle-depth", "sift-baseline", "classical"};
+  if (options.fastforward) methods.push_back("fastforward");
+  return methods;
+}
+
+std::vector<FrameResult> evaluateMethod(const Scene& scene, const std::string& method,
+                                        const MethodEvaluationOptions& options,
+                                        const LocalizationObserver& on_result) {
+  if (method == "oracle-depth") {
+    OracleDepthOptions oracle = options.oracle_depth;
+    oracle.seed = options.localize.seed;
+    OracleDepthSource source(oracle);
+    return evaluate(scene, source, options.evaluation);
+  }
+  if (method == "sift-baseline") {
+    SiftBaselineOptions sift;
+    sift.seed = options.localize.seed;
+    SiftBaselineSource source(sift);
+    return evaluate(scene, source, options.evaluation);
+  }
+  std::unique_ptr<Localizer> localizer;
+  if (method == "classical") {
+    ClassicalMappingOptions mapping;
+    mapping.use_depth = options.use_depth;
+    mapping.quiet = options.evaluation.quiet;
+    ClassicalMap map = emptyClassicalMap(scene.metric, mapping);
+    addToClassicalMap(map, scene, scene.mappingIndices(), mapping);
+    localizer = std::make_unique<ClassicalLocalizer>(std::move(map));
+  } else if (method == "fastforward" && options.fastforward) {
+    localizer = options.fastforward(scene);
+  } else {
+    std::string known;
+    for (const std::string& name : evaluationMethods(options)) known += (known.empty() ? "" : ", ") + name;
+    throw InputError("methods: unknown method '" + method + "' (known: " + known + ")");
+  }
+  return evaluateLocalizer(scene, *localizer, method, options.localize, options.evaluation, on_result);
+}
+
+}  // namespace ffloc

@@ -1,0 +1,64 @@
+#include "ffloc/pipeline/map_building.h"
+
+#include "ffloc/core/error.h"
+#include "ffloc/io/map_file.h"
+#include "ffloc/pipeline/fastforward_localizer.h"
+
+namespace ffloc {
+
+namespace {
+
+bool appendsTo(const std::filesystem::path& output, const MapBuildOptions& options) {
+  if (!options.append || !std::filesystem::exists(output)) return false;
+  const MapHeader header = readMapHeader(output);
+  if (header.method != toString(options.method))
+    throwInputError(output.string(), 0, "append: the map was built with the " + header.method + " method, not " +
+                                            toString(options.method) + " (method)");
+  return true;
+}
+
+}  // namespace
+
+MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output, const MapBuildOptions& options,
+                        const std::function<LoadedModel()>& load_model) {
+  const std::vector<size_t> frames = scene.mappingIndices();
+  if (frames.empty())
+    throwInputError(scene.root.string(), 0, "dataset has no mapping frames (split_mapping.txt or its native split)");
+  MapBuildReport report;
+  if (options.method == LocalizationMethod::kClassical) {
+    options.classical.check();
+    ClassicalMap map = emptyClassicalMap(scene.metric, options.classical);
+    if (appendsTo(output, options)) map = readClassicalMap(output);
+    report.previous_images = map.images.size();
+    const ClassicalMappingReport added = addToClassicalMap(map, scene, frames, options.classical);
+    writeClassicalMap(map, output);
+    report.images = map.images.size();
+    report.added = added.added;
+    report.skipped_duplicates = added.skipped_duplicates;
+    report.skipped_featureless = added.skipped_featureless;
+    report.points = added.points;
+    report.links = added.links;
+    report.seconds = added.seconds;
+    return report;
+  }
+  const LoadedModel model = load_model();
+  MapFile map = emptyMap(model, scene.metric);
+  if (appendsTo(output, options)) map = readMapFile(output, model.id);
+  report.previous_images = map.images.size();
+  const MappingReport added = addToMap(map, model, scene, frames, options.fastforward);
+  writeMapFile(map, output);
+  report.images = map.images.size();
+  report.added = added.added;
+  report.skipped_duplicates = added.skipped_duplicates;
+  report.seconds = added.seconds;
+  return report;
+}
+
+std::unique_ptr<Localizer> inMemoryFastForwardLocalizer(const LoadedModel& model, const Scene& scene,
+                                                        const MappingOptions& options) {
+  MapFile map = emptyMap(model, scene.metric);
+  addToMap(map, model, scene, scene.mappingIndices(), options);
+  return std::make_unique<FastForwardLocalizer>(*model.model, std::move(map));
+}
+
+}  // namespace ffloc

@@ -1,0 +1,49 @@
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "ffloc/classical/classical_mapper.h"
+#include "ffloc/data/scene.h"
+#include "ffloc/localization/localizer.h"
+#include "ffloc/model/model_loader.h"
+#include "ffloc/pipeline/mapper.h"
+
+namespace ffloc {
+
+// What `ffloc map` and the Python build_map do: a map file of a scene's mapping split, with one
+// method.
+struct MapBuildOptions {
+  LocalizationMethod method = LocalizationMethod::kClassical;
+  ClassicalMappingOptions classical;
+  MappingOptions fastforward;
+  // Add to the map already at the output (same method, and model): its images stay as they are,
+  // frames whose name it holds are skipped.
+  bool append = false;
+};
+
+struct MapBuildReport {
+  size_t previous_images = 0;  // in the map appended to
+  size_t images = 0;           // in the written map
+  size_t added = 0;
+  size_t skipped_duplicates = 0;
+  size_t skipped_featureless = 0;  // classical: images with fewer than two keypoints
+  size_t points = 0;               // classical
+  size_t links = 0;                // classical
+  double seconds = 0;
+};
+
+// Maps scene.mappingIndices() and writes the map to `output` atomically. `load_model` runs only
+// for FastForward. InputError naming the dataset when it has no mapping frame, naming the
+// output when appending to a map of another method.
+MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output, const MapBuildOptions& options,
+                        const std::function<LoadedModel()>& load_model);
+
+// A FastForward localizer over a map of the scene's mapping split held in memory (ffloc eval,
+// the Python evaluate). `model` must outlive it.
+std::unique_ptr<Localizer> inMemoryFastForwardLocalizer(const LoadedModel& model, const Scene& scene,
+                                                        const MappingOptions& options);
+
+}  // namespace ffloc
