@@ -15,7 +15,7 @@ work=$(mktemp -d /tmp/ffloc-load.XXXXXX)
 server_pid=
 cleanup() {
   [ -n "$server_pid" ] && kill "$server_pid" 2>/dev/null && wait "$server_pid" 2>/dev/null
-  rm -rf "$work"
+  [ -n "${KEEP:-}" ] || rm -rf "$work"
 }
 trap cleanup EXIT
 
@@ -35,13 +35,17 @@ server_pid=$!
 for _ in $(seq 100); do curl -s "http://127.0.0.1:$port/health" >/dev/null && break; sleep 0.2; done
 
 cat >"$work/mix.lua" <<EOF
--- Each thread stops after its share of the requests; answers are counted by status.
+-- Each thread stops after its share of the answers and leaves a file saying so (the script then
+-- interrupts wrk, which prints its summary); answers are counted by status.
 local image = io.open("$work/query.png", "rb"):read("*a")
 local good = "/maps/small/localize?fx=$fx&fy=$fy&cx=$cx&cy=$cy"
 local threads = {}
-function setup(thread) table.insert(threads, thread) end
+function setup(thread)
+  table.insert(threads, thread)
+  thread:set("id", #threads)
+end
 function init(args)
-  share = tonumber(args[1]); sent = 0; answered = 0; counts = {}
+  share = tonumber(args[1]); sent = 0; answered = 0; counts = {}; marker = args[2]
 end
 function request()
   sent = sent + 1
@@ -55,7 +59,10 @@ end
 function response(status, headers, body)
   counts[status] = (counts[status] or 0) + 1
   answered = answered + 1
-  if answered >= share then wrk.thread:stop() end
+  if answered == share then
+    io.open(marker .. "." .. tostring(id), "w"):close()
+    wrk.thread:stop()
+  end
 end
 function done(summary, latency, requests)
   local all = {}
@@ -79,11 +86,16 @@ health_during() {  # /health latencies while wrk runs
   done >"$work/health.txt"
 }
 run() {  # requests
-  wrk -t2 -c32 -d600s --timeout 30s -s "$work/mix.lua" "http://127.0.0.1:$port" -- $(($1 / 2)) >"$work/wrk.txt" &
+  rm -f "$work"/stopped.*
+  wrk -t2 -c32 -d900s --timeout 30s -s "$work/mix.lua" "http://127.0.0.1:$port" -- $(($1 / 2)) "$work/stopped" \
+    >"$work/wrk.txt" &
   local wrk_pid=$!
   health_during $wrk_pid &
   local health_pid=$!
-  wait $wrk_pid
+  # wrk waits out its duration even when its threads stopped; SIGINT makes it print its summary.
+  while [ "$(ls "$work"/stopped.* 2>/dev/null | wc -l)" -lt 2 ] && kill -0 $wrk_pid 2>/dev/null; do sleep 0.2; done
+  kill -INT $wrk_pid 2>/dev/null || true
+  wait $wrk_pid || true
   wait $health_pid
   grep -E "answers by status|latency p50|Requests/sec" "$work/wrk.txt"
   sort -n "$work/health.txt" | awk '{a[NR]=$1} END {printf "/health during the load: %d answers, median %.1f ms, max %.1f ms\n", NR, 1000*a[int((NR+1)/2)], 1000*a[NR]}'
