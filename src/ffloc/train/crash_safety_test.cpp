@@ -91,13 +91,7 @@ TEST(CrashSafety, AKilledMapWriteLeavesThePreviousMapOrACompleteNewOne) {
 
 TEST(CrashSafety, TrainingKilledAndResumedManyTimesEndsAsAStraightRun) {
   const fs::path dir = testing::makeTempDir("ffloc-crash-train");
-  TrainingConfig config = testing::smallConfig();
-  config.steps = 16;
-  config.warmup_steps = 1;
-  config.log_every = 1;
-  config.checkpoint_every = 1;
-  config.keep_checkpoints = 2;
-  std::ofstream(dir / "config.json") << toJson(config).dump(2);
+  testing::writeShortRunConfig(dir / "config.json", 16, 1, 2);
   const auto train = [&](const std::string& out, bool resume) {
     std::vector<std::string> arguments = {"train", "--quiet", "--config", (dir / "config.json").string(), "--data",
                                           testing::smallScene().root.string(), "--out", (dir / out).string()};

@@ -160,13 +160,7 @@ class TrainCommandRanks : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     root_ = testing::makeTempDir("ffloc-train-cli");
-    TrainingConfig config = smallConfig();
-    config.steps = 4;
-    config.warmup_steps = 1;
-    config.log_every = 1;
-    config.checkpoint_every = 2;
-    config.keep_checkpoints = 5;
-    std::ofstream(root_ / "config.json") << toJson(config).dump(2);
+    testing::writeShortRunConfig(root_ / "config.json", 4, 2, 5);
   }
 
   static int train(const std::string& out, const std::string& extra) {

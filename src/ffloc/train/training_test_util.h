@@ -1,5 +1,8 @@
 #pragma once
 
+#include <filesystem>
+#include <fstream>
+
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/synthetic/synthetic.h"
 #include "ffloc/train/training_config.h"
@@ -39,6 +42,19 @@ inline TrainingConfig smallConfig() {
   config.min_learning_rate = 1e-5;
   config.threads = 1;  // tiny tensors: more threads only add OpenMP spinning
   return config;
+}
+
+// smallConfig() for a short run through the CLI: every step logged, a checkpoint every
+// `checkpoint_every` steps, written as JSON to `file`.
+inline void writeShortRunConfig(const std::filesystem::path& file, int64_t steps, int64_t checkpoint_every,
+                                int keep_checkpoints) {
+  TrainingConfig config = smallConfig();
+  config.steps = steps;
+  config.warmup_steps = 1;
+  config.log_every = 1;
+  config.checkpoint_every = checkpoint_every;
+  config.keep_checkpoints = keep_checkpoints;
+  std::ofstream(file) << toJson(config).dump(2);
 }
 
 }  // namespace ffloc::testing
