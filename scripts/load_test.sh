@@ -2,7 +2,7 @@
 # Load test of `ffloc serve` with wrk, on loopback only, bounded in requests and time:
 # a small synthetic classical map behind an API key, 32 connections, a mix of good queries and
 # designed refusals (missing intrinsics 400, bad key 401, another map 403, busy 503), first
-# 1,000 then 9,000 more requests. Prints the answers by status, wrk's latency percentiles, the
+# 1,000 then 9,000 more requests, with the server's defaults (4 queries waiting, 64 connections). Prints the answers by status, wrk's latency percentiles, the
 # server's RSS after 1k and after 10k requests, and /health latencies measured during the load.
 #
 #   scripts/load_test.sh [BUILD_DIR] [TOTAL_REQUESTS]
@@ -29,7 +29,7 @@ read -r image fx fy cx cy <<<"$query"
 cp "$scene/$image" "$work/query.png"
 
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-"$ffloc" serve --map "small=$work/small.ffmap" --keys "$work/keys.txt" --port "$port" --max-waiting 8 \
+"$ffloc" serve --map "small=$work/small.ffmap" --keys "$work/keys.txt" --port "$port" \
   2>"$work/server.log" &
 server_pid=$!
 for _ in $(seq 100); do curl -s "http://127.0.0.1:$port/health" >/dev/null && break; sleep 0.2; done

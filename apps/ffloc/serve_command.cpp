@@ -33,6 +33,7 @@ struct ServeArguments {
   int port = 8080;
   size_t max_body_mb = 32;
   size_t max_waiting = 4;
+  size_t max_connections = 64;
 };
 
 // SIGINT and SIGTERM stop the server through a pipe: the handler only writes one byte (all a
@@ -96,6 +97,7 @@ int runServe(const ServeArguments& args) {
   options.port = args.port;
   options.max_body_bytes = args.max_body_mb << 20;
   options.max_waiting_queries = args.max_waiting;
+  options.max_connections = args.max_connections;
   // Formats whose header parseLocalizeRequest cannot read are bounded by OpenCV's own limit.
   setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(options.limits.max_image_pixels).c_str(), /*overwrite=*/0);
   options.localize = localizeOptions(args.query);
@@ -169,6 +171,10 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--max-waiting", args->max_waiting,
                   "Queries that may wait while one runs; more are answered 503 (busy)")
+      ->capture_default_str();
+  cmd->add_option("--max-connections", args->max_connections,
+                  "Connections served at once, a thread each; more wait to be accepted")
+      ->check(CLI::Range(1, 4096))
       ->capture_default_str();
   cmd->callback([args, &run] { run = [args] { return runServe(*args); }; });
 }

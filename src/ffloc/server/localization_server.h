@@ -38,6 +38,10 @@ struct ServerOptions {
   // Queries waiting while one runs. The HTTP library's threads are few (8 on small machines), so
   // without a bound, waiting queries would take every thread and /health would stop answering.
   size_t max_waiting_queries = 4;
+  // Connections served at once, one thread each (more wait to be accepted). The HTTP library's
+  // default (8 on small machines) let 32 keep-alive clients hold every thread, so queries were
+  // never refused as busy and /health waited seconds behind them (scripts/load_test.sh).
+  size_t max_connections = 64;
   RequestLimits limits;
   LocalizeOptions localize;  // per-request defaults; requests may override K, N, seed, selection
   std::ostream* log = nullptr;  // one line per request when set (never a key)

@@ -426,6 +426,29 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   EXPECT_EQ(chunked.rfind("HTTP/1.1 411", 0), 0u) << chunked;
   EXPECT_NE(chunked.find("Content-Length header"), std::string::npos) << chunked;
 
+  // Headers that make the body's length ambiguous or its type not an image, refused before the
+  // body is read.
+  const auto exchange = [&](const std::string& headers) {
+    return rawExchange(port_, "POST /localize?" + intrinsicsParameters() +
+                                  " HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n" + headers + "\r\n");
+  };
+  const std::string two_lengths = exchange("Content-Type: image/png\r\nContent-Length: 5\r\nContent-Length: 900\r\n");
+  EXPECT_EQ(two_lengths.rfind("HTTP/1.1 400", 0), 0u) << two_lengths;
+  EXPECT_NE(two_lengths.find("Content-Length: given more than once"), std::string::npos) << two_lengths;
+  for (const std::string length : {"-5", "abc", "1e3"}) {
+    const std::string bad = exchange("Content-Type: image/png\r\nContent-Length: " + length + "\r\n");
+    EXPECT_EQ(bad.rfind("HTTP/1.1 400", 0), 0u) << length << ": " << bad;
+    EXPECT_NE(bad.find("is not a byte count"), std::string::npos) << length << ": " << bad;
+  }
+  const std::string text = exchange("Content-Type: text/plain\r\nContent-Length: 4\r\n\r\nabcd");
+  EXPECT_EQ(text.rfind("HTTP/1.1 415", 0), 0u) << text;
+  EXPECT_NE(text.find("text/plain"), std::string::npos) << text;
+  // A client that asks first is refused before it sends 100 MB, without a 100 Continue.
+  const std::string asked =
+      exchange("Content-Type: image/png\r\nContent-Length: 104857600\r\nExpect: 100-continue\r\n");
+  EXPECT_EQ(asked.rfind("HTTP/1.1 413", 0), 0u) << asked;
+  EXPECT_EQ(asked.find("100 Continue"), std::string::npos) << asked;
+
   const auto unknown = client_->Get("/localise");
   ASSERT_TRUE(unknown);
   EXPECT_EQ(unknown->status, 404);
