@@ -341,5 +341,51 @@ TEST(Pickle, DecodesScalarsAndContainers) {
   EXPECT_EQ(pickle::dictGet(result.root, "l")->items.size(), 2u);
 }
 
+std::string unpickleError(const std::string& bytes) {
+  return messageOf([&] { pickle::unpickle(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), "inline"); });
+}
+
+// The outside probe's 16 MB pickle took 1.5 GB; these would take gigabytes from a few hundred
+// kilobytes: each REDUCE copies the arguments of a 100,000-item tuple, each STACK_GLOBAL joins
+// a 1 MB string with itself.
+TEST(Pickle, MemoryIsBoundedWhateverTheOpcodes) {
+  PickleWriter copies;
+  copies.op('(');
+  copies.op('N');
+  for (int i = 1; i < 100000; ++i) copies.op('2');  // DUP
+  copies.op('t');
+  copies.bytes += std::string("q\x00", 2);  // BINPUT 0: the tuple
+  copies.op('N');
+  copies.bytes += "q\x01";  // BINPUT 1: a callable
+  for (int i = 0; i < 2000; ++i) copies.bytes += std::string("h\x01h\x00R0", 6);  // callable(*tuple), popped
+  EXPECT_NE(unpickleError(copies.finish()).find("more than 256 MB of objects"), std::string::npos)
+      << unpickleError(copies.finish());
+
+  PickleWriter globals;
+  globals.text(std::string(1 << 20, 'm'));
+  globals.bytes += std::string("q\x00", 2);
+  for (int i = 0; i < 1000; ++i) globals.bytes += std::string("h\x00h\x00\x93" "0", 6);  // a 2 MB "module.name", popped
+  EXPECT_NE(unpickleError(globals.finish()).find("more than 256 MB of objects"), std::string::npos)
+      << unpickleError(globals.finish());
+}
+
+// Sixty names for one expanded view (stride 0) of a 32-byte storage: each 512-byte copy fits in
+// the file, the copies together do not.
+TEST(PytorchCheckpoint, NonContiguousCopiesTogetherStayWithinTheFile) {
+  const auto dir = testing::makeTempDir("ffloc-checkpoint");
+  PickleWriter pickle;
+  pickle.op('}');
+  pickle.op('(');
+  for (int i = 0; i < 60; ++i) {
+    pickle.text("view" + std::to_string(i));
+    pickle.tensor("FloatStorage", "0", 8, 0, {16, 8}, {0, 1});
+  }
+  pickle.op('u');
+  const auto path = dir / "views.pth";
+  writeFile(path, makeZip(plainMembers(pickle.finish()), false));
+  const std::string message = messageOf([&] { openPytorchCheckpoint(path); });
+  EXPECT_NE(message.find("with the copies before it, is larger than the file"), std::string::npos) << message;
+}
+
 }  // namespace
 }  // namespace ffloc
