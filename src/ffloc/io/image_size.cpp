@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc {
 namespace {
@@ -52,9 +53,12 @@ std::optional<cv::Size> jpegSize(std::istream& in) {
       if (!in.read(reinterpret_cast<char*>(frame), 5)) return std::nullopt;
       return cv::Size(static_cast<int>(bigEndian(frame + 3, 2)), static_cast<int>(bigEndian(frame + 1, 2)));
     }
-    if (type == 0xE1) {
+    // An APP1 segment too short for a tag is skipped like any other: seeking back by the tag's
+    // four bytes that were never read would return to this marker, forever.
+    if (type == 0xE1 && length >= 6) {
       char tag[4];
-      if (length >= 6 && in.read(tag, 4) && std::string(tag, 4) == "Exif") return std::nullopt;
+      if (!in.read(tag, 4)) return std::nullopt;
+      if (std::string(tag, 4) == "Exif") return std::nullopt;
       in.seekg(static_cast<std::streamoff>(length) - 2 - 4, std::ios::cur);
       continue;
     }
@@ -81,11 +85,17 @@ std::optional<cv::Size> encodedImageSize(const std::string& bytes) {
 }
 
 cv::Size readImageSize(const std::filesystem::path& path) {
-  if (!std::filesystem::exists(path)) throwInputError(path.string(), 0, "image file not found");
+  requireRegularFile(path, "image file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throwInputError(path.string(), 0, "cannot open image file");
   if (const std::optional<cv::Size> size = headerSize(in)) return *size;
-  const cv::Mat image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  cv::Mat image;
+  try {
+    image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& error) {
+    // OpenCV refuses some headers (a size beyond its limits) by throwing rather than failing.
+    throwInputError(path.string(), 0, std::string("cannot decode image: ") + error.err);
+  }
   if (image.empty()) throwInputError(path.string(), 0, "cannot decode image (not a readable image file)");
   return image.size();
 }
