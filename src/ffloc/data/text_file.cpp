@@ -1,16 +1,18 @@
 #include "ffloc/data/text_file.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc {
 
 std::vector<TextLine> readTextLines(const std::filesystem::path& file) {
-  if (!std::filesystem::exists(file)) throwInputError(file.string(), 0, "file not found");
+  requireRegularFile(file);
   std::ifstream in(file, std::ios::binary);
   if (!in) throwInputError(file.string(), 0, "cannot open file");
   std::vector<TextLine> lines;
@@ -24,28 +26,32 @@ std::vector<TextLine> readTextLines(const std::filesystem::path& file) {
   return lines;
 }
 
-std::vector<TextLine> contentLines(const std::vector<TextLine>& lines, bool skip_comments) {
-  std::vector<TextLine> out;
-  for (const auto& line : lines) {
+std::vector<TextLine> contentLines(std::vector<TextLine> lines, bool skip_comments) {
+  const auto without_content = [&](const TextLine& line) {
     const size_t first = line.text.find_first_not_of(" \t\r");
-    if (first == std::string::npos) continue;
-    if (skip_comments && line.text[first] == '#') continue;
-    out.push_back(line);
+    return first == std::string::npos || (skip_comments && line.text[first] == '#');
+  };
+  lines.erase(std::remove_if(lines.begin(), lines.end(), without_content), lines.end());
+  return lines;
+}
+
+std::vector<std::string_view> whitespaceTokens(std::string_view text) {
+  constexpr std::string_view kWhitespace = " \t\r\n";
+  std::vector<std::string_view> tokens;
+  size_t i = 0;
+  while (i < text.size()) {
+    const size_t start = text.find_first_not_of(kWhitespace, i);
+    if (start == std::string_view::npos) break;
+    const size_t end = std::min(text.find_first_of(kWhitespace, start), text.size());
+    tokens.push_back(text.substr(start, end - start));
+    i = end;
   }
-  return out;
+  return tokens;
 }
 
 std::vector<std::string> splitWhitespace(const std::string& text) {
-  std::vector<std::string> tokens;
-  size_t i = 0;
-  while (i < text.size()) {
-    const size_t start = text.find_first_not_of(" \t\r\n", i);
-    if (start == std::string::npos) break;
-    const size_t end = text.find_first_of(" \t\r\n", start);
-    tokens.push_back(text.substr(start, end == std::string::npos ? std::string::npos : end - start));
-    i = end == std::string::npos ? text.size() : end;
-  }
-  return tokens;
+  const std::vector<std::string_view> views = whitespaceTokens(text);
+  return std::vector<std::string>(views.begin(), views.end());
 }
 
 double parseDouble(const std::string& token, const std::filesystem::path& file, int line,
@@ -71,8 +77,8 @@ long parseInteger(const std::string& token, const std::filesystem::path& file, i
 
 std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::path& file) {
   std::vector<double> values;
-  for (const auto& token : splitWhitespace(line.text))
-    values.push_back(parseDouble(token, file, line.number, "value " + std::to_string(values.size() + 1)));
+  for (const std::string_view token : whitespaceTokens(line.text))
+    values.push_back(parseDouble(std::string(token), file, line.number, "value " + std::to_string(values.size() + 1)));
   return values;
 }
 
