@@ -91,11 +91,13 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     // A pose line; blank lines between images are tolerated, but the POINTS2D line that follows
     // a pose line may itself be blank (an image without keypoints).
     skipComments();
-    while (i < lines.size() && splitWhitespace(lines[i].text).empty()) ++i;
+    while (i < lines.size() && lines[i].text.find_first_not_of(" \t\r") == std::string::npos) ++i;
     if (i >= lines.size()) break;
     const TextLine& pose_line = lines[i++];
-    const auto tokens = whitespaceTokens(pose_line.text);
-    if (tokens.size() < 10)
+    // Every line is read a token at a time: a hostile line may be megabytes long.
+    TokenReader pose_tokens(pose_line.text);
+    std::string_view tokens[10];
+    if (pose_tokens.next(tokens, 10) < 10)
       throwInputError(file.string(), pose_line.number, "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
     ColmapImage image;
     image.line = pose_line.number;
@@ -113,7 +115,7 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     if (camera == cameras.end())
       throwInputError(file.string(), pose_line.number, "CAMERA_ID " + std::to_string(camera_id) + " is not in cameras.txt");
     image.name = tokens[9];
-    for (size_t k = 10; k < tokens.size(); ++k) (image.name += ' ') += tokens[k];
+    for (std::string_view more; pose_tokens.next(&more);) (image.name += ' ') += more;
     image.frame.intrinsics = camera->second;
     // images.txt stores world-to-camera.
     image.frame.camera_to_world = Pose::fromQuaternion(q[0], q[1], q[2], q[3], Eigen::Vector3d(t[0], t[1], t[2])).inverse();
@@ -122,15 +124,14 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     if (i < lines.size()) {
       const TextLine& points_line = lines[i++];
       // Straight into the points: the line may hold millions of them.
-      const auto point_tokens = whitespaceTokens(points_line.text);
-      if (point_tokens.size() % 3 != 0)
-        throwInputError(file.string(), points_line.number, "POINTS2D must be triples X Y POINT3D_ID");
-      image.points2d.reserve(point_tokens.size() / 3);
-      for (size_t k = 0; k < point_tokens.size(); k += 3) {
-        const double x = parseDouble(point_tokens[k], file, points_line.number, "X");
-        const double y = parseDouble(point_tokens[k + 1], file, points_line.number, "Y");
-        parseInteger(point_tokens[k + 2], file, points_line.number, "POINT3D_ID");
-        image.points2d.emplace_back(x, y);
+      TokenReader point_tokens(points_line.text);
+      std::string_view x, y, point_id;
+      while (point_tokens.next(&x)) {
+        if (!point_tokens.next(&y) || !point_tokens.next(&point_id))
+          throwInputError(file.string(), points_line.number, "POINTS2D must be triples X Y POINT3D_ID");
+        parseInteger(point_id, file, points_line.number, "POINT3D_ID");
+        image.points2d.emplace_back(parseDouble(x, file, points_line.number, "X"),
+                                    parseDouble(y, file, points_line.number, "Y"));
       }
     }
     images.push_back(std::move(image));
@@ -142,10 +143,13 @@ void readPoints(const fs::path& file, const std::map<long, size_t>& frame_of_ima
                 const std::map<long, const ColmapImage*>& image_of_id, Scene& scene) {
   std::map<long, int> line_of_point;
   for (const auto& line : contentLines(readTextLines(file), true)) {
-    const auto tokens = whitespaceTokens(line.text);
-    if (tokens.size() < 8 || (tokens.size() - 8) % 2 != 0)
+    const auto malformed = [&] {
       throwInputError(file.string(), line.number,
                       "expected POINT3D_ID X Y Z R G B ERROR TRACK[] (pairs IMAGE_ID POINT2D_IDX)");
+    };
+    TokenReader point_tokens(line.text);
+    std::string_view tokens[8];
+    if (point_tokens.next(tokens, 8) < 8) malformed();
     const long point_id = parseInteger(tokens[0], file, line.number, "POINT3D_ID");
     if (const auto [first, inserted] = line_of_point.emplace(point_id, line.number); !inserted)
       throwInputError(file.string(), line.number,
@@ -158,12 +162,13 @@ void readPoints(const fs::path& file, const std::map<long, size_t>& frame_of_ima
       if (k < 3) point.position[k] = value;
     }
     if (!point.position.allFinite()) throwInputError(file.string(), line.number, "point position is not finite");
-    for (size_t k = 8; k < tokens.size(); k += 2) {
-      const long image_id = parseInteger(tokens[k], file, line.number, "IMAGE_ID");
+    for (std::string_view image_token, index_token; point_tokens.next(&image_token);) {
+      if (!point_tokens.next(&index_token)) malformed();
+      const long image_id = parseInteger(image_token, file, line.number, "IMAGE_ID");
       const auto image = image_of_id.find(image_id);
       if (image == image_of_id.end())
         throwInputError(file.string(), line.number, "track names IMAGE_ID " + std::to_string(image_id) + ", not in images.txt");
-      const long index = parseInteger(tokens[k + 1], file, line.number, "POINT2D_IDX");
+      const long index = parseInteger(index_token, file, line.number, "POINT2D_IDX");
       if (index < 0 || static_cast<unsigned long>(index) >= image->second->points2d.size())
         throwInputError(file.string(), line.number,
                         "POINT2D_IDX " + std::to_string(index) + " out of range for image " + std::to_string(image_id));

@@ -35,23 +35,29 @@ std::vector<TextLine> contentLines(std::vector<TextLine> lines, bool skip_commen
   return lines;
 }
 
-std::vector<std::string_view> whitespaceTokens(std::string_view text) {
+bool TokenReader::next(std::string_view* token) {
   constexpr std::string_view kWhitespace = " \t\r\n";
-  std::vector<std::string_view> tokens;
-  size_t i = 0;
-  while (i < text.size()) {
-    const size_t start = text.find_first_not_of(kWhitespace, i);
-    if (start == std::string_view::npos) break;
-    const size_t end = std::min(text.find_first_of(kWhitespace, start), text.size());
-    tokens.push_back(text.substr(start, end - start));
-    i = end;
+  const size_t start = text_.find_first_not_of(kWhitespace, at_);
+  if (start == std::string_view::npos) {
+    at_ = text_.size();
+    return false;
   }
-  return tokens;
+  at_ = std::min(text_.find_first_of(kWhitespace, start), text_.size());
+  *token = text_.substr(start, at_ - start);
+  return true;
+}
+
+size_t TokenReader::next(std::string_view* tokens, size_t wanted) {
+  size_t read = 0;
+  while (read < wanted && next(&tokens[read])) ++read;
+  return read;
 }
 
 std::vector<std::string> splitWhitespace(const std::string& text) {
-  const std::vector<std::string_view> views = whitespaceTokens(text);
-  return std::vector<std::string>(views.begin(), views.end());
+  std::vector<std::string> tokens;
+  TokenReader reader(text);
+  for (std::string_view token; reader.next(&token);) tokens.emplace_back(token);
+  return tokens;
 }
 
 double parseDouble(const std::string& token, const std::filesystem::path& file, int line,
@@ -77,7 +83,8 @@ long parseInteger(const std::string& token, const std::filesystem::path& file, i
 
 std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::path& file) {
   std::vector<double> values;
-  for (const std::string_view token : whitespaceTokens(line.text))
+  TokenReader reader(line.text);
+  for (std::string_view token; reader.next(&token);)
     values.push_back(parseDouble(std::string(token), file, line.number, "value " + std::to_string(values.size() + 1)));
   return values;
 }

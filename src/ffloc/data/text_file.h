@@ -23,9 +23,21 @@ std::vector<TextLine> contentLines(std::vector<TextLine> lines, bool skip_commen
 
 // Whitespace-separated tokens (spaces, tabs, CR).
 std::vector<std::string> splitWhitespace(const std::string& text);
-// The same as views into `text`, for lines that may be megabytes long (a COLMAP POINTS2D line):
-// a view costs 16 bytes a token, a string twice that plus its copy of the characters.
-std::vector<std::string_view> whitespaceTokens(std::string_view text);
+
+// The same one at a time, as views into the text, for lines that may be megabytes long (a
+// COLMAP POINTS2D line): a vector of token strings costs about 20 times the line.
+class TokenReader {
+ public:
+  explicit TokenReader(std::string_view text) : text_(text) {}
+  // The next token; false at the end of the text.
+  bool next(std::string_view* token);
+  // Up to `wanted` next tokens into `tokens`; returns how many there were.
+  size_t next(std::string_view* tokens, size_t wanted);
+
+ private:
+  std::string_view text_;
+  size_t at_ = 0;
+};
 
 // A decimal number (with `e-001`-style exponents); the whole token must be consumed.
 double parseDouble(const std::string& token, const std::filesystem::path& file, int line,
