@@ -3,10 +3,12 @@
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
 SHARED ?= $(abspath ../shared)
+FUZZ_BUILD_DIR ?= build-fuzz
+FUZZ_SECONDS ?= 60
 DEMO_DIR ?= $(BUILD_DIR)/demo
 FFLOC := $(BUILD_DIR)/bin/ffloc
 
-.PHONY: setup build demo test bench clean
+.PHONY: setup build demo test bench fuzz fuzz-seeds clean
 
 setup:
 	BUILD_DIR=$(BUILD_DIR) ./scripts/setup.sh
@@ -22,6 +24,15 @@ test: setup
 
 bench: setup
 	./scripts/bench.sh $(BUILD_DIR) $(SHARED)
+
+# Every parser under libFuzzer with ASan and UBSan (clang), FUZZ_SECONDS each, one at a time;
+# prints executions, coverage and findings per target. docs/fuzzing.md.
+fuzz:
+	./fuzz/run_fuzzers.sh --build-dir $(FUZZ_BUILD_DIR) --seconds $(FUZZ_SECONDS) $(FUZZ_TARGETS)
+
+# Writes the seed corpora in fuzz/corpus/ again from our own writers.
+fuzz-seeds:
+	./fuzz/run_fuzzers.sh --build-dir $(FUZZ_BUILD_DIR) --write-seeds
 
 clean:
 	rm -rf $(BUILD_DIR)

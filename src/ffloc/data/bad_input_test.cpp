@@ -1,6 +1,7 @@
 // Bad input of every kind is an InputError naming the file and the line or field. Each test
 // writes a small dataset into a temporary folder and breaks one thing.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -326,6 +327,87 @@ TEST(BadInput, CambridgeReadsPosesAsCentreAndWorldToCameraRotation) {
   writeTextFile(dir / "dataset_test.txt", "Visual Landmark Dataset V1\nImageFile, Camera Position [X Y Z W P Q R]\n\n"
                                           "seq2/frame00009.png 0 0 -1 1 0 0 0\n");
   expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:4", "frame00009.png", "not found"});
+}
+
+}  // namespace
+}  // namespace ffloc
+
+namespace ffloc {
+namespace {
+
+// Found by the outside probe (a width cut to 32 bits, duplicate ids) and by the colmap fuzzer's
+// review: every id and size is an integer checked before it narrows.
+TEST(BadInput, ColmapIdsAndSizesAreCheckedIntegers) {
+  auto dir = makeColmap();
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 PINHOLE 99999999999 6 5 5 4 3\n");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1", "WIDTH 99999999999 is outside [1, 1048576]"});
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 PINHOLE 8 0 5 5 4 3\n");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1", "HEIGHT 0"});
+  dir = makeColmap();
+  writeTextFile(dir / "sparse/0/points3D.txt", "7 0 0 1 255 255 255 0.1 1 0\n7 1 1 1 0 0 0 0.2 1 1\n");
+  expectInputError([&] { loadDataset(dir); }, {"points3D.txt:2", "duplicate POINT3D_ID 7 (first on line 1)"});
+  writeTextFile(dir / "sparse/0/points3D.txt", "7 0 0 1 255 255 255 0.1 1e300 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"points3D.txt:1", "IMAGE_ID", "1e300"});
+  writeTextFile(dir / "sparse/0/points3D.txt", "7 0 0 1 255 255 255 0.1 1 0.5\n");
+  expectInputError([&] { loadDataset(dir); }, {"points3D.txt:1", "POINT2D_IDX", "0.5"});
+}
+
+// The outside probe's 28 MB POINTS2D line took 751 MB as a vector of token strings; the reader
+// now parses the line in place. Here a 1.2 MB line of 100,000 keypoints, read correctly.
+TEST(BadInput, ColmapLongKeypointLineReads) {
+  const auto dir = makeColmap();
+  std::string keypoints;
+  for (int i = 0; i < 100000; ++i) keypoints += std::to_string(i % 8) + " 2.5 " + (i == 99999 ? "7" : "-1") + " ";
+  writeTextFile(dir / "sparse/0/images.txt",
+                "1 1 0 0 0 0 0 0 1 a.png\n" + keypoints + "\n2 1 0 0 0 1 0 0 1 b.png\n\n");
+  writeTextFile(dir / "sparse/0/points3D.txt", "7 0 0 1 255 255 255 0.1 1 99999\n");
+  const Scene scene = loadDataset(dir);
+  ASSERT_EQ(scene.points.size(), 1u);
+  EXPECT_EQ(scene.points[0].observations[0].pixel, Eigen::Vector2d(7 - 0.5, 2.0));
+}
+
+// Sizes beyond what an int holds were converted to int before any check (undefined behaviour).
+TEST(BadInput, StrechaAndNerfImageSizesAreCheckedBeforeConversion) {
+  const auto dir = makeStrecha();
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n1e30 6\n");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:9", "image size must be two whole numbers"});
+  expectInputError([&] { loadDataset(makeNerf("", R"(, "w": 1e30, "h": 6)")); },
+                   {"transforms_train.json", "field 'w'", "whole number of pixels"});
+  expectInputError([&] { loadDataset(makeNerf("", R"(, "w": 8, "h": 4294967302)")); },
+                   {"transforms_train.json", "field 'h'"});
+  EXPECT_EQ(loadDataset(makeNerf("", R"(, "w": 8.0, "h": 6)")).frames[0].intrinsics.width, 8);
+}
+
+// A FIFO blocked the reader forever, a symbolic link loop escaped as std::filesystem's error
+// (exit 3): both are now InputErrors naming the file.
+TEST(BadInput, FifosAndSymbolicLinkLoopsAreRefused) {
+  auto dir = makeSevenScenes();
+  fs::remove(dir / "frame-000001.pose.txt");
+  ASSERT_EQ(::mkfifo((dir / "frame-000001.pose.txt").c_str(), 0600), 0);
+  expectInputError([&] { loadDataset(dir); }, {"frame-000001.pose.txt", "not a regular file"});
+
+  dir = makeSevenScenes();
+  fs::remove(dir / "frame-000001.color.png");
+  ASSERT_EQ(::mkfifo((dir / "frame-000001.color.png").c_str(), 0600), 0);
+  expectInputError([&] { loadDataset(dir); }, {"frame-000001.color.png", "not a regular file"});
+
+  dir = makeSevenScenes();
+  fs::remove(dir / "frame-000001.color.png");
+  fs::create_symlink("frame-000001.color.png", dir / "frame-000001.color.png");
+  expectInputError([&] { loadDataset(dir); }, {"frame-000001.color.png", "Too many levels of symbolic links"});
+
+  dir = makeColmap();
+  fs::remove(dir / "sparse/0/cameras.txt");
+  fs::create_symlink("cameras.txt", dir / "sparse/0/cameras.txt");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt", "Too many levels of symbolic links"});
+
+  const auto base = testing::makeTempDir("ffloc-bad-loop");
+  fs::create_symlink("loop", base / "loop");
+  expectInputError([&] { loadDataset(base / "loop"); }, {"loop", "Too many levels of symbolic links"});
+  fs::create_directories(base / "manifest");
+  fs::create_symlink("manifest.json", base / "manifest/manifest.json");
+  expectInputError([&] { loadDataset(base / "manifest"); }, {"manifest.json", "Too many levels of symbolic links"});
 }
 
 }  // namespace

@@ -13,6 +13,25 @@ namespace fs = std::filesystem;
 
 const char* const kModelFolders[] = {"", "sparse/0", "sparse", "reconstruction", "model"};
 
+// OpenCV reads no image with a side beyond this (CV_IO_MAX_IMAGE_WIDTH).
+constexpr long kMaxImageSide = 1 << 20;
+
+long parseInteger(std::string_view token, const fs::path& file, int line, const std::string& field) {
+  return ffloc::parseInteger(std::string(token), file, line, field);
+}
+
+double parseDouble(std::string_view token, const fs::path& file, int line, const std::string& field) {
+  return ffloc::parseDouble(std::string(token), file, line, field);
+}
+
+int imageSide(const std::string& token, const fs::path& file, int line, const std::string& field) {
+  const long side = parseInteger(token, file, line, field);
+  if (side < 1 || side > kMaxImageSide)
+    throwInputError(file.string(), line,
+                    field + " " + token + " is outside [1, " + std::to_string(kMaxImageSide) + "] pixels");
+  return static_cast<int>(side);
+}
+
 std::optional<fs::path> findModelFolder(const fs::path& dir, const char* file_name) {
   for (const char* folder : kModelFolders)
     if (fs::is_regular_file(dir / folder / file_name)) return (dir / folder).lexically_normal();
@@ -39,8 +58,8 @@ std::map<long, Intrinsics> readCameras(const fs::path& file) {
     for (size_t i = 4; i < tokens.size(); ++i)
       parameters.push_back(parseDouble(tokens[i], file, line.number, "parameter " + std::to_string(i - 3)));
     Intrinsics K = colmapIntrinsics(model, parameters);
-    K.width = static_cast<int>(parseInteger(tokens[2], file, line.number, "WIDTH"));
-    K.height = static_cast<int>(parseInteger(tokens[3], file, line.number, "HEIGHT"));
+    K.width = imageSide(tokens[2], file, line.number, "WIDTH");
+    K.height = imageSide(tokens[3], file, line.number, "HEIGHT");
     if (!K.isValid()) throwInputError(file.string(), line.number, "invalid camera (size and focal length must be positive)");
     if (!cameras.emplace(id, K).second)
       throwInputError(file.string(), line.number, "duplicate CAMERA_ID " + std::to_string(id));
@@ -72,11 +91,13 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     // A pose line; blank lines between images are tolerated, but the POINTS2D line that follows
     // a pose line may itself be blank (an image without keypoints).
     skipComments();
-    while (i < lines.size() && splitWhitespace(lines[i].text).empty()) ++i;
+    while (i < lines.size() && lines[i].text.find_first_not_of(" \t\r") == std::string::npos) ++i;
     if (i >= lines.size()) break;
     const TextLine& pose_line = lines[i++];
-    const auto tokens = splitWhitespace(pose_line.text);
-    if (tokens.size() < 10)
+    // Every line is read a token at a time: a hostile line may be megabytes long.
+    TokenReader pose_tokens(pose_line.text);
+    std::string_view tokens[10];
+    if (pose_tokens.next(tokens, 10) < 10)
       throwInputError(file.string(), pose_line.number, "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
     ColmapImage image;
     image.line = pose_line.number;
@@ -94,7 +115,7 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     if (camera == cameras.end())
       throwInputError(file.string(), pose_line.number, "CAMERA_ID " + std::to_string(camera_id) + " is not in cameras.txt");
     image.name = tokens[9];
-    for (size_t k = 10; k < tokens.size(); ++k) image.name += " " + tokens[k];
+    for (std::string_view more; pose_tokens.next(&more);) (image.name += ' ') += more;
     image.frame.intrinsics = camera->second;
     // images.txt stores world-to-camera.
     image.frame.camera_to_world = Pose::fromQuaternion(q[0], q[1], q[2], q[3], Eigen::Vector3d(t[0], t[1], t[2])).inverse();
@@ -102,10 +123,16 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     skipComments();
     if (i < lines.size()) {
       const TextLine& points_line = lines[i++];
-      const auto values = parseNumbers(points_line, file);
-      if (values.size() % 3 != 0)
-        throwInputError(file.string(), points_line.number, "POINTS2D must be triples X Y POINT3D_ID");
-      for (size_t k = 0; k < values.size(); k += 3) image.points2d.emplace_back(values[k], values[k + 1]);
+      // Straight into the points: the line may hold millions of them.
+      TokenReader point_tokens(points_line.text);
+      std::string_view x, y, point_id;
+      while (point_tokens.next(&x)) {
+        if (!point_tokens.next(&y) || !point_tokens.next(&point_id))
+          throwInputError(file.string(), points_line.number, "POINTS2D must be triples X Y POINT3D_ID");
+        parseInteger(point_id, file, points_line.number, "POINT3D_ID");
+        image.points2d.emplace_back(parseDouble(x, file, points_line.number, "X"),
+                                    parseDouble(y, file, points_line.number, "Y"));
+      }
     }
     images.push_back(std::move(image));
   }
@@ -114,24 +141,37 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
 
 void readPoints(const fs::path& file, const std::map<long, size_t>& frame_of_image,
                 const std::map<long, const ColmapImage*>& image_of_id, Scene& scene) {
+  std::map<long, int> line_of_point;
   for (const auto& line : contentLines(readTextLines(file), true)) {
-    const auto values = parseNumbers(line, file);
-    if (values.size() < 8 || (values.size() - 8) % 2 != 0)
+    const auto malformed = [&] {
       throwInputError(file.string(), line.number,
                       "expected POINT3D_ID X Y Z R G B ERROR TRACK[] (pairs IMAGE_ID POINT2D_IDX)");
+    };
+    TokenReader point_tokens(line.text);
+    std::string_view tokens[8];
+    if (point_tokens.next(tokens, 8) < 8) malformed();
+    const long point_id = parseInteger(tokens[0], file, line.number, "POINT3D_ID");
+    if (const auto [first, inserted] = line_of_point.emplace(point_id, line.number); !inserted)
+      throwInputError(file.string(), line.number,
+                      "duplicate POINT3D_ID " + std::to_string(point_id) + " (first on line " +
+                          std::to_string(first->second) + ")");
     ScenePoint point;
-    point.position = Eigen::Vector3d(values[1], values[2], values[3]);
+    const char* field_names[] = {"X", "Y", "Z", "R", "G", "B", "ERROR"};
+    for (int k = 0; k < 7; ++k) {
+      const double value = parseDouble(tokens[1 + k], file, line.number, field_names[k]);
+      if (k < 3) point.position[k] = value;
+    }
     if (!point.position.allFinite()) throwInputError(file.string(), line.number, "point position is not finite");
-    for (size_t k = 8; k < values.size(); k += 2) {
-      const long image_id = static_cast<long>(values[k]);
+    for (std::string_view image_token, index_token; point_tokens.next(&image_token);) {
+      if (!point_tokens.next(&index_token)) malformed();
+      const long image_id = parseInteger(image_token, file, line.number, "IMAGE_ID");
       const auto image = image_of_id.find(image_id);
       if (image == image_of_id.end())
         throwInputError(file.string(), line.number, "track names IMAGE_ID " + std::to_string(image_id) + ", not in images.txt");
-      const double index = values[k + 1];
-      if (index < 0 || index >= static_cast<double>(image->second->points2d.size()))
+      const long index = parseInteger(index_token, file, line.number, "POINT2D_IDX");
+      if (index < 0 || static_cast<unsigned long>(index) >= image->second->points2d.size())
         throwInputError(file.string(), line.number,
-                        "POINT2D_IDX " + std::to_string(static_cast<long>(index)) + " out of range for image " +
-                            std::to_string(image_id));
+                        "POINT2D_IDX " + std::to_string(index) + " out of range for image " + std::to_string(image_id));
       const Eigen::Vector2d colmap_pixel = image->second->points2d[static_cast<size_t>(index)];
       point.observations.push_back({frame_of_image.at(image_id), colmap_pixel - Eigen::Vector2d(0.5, 0.5)});
     }

@@ -55,9 +55,25 @@ std::vector<std::string> datasetFormats() {
   return names;
 }
 
-std::string detectDatasetFormat(const fs::path& dir) {
-  if (!fs::exists(dir)) throwInputError(dir.string(), 0, "dataset folder not found");
-  if (!fs::is_directory(dir)) throwInputError(dir.string(), 0, "not a folder (give the dataset's folder)");
+namespace {
+
+// std::filesystem reports a symbolic link loop or a folder it may not read by throwing; each is
+// a problem with the input, and names its path.
+template <typename Action>
+auto withFilesystemErrorsAsInputErrors(Action&& action) {
+  try {
+    return action();
+  } catch (const fs::filesystem_error& error) {
+    throwInputError(error.path1().string(), 0, error.code().message());
+  }
+}
+
+std::string detectFormat(const fs::path& dir) {
+  std::error_code error;
+  const fs::file_status status = fs::status(dir, error);
+  if (status.type() == fs::file_type::not_found) throwInputError(dir.string(), 0, "dataset folder not found");
+  if (error) throwInputError(dir.string(), 0, "dataset folder: " + error.message());
+  if (status.type() != fs::file_type::directory) throwInputError(dir.string(), 0, "not a folder (give the dataset's folder)");
   for (const auto& format : formats())
     if (format.detect(dir)) return format.name;
   std::string looked_for;
@@ -65,11 +81,11 @@ std::string detectDatasetFormat(const fs::path& dir) {
   throwInputError(dir.string(), 0, "unknown dataset format; looked for:" + looked_for);
 }
 
-Scene loadDataset(const fs::path& dataset_dir, const std::string& format) {
+Scene loadKnownFormat(const fs::path& dataset_dir, const std::string& format) {
   // Absolute and normalised, so image paths compare equal however the folder was named.
   fs::path dir = fs::absolute(dataset_dir).lexically_normal();
   if (dir.filename().empty()) dir = dir.parent_path();
-  const std::string name = format == "auto" ? detectDatasetFormat(dir) : format;
+  const std::string name = format == "auto" ? detectFormat(dir) : format;
   for (const auto& candidate : formats()) {
     if (name != candidate.name) continue;
     if (!fs::is_directory(dir)) throwInputError(dir.string(), 0, "dataset folder not found");
@@ -81,6 +97,16 @@ Scene loadDataset(const fs::path& dataset_dir, const std::string& format) {
   std::string known;
   for (const auto& candidate : datasetFormats()) known += (known.empty() ? "" : ", ") + candidate;
   throwInputError(dir.string(), 0, "unknown dataset format '" + name + "' (known: auto, " + known + ")");
+}
+
+}  // namespace
+
+std::string detectDatasetFormat(const fs::path& dir) {
+  return withFilesystemErrorsAsInputErrors([&] { return detectFormat(dir); });
+}
+
+Scene loadDataset(const fs::path& dataset_dir, const std::string& format) {
+  return withFilesystemErrorsAsInputErrors([&] { return loadKnownFormat(dataset_dir, format); });
 }
 
 }  // namespace ffloc

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc {
 namespace {
@@ -54,10 +55,16 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
   if (!frame.depth) throwInputError(frame.name, 0, "frame has no depth map");
   const DepthSource& source = *frame.depth;
   const std::string file = source.path.string();
-  if (!std::filesystem::exists(source.path)) throwInputError(file, 0, "depth file not found");
+  requireRegularFile(source.path, "depth file");
   const Intrinsics& camera = source.camera ? *source.camera : frame.intrinsics;
-  const cv::Mat stored = source.path.extension() == ".depth" ? readRawFloatDepth(source.path, camera)
-                                                             : cv::imread(file, cv::IMREAD_ANYDEPTH);
+  cv::Mat stored;
+  try {
+    stored = source.path.extension() == ".depth" ? readRawFloatDepth(source.path, camera)
+                                                 : cv::imread(file, cv::IMREAD_ANYDEPTH);
+  } catch (const cv::Exception& error) {
+    // OpenCV refuses some headers (a size beyond its limits) by throwing rather than failing.
+    throwInputError(file, 0, std::string("cannot decode depth image: ") + error.err);
+  }
   if (stored.empty()) throwInputError(file, 0, "cannot decode depth image");
   if (stored.channels() != 1)
     throwInputError(file, 0, "depth image has " + std::to_string(stored.channels()) + " channels, expected 1");

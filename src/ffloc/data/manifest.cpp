@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -166,9 +167,20 @@ void writeManifest(const Scene& scene, const std::filesystem::path& manifest_jso
 }
 
 bool isManifestFile(const std::filesystem::path& file) {
-  if (!std::filesystem::is_regular_file(file)) return false;
-  std::ifstream in(file);
-  const json root = json::parse(in, nullptr, false);
+  std::error_code error;
+  const std::filesystem::file_status status = std::filesystem::status(file, error);
+  if (status.type() == std::filesystem::file_type::not_found) return false;
+  // A manifest.json that cannot be read as a file (a link loop, a FIFO) is still the dataset's
+  // manifest: its reader then says what is wrong with it.
+  if (error || status.type() != std::filesystem::file_type::regular) return true;
+  std::ifstream in(file, std::ios::binary);
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  const json root = json::parse(text, nullptr, false);
+  if (root.is_discarded()) {
+    // A manifest that does not parse (Python writes NaN, which JSON lacks) is still one, so that
+    // its reader can say what is wrong with it instead of "unknown dataset format".
+    return text.find('"' + std::string(kManifestFormat) + '"') != std::string::npos;
+  }
   return root.is_object() && root.contains("format") && root["format"] == kManifestFormat;
 }
 

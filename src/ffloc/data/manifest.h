@@ -23,7 +23,9 @@ Scene readManifest(const std::filesystem::path& manifest_json);
 // file). Frames with identical intrinsics share one camera entry. Scene::points are not stored.
 void writeManifest(const Scene& scene, const std::filesystem::path& manifest_json);
 
-// Whether `file` is a JSON object whose "format" is "ffloc-manifest".
+// Whether `file` is a JSON object whose "format" is "ffloc-manifest", or a file that does not
+// parse as JSON but names that format, or something there that is not a readable regular file
+// (readManifest then reports the syntax error or what the file is).
 bool isManifestFile(const std::filesystem::path& file);
 
 }  // namespace ffloc

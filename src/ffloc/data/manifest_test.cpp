@@ -8,6 +8,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/dataset.h"
 #include "ffloc/data/scene_test_util.h"
 
 namespace ffloc {
@@ -147,6 +148,28 @@ TEST(Manifest, OverflowingNumberIsRejected) {
     "frames": [{"image": "a.png", "camera": "0",
                 "camera_to_world": [[1,0,0,1e999],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
   expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "invalid JSON", "1e999"});
+}
+
+// Python's json.dump writes NaN, which JSON lacks: the folder was reported as "unknown dataset
+// format". It is a manifest, and the error says what is wrong with it.
+TEST(Manifest, PythonNaNIsReportedAsSuch) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
+    "cameras": {"0": {"width": 4, "height": 3, "fx": NaN, "fy": 2, "cx": 1.5, "cy": 1}}, "frames": []})");
+  expectInputError([&] { loadDataset(dir); },
+                   {"manifest.json", "invalid JSON", "NaN and Infinity are not JSON"});
+}
+
+// An integer beyond int was narrowed: 4294967297 read as version 1.
+TEST(Manifest, IntegersBeyondIntAreRefused) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  const std::string rest = R"(, "cameras": {"0": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": []})";
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 4294967297)" + rest);
+  expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "field 'version'", "expected an integer"});
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1)" +
+                                           std::string(R"(, "cameras": {"0": {"width": 4294967300, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}}, "frames": []})"));
+  expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "cameras.0.width"});
 }
 
 }  // namespace

@@ -40,6 +40,18 @@ fs::path resolveImage(const fs::path& folder, const std::string& file_path, cons
   frame.fail("file_path", "image '" + base.string() + "' not found (also tried .png, .jpg, .jpeg)");
 }
 
+// OpenCV reads no image with a side beyond this (CV_IO_MAX_IMAGE_WIDTH).
+constexpr double kMaxImageSide = 1 << 20;
+
+// "w" or "h": checked before the conversion to int, which is undefined for values an int cannot
+// hold. Some writers store them as floats ("w": 800.0), which is fine when whole.
+int imageSide(const CameraKeys& keys, const std::string& key) {
+  const double side = keys.number(key);
+  if (!(side >= 1 && side <= kMaxImageSide) || side != std::floor(side))
+    keys.owner(key).fail(key, "expected a whole number of pixels in [1, " + std::to_string(static_cast<int>(kMaxImageSide)) + "]");
+  return static_cast<int>(side);
+}
+
 Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
   if (keys.has("camera_model")) {
     const std::string model = keys.string("camera_model");
@@ -51,8 +63,8 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
 
   Intrinsics intrinsics;
   if (keys.has("w") && keys.has("h")) {
-    intrinsics.width = static_cast<int>(std::lround(keys.number("w")));
-    intrinsics.height = static_cast<int>(std::lround(keys.number("h")));
+    intrinsics.width = imageSide(keys, "w");
+    intrinsics.height = imageSide(keys, "h");
   } else {
     const cv::Size size = readImageSize(image_path);
     intrinsics.width = size.width;

@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <cmath>
 
 #include "ffloc/core/error.h"
 #include "ffloc/io/image_size.h"
@@ -13,6 +14,8 @@ namespace fs = std::filesystem;
 
 constexpr const char* kCameraFolder = "gt_dense_cameras";
 constexpr const char* kCameraSuffix = ".camera";
+// OpenCV reads no image with a side beyond this (CV_IO_MAX_IMAGE_WIDTH).
+constexpr double kMaxImageSide = 1 << 20;
 
 std::vector<fs::path> cameraFiles(const fs::path& dir) {
   std::vector<fs::path> files;
@@ -53,10 +56,14 @@ Frame readCameraFile(const fs::path& file) {
   for (int r = 0; r < 3; ++r) R.row(r) = Eigen::RowVector3d(rows[4 + r][0], rows[4 + r][1], rows[4 + r][2]);
   frame.camera_to_world.R = validatedRotation(R, file, lines[4].number);
   frame.camera_to_world.t = Eigen::Vector3d(rows[7][0], rows[7][1], rows[7][2]);
+  // Checked before the conversion to int, which is undefined for values an int cannot hold.
+  for (const double side : rows[8])
+    if (!(side >= 1 && side <= kMaxImageSide) || side != std::floor(side))
+      throwInputError(file.string(), lines[8].number,
+                      "image size must be two whole numbers in [1, " + std::to_string(kMaxImageSide) + "]");
   K.width = static_cast<int>(rows[8][0]);
   K.height = static_cast<int>(rows[8][1]);
-  if (K.width != rows[8][0] || K.height != rows[8][1] || !K.isValid())
-    throwInputError(file.string(), lines[8].number, "invalid image size or focal length");
+  if (!K.isValid()) throwInputError(file.string(), lines[8].number, "invalid image size or focal length");
   return frame;
 }
 

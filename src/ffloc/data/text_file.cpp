@@ -1,16 +1,18 @@
 #include "ffloc/data/text_file.h"
 
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc {
 
 std::vector<TextLine> readTextLines(const std::filesystem::path& file) {
-  if (!std::filesystem::exists(file)) throwInputError(file.string(), 0, "file not found");
+  requireRegularFile(file);
   std::ifstream in(file, std::ios::binary);
   if (!in) throwInputError(file.string(), 0, "cannot open file");
   std::vector<TextLine> lines;
@@ -24,27 +26,37 @@ std::vector<TextLine> readTextLines(const std::filesystem::path& file) {
   return lines;
 }
 
-std::vector<TextLine> contentLines(const std::vector<TextLine>& lines, bool skip_comments) {
-  std::vector<TextLine> out;
-  for (const auto& line : lines) {
+std::vector<TextLine> contentLines(std::vector<TextLine> lines, bool skip_comments) {
+  const auto without_content = [&](const TextLine& line) {
     const size_t first = line.text.find_first_not_of(" \t\r");
-    if (first == std::string::npos) continue;
-    if (skip_comments && line.text[first] == '#') continue;
-    out.push_back(line);
+    return first == std::string::npos || (skip_comments && line.text[first] == '#');
+  };
+  lines.erase(std::remove_if(lines.begin(), lines.end(), without_content), lines.end());
+  return lines;
+}
+
+bool TokenReader::next(std::string_view* token) {
+  constexpr std::string_view kWhitespace = " \t\r\n";
+  const size_t start = text_.find_first_not_of(kWhitespace, at_);
+  if (start == std::string_view::npos) {
+    at_ = text_.size();
+    return false;
   }
-  return out;
+  at_ = std::min(text_.find_first_of(kWhitespace, start), text_.size());
+  *token = text_.substr(start, at_ - start);
+  return true;
+}
+
+size_t TokenReader::next(std::string_view* tokens, size_t wanted) {
+  size_t read = 0;
+  while (read < wanted && next(&tokens[read])) ++read;
+  return read;
 }
 
 std::vector<std::string> splitWhitespace(const std::string& text) {
   std::vector<std::string> tokens;
-  size_t i = 0;
-  while (i < text.size()) {
-    const size_t start = text.find_first_not_of(" \t\r\n", i);
-    if (start == std::string::npos) break;
-    const size_t end = text.find_first_of(" \t\r\n", start);
-    tokens.push_back(text.substr(start, end == std::string::npos ? std::string::npos : end - start));
-    i = end == std::string::npos ? text.size() : end;
-  }
+  TokenReader reader(text);
+  for (std::string_view token; reader.next(&token);) tokens.emplace_back(token);
   return tokens;
 }
 
@@ -71,8 +83,9 @@ long parseInteger(const std::string& token, const std::filesystem::path& file, i
 
 std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::path& file) {
   std::vector<double> values;
-  for (const auto& token : splitWhitespace(line.text))
-    values.push_back(parseDouble(token, file, line.number, "value " + std::to_string(values.size() + 1)));
+  TokenReader reader(line.text);
+  for (std::string_view token; reader.next(&token);)
+    values.push_back(parseDouble(std::string(token), file, line.number, "value " + std::to_string(values.size() + 1)));
   return values;
 }
 

@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 // Helpers the text-format readers share. Every failure is an InputError naming file and line.
@@ -16,11 +17,27 @@ struct TextLine {
 // All lines of a text file. Throws InputError when the file is missing or unreadable.
 std::vector<TextLine> readTextLines(const std::filesystem::path& file);
 
-// Lines that hold something other than whitespace, minus `#` comment lines when asked.
-std::vector<TextLine> contentLines(const std::vector<TextLine>& lines, bool skip_comments);
+// Lines that hold something other than whitespace, minus `#` comment lines when asked. Takes the
+// lines by value and keeps them in place, so a large file is not held twice.
+std::vector<TextLine> contentLines(std::vector<TextLine> lines, bool skip_comments);
 
 // Whitespace-separated tokens (spaces, tabs, CR).
 std::vector<std::string> splitWhitespace(const std::string& text);
+
+// The same one at a time, as views into the text, for lines that may be megabytes long (a
+// COLMAP POINTS2D line): a vector of token strings costs about 20 times the line.
+class TokenReader {
+ public:
+  explicit TokenReader(std::string_view text) : text_(text) {}
+  // The next token; false at the end of the text.
+  bool next(std::string_view* token);
+  // Up to `wanted` next tokens into `tokens`; returns how many there were.
+  size_t next(std::string_view* tokens, size_t wanted);
+
+ private:
+  std::string_view text_;
+  size_t at_ = 0;
+};
 
 // A decimal number (with `e-001`-style exponents); the whole token must be consumed.
 double parseDouble(const std::string& token, const std::filesystem::path& file, int line,

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc {
 namespace {
@@ -29,45 +30,64 @@ std::optional<cv::Size> pngSize(std::istream& in) {
   return cv::Size(static_cast<int>(bigEndian(&header[16], 4)), static_cast<int>(bigEndian(&header[20], 4)));
 }
 
-// Walks the JPEG marker segments up to the first start-of-frame. Gives up (nullopt) on EXIF,
-// since cv::imread applies the EXIF orientation and may swap width and height.
-std::optional<cv::Size> jpegSize(std::istream& in) {
-  unsigned char marker[4];
+// The frame a JPEG declares, and whether an EXIF segment comes before it (cv::imread applies
+// its orientation, which may swap width and height).
+struct JpegFrame {
+  cv::Size size;
+  bool after_exif = false;
+};
+
+// Walks the JPEG marker segments up to the first start-of-frame the way libjpeg reads them:
+// where a marker should start and does not, the bytes up to the next one are skipped (libjpeg
+// warns of "extraneous bytes before marker" and decodes on). A stricter walk gave up there, and
+// the decoder then found and allocated a frame this walk had not seen (found by the
+// localize_request fuzzer: 12040x14895 pixels behind a damaged quantisation table).
+std::optional<JpegFrame> jpegFrame(std::istream& in) {
   in.seekg(0);
-  if (!in.read(reinterpret_cast<char*>(marker), 2) || marker[0] != 0xFF || marker[1] != 0xD8) return std::nullopt;
-  while (in.read(reinterpret_cast<char*>(marker), 2)) {
-    if (marker[0] != 0xFF) return std::nullopt;
-    const unsigned char type = marker[1];
-    if (type == 0xFF) {  // fill byte before a marker
-      in.seekg(-1, std::ios::cur);
-      continue;
+  if (in.get() != 0xFF || in.get() != 0xD8) return std::nullopt;
+  JpegFrame frame;
+  while (true) {
+    // A marker is 0xFF, any number of fill bytes 0xFF, then its type; 0xFF 0x00 is not one.
+    int type = 0;
+    while (type == 0) {
+      int byte = in.get();
+      while (byte != std::char_traits<char>::eof() && byte != 0xFF) byte = in.get();
+      while (byte == 0xFF) byte = in.get();
+      if (byte == std::char_traits<char>::eof()) return std::nullopt;
+      type = byte;
     }
     if (type == 0x01 || (type >= 0xD0 && type <= 0xD7)) continue;  // markers without a length
-    if (!in.read(reinterpret_cast<char*>(marker + 2), 2)) return std::nullopt;
-    const uint32_t length = bigEndian(marker + 2, 2);
+    unsigned char bytes[5];
+    if (!in.read(reinterpret_cast<char*>(bytes), 2)) return std::nullopt;
+    const uint32_t length = bigEndian(bytes, 2);
     if (length < 2) return std::nullopt;
     const bool start_of_frame = type >= 0xC0 && type <= 0xCF && type != 0xC4 && type != 0xC8 && type != 0xCC;
     if (start_of_frame) {
-      unsigned char frame[5];
-      if (!in.read(reinterpret_cast<char*>(frame), 5)) return std::nullopt;
-      return cv::Size(static_cast<int>(bigEndian(frame + 3, 2)), static_cast<int>(bigEndian(frame + 1, 2)));
+      if (!in.read(reinterpret_cast<char*>(bytes), 5)) return std::nullopt;
+      frame.size = cv::Size(static_cast<int>(bigEndian(bytes + 3, 2)), static_cast<int>(bigEndian(bytes + 1, 2)));
+      return frame;
     }
-    if (type == 0xE1) {
+    // An APP1 segment too short for a tag is skipped like any other (seeking back by a tag that
+    // was never read returned to this marker, forever: found by the image_size fuzzer).
+    uint32_t read = 2;
+    if (type == 0xE1 && length >= 6) {
       char tag[4];
-      if (length >= 6 && in.read(tag, 4) && std::string(tag, 4) == "Exif") return std::nullopt;
-      in.seekg(static_cast<std::streamoff>(length) - 2 - 4, std::ios::cur);
-      continue;
+      if (!in.read(tag, 4)) return std::nullopt;
+      frame.after_exif = frame.after_exif || std::string(tag, 4) == "Exif";
+      read += 4;
     }
-    in.seekg(static_cast<std::streamoff>(length) - 2, std::ios::cur);
+    in.seekg(static_cast<std::streamoff>(length - read), std::ios::cur);
   }
-  return std::nullopt;
 }
 
-std::optional<cv::Size> headerSize(std::istream& in) {
+// The size a PNG or JPEG header declares. With `as_decoded`, a JPEG with EXIF data gives
+// nullopt, since its orientation may swap the sides of the decoded image.
+std::optional<cv::Size> headerSize(std::istream& in, bool as_decoded) {
   std::optional<cv::Size> size = pngSize(in);
   if (!size) {
     in.clear();
-    size = jpegSize(in);
+    const std::optional<JpegFrame> frame = jpegFrame(in);
+    if (frame && !(as_decoded && frame->after_exif)) size = frame->size;
   }
   if (size && size->width > 0 && size->height > 0) return size;
   return std::nullopt;
@@ -77,15 +97,26 @@ std::optional<cv::Size> headerSize(std::istream& in) {
 
 std::optional<cv::Size> encodedImageSize(const std::string& bytes) {
   std::istringstream in(bytes);
-  return headerSize(in);
+  return headerSize(in, true);
+}
+
+std::optional<cv::Size> encodedFrameSize(const std::string& bytes) {
+  std::istringstream in(bytes);
+  return headerSize(in, false);
 }
 
 cv::Size readImageSize(const std::filesystem::path& path) {
-  if (!std::filesystem::exists(path)) throwInputError(path.string(), 0, "image file not found");
+  requireRegularFile(path, "image file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throwInputError(path.string(), 0, "cannot open image file");
-  if (const std::optional<cv::Size> size = headerSize(in)) return *size;
-  const cv::Mat image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  if (const std::optional<cv::Size> size = headerSize(in, true)) return *size;
+  cv::Mat image;
+  try {
+    image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& error) {
+    // OpenCV refuses some headers (a size beyond its limits) by throwing rather than failing.
+    throwInputError(path.string(), 0, std::string("cannot decode image: ") + error.err);
+  }
   if (image.empty()) throwInputError(path.string(), 0, "cannot decode image (not a readable image file)");
   return image.size();
 }

@@ -18,4 +18,9 @@ cv::Size readImageSize(const std::filesystem::path& path);
 // decoding; nullopt for other formats and for bytes whose header does not tell.
 std::optional<cv::Size> encodedImageSize(const std::string& bytes);
 
+// The size of the pixel grid an encoded PNG or JPEG in memory declares, EXIF or not: what a
+// decoder allocates, whatever the orientation it applies afterwards. For refusing oversized
+// images before decoding; nullopt for other formats and for bytes whose header does not tell.
+std::optional<cv::Size> encodedFrameSize(const std::string& bytes);
+
 }  // namespace ffloc

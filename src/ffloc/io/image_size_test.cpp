@@ -42,6 +42,44 @@ TEST(ImageSize, ReadsHeadersInMemory) {
   EXPECT_FALSE(encodedImageSize(""));
 }
 
+// Found by the image_size fuzzer: an APP1 segment whose length (2) leaves no room for its tag
+// sent the header walk back to the same marker forever, on a request body of 17 bytes.
+TEST(ImageSize, ShortApp1SegmentDoesNotLoop) {
+  const std::string bytes("\xff\xd8\xff\xe1\x00\x02\x00\x08\x00\x97\xff\xff\xff\x10\x11\xff\xff", 17);
+  EXPECT_FALSE(encodedImageSize(bytes));
+  const auto dir = testing::makeTempDir("ffloc-image-size");
+  testing::writeTextFile(dir / "short_app1.jpg", bytes);
+  testing::expectInputError([&] { readImageSize(dir / "short_app1.jpg"); }, {"short_app1.jpg", "cannot decode"});
+  // The same segment with room for a tag that is not EXIF is still skipped.
+  const std::vector<uchar> jpeg = [] {
+    std::vector<uchar> encoded;
+    cv::imencode(".jpg", cv::Mat3b(7, 13, cv::Vec3b(1, 2, 3)), encoded);
+    return encoded;
+  }();
+  const std::string with_app1 = std::string(jpeg.begin(), jpeg.begin() + 2) + std::string("\xff\xe1\x00\x06XMP\0", 8) +
+                                std::string(jpeg.begin() + 2, jpeg.end());
+  EXPECT_EQ(encodedImageSize(with_app1), cv::Size(13, 7));
+}
+
+// libjpeg skips bytes where a marker should start; the header walk must find the frame it then
+// decodes (the localize_request fuzzer found a 12040x14895 frame behind such bytes). A frame
+// after EXIF data has a size as stored, though not necessarily as decoded.
+TEST(ImageSize, JpegFrameBehindExtraneousBytesOrExif) {
+  const std::vector<uchar> jpeg = [] {
+    std::vector<uchar> encoded;
+    cv::imencode(".jpg", cv::Mat3b(7, 13, cv::Vec3b(1, 2, 3)), encoded);
+    return encoded;
+  }();
+  const std::string extraneous = std::string(jpeg.begin(), jpeg.begin() + 2) + "\x12\x34\xff" +
+                                 std::string(jpeg.begin() + 2, jpeg.end());
+  EXPECT_EQ(encodedImageSize(extraneous), cv::Size(13, 7));
+  EXPECT_EQ(encodedFrameSize(extraneous), cv::Size(13, 7));
+  const std::string exif = std::string(jpeg.begin(), jpeg.begin() + 2) + std::string("\xff\xe1\x00\x08" "Exif\0\0", 10) +
+                           std::string(jpeg.begin() + 2, jpeg.end());
+  EXPECT_FALSE(encodedImageSize(exif));
+  EXPECT_EQ(encodedFrameSize(exif), cv::Size(13, 7));
+}
+
 TEST(ImageSize, AgreesWithDecodingOnTheSharedSamples) {
   FFLOC_REQUIRE_SHARED(data, "data");
   for (const std::string name :

@@ -3,19 +3,32 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <iterator>
+#include <limits>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc {
 
 using nlohmann::json;
 
 json parseJsonFile(const std::filesystem::path& file) {
-  if (!std::filesystem::exists(file)) throwInputError(file.string(), 0, "file not found");
-  std::ifstream in(file);
+  requireRegularFile(file);
+  std::ifstream in(file, std::ios::binary);
   if (!in) throwInputError(file.string(), 0, "cannot open file");
+  const std::string text{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
   try {
-    return json::parse(in);
+    return json::parse(text);
+  } catch (const json::parse_error& e) {
+    // Python's json module writes NaN and Infinity, which JSON does not have; say so, since the
+    // parser only says "invalid literal".
+    const size_t at = e.byte >= 2 ? e.byte - 2 : 0;
+    const std::string near = text.substr(std::min(at, text.size()), 10);
+    const bool non_finite = near.find("NaN") != std::string::npos || near.find("Infinity") != std::string::npos;
+    throwInputError(file.string(), 0,
+                    std::string("invalid JSON: ") + e.what() +
+                        (non_finite ? " (NaN and Infinity are not JSON; write finite numbers or null)" : ""));
   } catch (const json::exception& e) {
     throwInputError(file.string(), 0, std::string("invalid JSON: ") + e.what());
   }
@@ -63,9 +76,7 @@ int64_t JsonFields::integer(const std::string& key, int64_t lo, int64_t hi) cons
 }
 
 int JsonFields::integer(const std::string& key) const {
-  const json& value = get(key);
-  if (!value.is_number_integer()) fail(key, "expected an integer");
-  return value.get<int>();
+  return static_cast<int>(integer(key, std::numeric_limits<int>::min(), std::numeric_limits<int>::max()));
 }
 
 bool JsonFields::boolean(const std::string& key) const {

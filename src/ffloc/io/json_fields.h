@@ -26,7 +26,7 @@ class JsonFields {
   const nlohmann::json& get(const std::string& key) const;
   double number(const std::string& key) const;
   double finiteNumber(const std::string& key) const;  // JSON's 1e999 parses as infinity
-  int integer(const std::string& key) const;
+  int integer(const std::string& key) const;  // one that fits an int
   // An integer within [lo, hi], checked before any narrowing.
   int64_t integer(const std::string& key, int64_t lo, int64_t hi) const;
   bool boolean(const std::string& key) const;

@@ -1,7 +1,9 @@
 #include "ffloc/io/map_file.h"
 
+#include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <set>
 #include <tuple>
 #include <nlohmann/json.hpp>
 
@@ -21,29 +23,55 @@ constexpr const char* kVladDescriptorsTensor = "vlad_descriptors";
 
 std::string tokensTensorName(size_t index) { return "tokens." + std::to_string(index); }
 
-template <typename T>
-T field(const nlohmann::json& object, const char* key, const std::string& where) {
-  if (!object.contains(key)) throw InputError(where + ": field '" + key + "' missing");
-  try {
-    return object.at(key).get<T>();
-  } catch (const nlohmann::json::exception&) {
-    throw InputError(where + ": field '" + key + "' has the wrong type");
-  }
+// Sides of an image, in pixels, beyond any camera; and token widths beyond any model.
+constexpr int64_t kMaxImageSide = 1 << 20;
+constexpr int64_t kMaxTokenDim = 1 << 16;
+
+// Exactly as written, once checked like every dataset reader's poses.
+Pose readPose(const JsonFields& image) {
+  const Eigen::Matrix4d T = image.matrix4("camera_to_world");
+  if (!T.allFinite()) image.fail("camera_to_world", "not finite");
+  if ((T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6)
+    image.fail("camera_to_world", "last row is not (0 0 0 1)");
+  Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  if (!projectToRotation(R)) image.fail("camera_to_world", "rotation is not orthonormal");
+  return Pose::fromMatrix(T);
 }
 
-Pose poseFromJson(const nlohmann::json& rows, const std::string& where) {
-  Eigen::Matrix4d T;
-  if (!rows.is_array() || rows.size() != 4) throw InputError(where + ": field 'camera_to_world' is not 4x4");
-  for (int r = 0; r < 4; ++r) {
-    if (!rows[r].is_array() || rows[r].size() != 4) throw InputError(where + ": field 'camera_to_world' is not 4x4");
-    for (int c = 0; c < 4; ++c) {
-      if (!rows[r][c].is_number()) throw InputError(where + ": field 'camera_to_world' holds a non-number");
-      T(r, c) = rows[r][c].get<double>();
-    }
+Intrinsics readIntrinsics(const JsonFields& k) {
+  Intrinsics intrinsics;
+  intrinsics.fx = k.finiteNumber("fx");
+  intrinsics.fy = k.finiteNumber("fy");
+  intrinsics.cx = k.finiteNumber("cx");
+  intrinsics.cy = k.finiteNumber("cy");
+  if (!(intrinsics.fx > 0)) k.fail("fx", "must be positive");
+  if (!(intrinsics.fy > 0)) k.fail("fy", "must be positive");
+  intrinsics.width = static_cast<int>(k.integer("width", 1, kMaxImageSide));
+  intrinsics.height = static_cast<int>(k.integer("height", 1, kMaxImageSide));
+  return intrinsics;
+}
+
+PreprocessGeometry readGeometry(const JsonFields& g) {
+  PreprocessGeometry geometry;
+  auto side = [&](const char* key) { return static_cast<int>(g.integer(key, 1, kMaxImageSide)); };
+  geometry.original_width = side("original_width");
+  geometry.original_height = side("original_height");
+  geometry.resized_width = side("resized_width");
+  geometry.resized_height = side("resized_height");
+  geometry.width = side("width");
+  geometry.height = side("height");
+  geometry.crop_x = static_cast<int>(g.integer("crop_x", 0, geometry.resized_width - geometry.width));
+  geometry.crop_y = static_cast<int>(g.integer("crop_y", 0, geometry.resized_height - geometry.height));
+  return geometry;
+}
+
+bool allFinite(const TensorView& view) {
+  for (size_t i = 0; i < view.nbytes / sizeof(float); ++i) {
+    float value;
+    std::memcpy(&value, view.data + i * sizeof(float), sizeof(float));
+    if (!std::isfinite(value)) return false;
   }
-  Pose pose = Pose::fromMatrix(T);
-  if (!pose.isFinite()) throw InputError(where + ": field 'camera_to_world' is not finite");
-  return pose;
+  return true;
 }
 
 }  // namespace
@@ -124,13 +152,27 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
   const nlohmann::json metadata = {{"method", kMethod}, {"version", MapFile::kVersion}, {"model_id", map.model_id},
                                    {"token_dim", map.token_dim},   {"metric", map.metric},
                                    {"images", images},             {"checksums", checksums}};
-  writeSafetensors(path, tensors, {{kMetadataKey, metadata.dump()}});
+  writeSafetensors(path, tensors, mapMetadataEntries(metadata, path.string()));
+}
+
+std::map<std::string, std::string> mapMetadataEntries(const nlohmann::json& description, const std::string& file) {
+  std::string text;
+  try {
+    text = description.dump();
+  } catch (const nlohmann::json::exception& e) {
+    throwInputError(file, 0, std::string("cannot encode the map metadata (an image name that is not UTF-8?): ") +
+                                 e.what());
+  }
+  return {{kMetadataKey, text}, {kMapMetadataChecksumKey, hex64(fnv1a64(text))}};
 }
 
 nlohmann::json readMapMetadata(const TensorArchive& archive, const std::string& file) {
   const auto entry = archive.metadata().find(kMetadataKey);
   if (entry == archive.metadata().end())
     throwInputError(file, 0, "not an ffloc map (no '" + std::string(kMetadataKey) + "' metadata)");
+  const auto checksum = archive.metadata().find(kMapMetadataChecksumKey);
+  if (checksum != archive.metadata().end() && checksum->second != hex64(fnv1a64(entry->second)))
+    throwInputError(file, 0, "map metadata checksum mismatch (the file is corrupted)");
   try {
     return nlohmann::json::parse(entry->second);
   } catch (const nlohmann::json::exception& e) {
@@ -141,7 +183,9 @@ nlohmann::json readMapMetadata(const TensorArchive& archive, const std::string& 
 MapHeader mapHeader(const nlohmann::json& metadata, const std::string& file) {
   MapHeader header;
   // Maps written before there was more than one method say nothing of it.
-  header.method = metadata.contains("method") ? field<std::string>(metadata, "method", file + ": map") : kMethod;
+  if (!metadata.is_object()) throwInputError(file, 0, "map metadata is not a JSON object");
+  const JsonFields fields(metadata, file, "");
+  header.method = fields.has("method") ? fields.string("method") : kMethod;
   const nlohmann::json& version = metadata.contains("version") ? metadata["version"] : nlohmann::json();
   if (!version.is_number_integer() || version.get<int64_t>() < 0 || version.get<int64_t>() > 1000000)
     throwInputError(file, 0, "map field 'version' must be a small non-negative integer");
@@ -161,21 +205,21 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
   if (header.method != kMethod)
     throwInputError(file, 0, "map was built with the " + header.method +
                                  " method, not fastforward (localize it with the method it was built with)");
-  const std::string where = file + ": map";
   const int version = header.version;
   if (version != MapFile::kVersion)
     throwInputError(file, 0, "map version " + std::to_string(version) + " is not supported (this build reads version " +
                                  std::to_string(MapFile::kVersion) + ")");
   MapFile map;
-  map.model_id = field<std::string>(metadata, "model_id", where);
-  map.token_dim = field<int>(metadata, "token_dim", where);
-  map.metric = field<bool>(metadata, "metric", where);
+  const JsonFields top(metadata, file, "");
+  map.model_id = top.string("model_id");
+  map.token_dim = static_cast<int>(top.integer("token_dim", 1, kMaxTokenDim));
+  map.metric = top.boolean("metric");
   if (!expected_model_id.empty() && map.model_id != expected_model_id)
     throwInputError(file, 0, "map was built with model '" + map.model_id + "', but the loaded model is '" +
                                  expected_model_id + "': rebuild the map with this model (ffloc map)");
-  if (map.token_dim <= 0) throwInputError(file, 0, "map field 'token_dim' must be positive");
 
-  const nlohmann::json checksums = field<nlohmann::json>(metadata, "checksums", where);
+  const nlohmann::json& checksums = top.get("checksums");
+  if (!checksums.is_object()) top.fail("checksums", "expected an object of tensor name -> checksum");
   auto verified = [&](const std::string& name) -> const TensorView& {
     const TensorView& view = archive->at(name);
     const auto expected = checksums.find(name);
@@ -186,13 +230,14 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     return view;
   };
 
-  const nlohmann::json images = field<nlohmann::json>(metadata, "images", where);
-  if (!images.is_array()) throwInputError(file, 0, "map field 'images' is not a list");
+  const nlohmann::json& images = top.get("images");
+  if (!images.is_array()) top.fail("images", "expected a list");
   const TensorView& descriptors = verified(kDescriptorsTensor);
   if (descriptors.dtype != DType::kF32 || descriptors.shape.size() != 2 ||
       descriptors.shape[0] != static_cast<int64_t>(images.size()))
     throwInputError(file, 0, "tensor 'descriptors' has shape " + descriptors.shapeString() + ", expected (" +
                                  std::to_string(images.size()) + ", D) F32");
+  if (!allFinite(descriptors)) throwInputError(file, 0, "tensor 'descriptors' holds NaN or infinite values");
   const size_t descriptor_dim = static_cast<size_t>(descriptors.shape[1]);
   const float* vlad = nullptr;
   size_t vlad_dim = 0;
@@ -200,6 +245,7 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     const TensorView& centres = verified(kVladVocabularyTensor);
     if (centres.dtype != DType::kF32 || centres.shape.size() != 2 || centres.shape[1] != 128 || centres.shape[0] < 1)
       throwInputError(file, 0, "tensor 'vlad_vocabulary' has shape " + centres.shapeString() + ", expected (words, 128) F32");
+    if (!allFinite(centres)) throwInputError(file, 0, "tensor 'vlad_vocabulary' holds NaN or infinite values");
     map.vlad_centres.resize(centres.nbytes / sizeof(float));
     std::memcpy(map.vlad_centres.data(), centres.data, centres.nbytes);
     vlad_dim = map.vlad_centres.size();
@@ -208,36 +254,30 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
         per_image.shape != std::vector<int64_t>{static_cast<int64_t>(images.size()), static_cast<int64_t>(vlad_dim)})
       throwInputError(file, 0, "tensor 'vlad_descriptors' has shape " + per_image.shapeString() + ", expected (" +
                                    std::to_string(images.size()) + ", " + std::to_string(vlad_dim) + ") F32");
+    if (!allFinite(per_image)) throwInputError(file, 0, "tensor 'vlad_descriptors' holds NaN or infinite values");
     vlad = reinterpret_cast<const float*>(per_image.data);
   }
 
+  std::set<std::string> names;
   for (size_t i = 0; i < images.size(); ++i) {
-    const nlohmann::json& j = images[i];
-    const std::string image_where = where + " image #" + std::to_string(i);
+    const JsonFields entry(images[i], file, "images[" + std::to_string(i) + "]");
     MapImage image;
-    image.name = field<std::string>(j, "name", image_where);
-    image.camera_to_world = poseFromJson(field<nlohmann::json>(j, "camera_to_world", image_where), image_where);
-    const auto k = field<nlohmann::json>(j, "intrinsics", image_where);
-    image.intrinsics.fx = field<double>(k, "fx", image_where);
-    image.intrinsics.fy = field<double>(k, "fy", image_where);
-    image.intrinsics.cx = field<double>(k, "cx", image_where);
-    image.intrinsics.cy = field<double>(k, "cy", image_where);
-    image.intrinsics.width = field<int>(k, "width", image_where);
-    image.intrinsics.height = field<int>(k, "height", image_where);
-    const auto g = field<nlohmann::json>(j, "preprocess", image_where);
-    image.geometry.original_width = field<int>(g, "original_width", image_where);
-    image.geometry.original_height = field<int>(g, "original_height", image_where);
-    image.geometry.resized_width = field<int>(g, "resized_width", image_where);
-    image.geometry.resized_height = field<int>(g, "resized_height", image_where);
-    image.geometry.crop_x = field<int>(g, "crop_x", image_where);
-    image.geometry.crop_y = field<int>(g, "crop_y", image_where);
-    image.geometry.width = field<int>(g, "width", image_where);
-    image.geometry.height = field<int>(g, "height", image_where);
-    const auto grid = field<std::vector<int>>(j, "grid", image_where);
-    if (grid.size() != 2 || grid[0] <= 0 || grid[1] <= 0)
-      throwInputError(file, 0, "map image '" + image.name + "': field 'grid' must be two positive sizes");
-    image.grid_rows = grid[0];
-    image.grid_cols = grid[1];
+    image.name = entry.string("name");
+    if (!names.insert(image.name).second) entry.fail("name", "duplicate image name '" + image.name + "'");
+    image.camera_to_world = readPose(entry);
+    image.intrinsics = readIntrinsics(JsonFields(entry.get("intrinsics"), file, entry.field("intrinsics")));
+    const JsonFields preprocess(entry.get("preprocess"), file, entry.field("preprocess"));
+    image.geometry = readGeometry(preprocess);
+    if (image.intrinsics.width != image.geometry.width || image.intrinsics.height != image.geometry.height)
+      preprocess.fail("", "makes " + std::to_string(image.geometry.width) + "x" + std::to_string(image.geometry.height) +
+                              " images, but the intrinsics are of a " + std::to_string(image.intrinsics.width) + "x" +
+                              std::to_string(image.intrinsics.height) + " image");
+    const std::vector<double> grid = entry.numbers("grid");
+    if (grid.size() != 2 || !(grid[0] >= 1 && grid[0] <= kMaxImageSide && grid[0] == std::floor(grid[0])) ||
+        !(grid[1] >= 1 && grid[1] <= kMaxImageSide && grid[1] == std::floor(grid[1])))
+      entry.fail("grid", "expected two positive token counts (rows, columns)");
+    image.grid_rows = static_cast<int>(grid[0]);
+    image.grid_cols = static_cast<int>(grid[1]);
 
     const TensorView& tokens = verified(tokensTensorName(i));
     const std::vector<int64_t> expected_shape = {static_cast<int64_t>(image.tokenCount()), map.token_dim};

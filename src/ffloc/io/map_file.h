@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -51,12 +52,20 @@ struct MapHeader {
   int version = 0;
 };
 MapHeader readMapHeader(const std::filesystem::path& path);
-// The same from a container already open: its JSON description, then the header in it.
+// The same from a container already open: its JSON description (checked against its checksum
+// where the map has one; maps written before it was added have none), then the header in it.
 nlohmann::json readMapMetadata(const TensorArchive& archive, const std::string& file);
 MapHeader mapHeader(const nlohmann::json& metadata, const std::string& file);
 
-// The container's metadata key that holds a map's JSON description.
+// The container's metadata key that holds a map's JSON description, and the key beside it that
+// holds the description's checksum (FNV-1a 64, hex): the tensors' checksums are in the
+// description, and this one covers the description itself (poses, intrinsics, names).
 inline constexpr const char* kMapMetadataKey = "ffloc_map";
+inline constexpr const char* kMapMetadataChecksumKey = "ffloc_map_checksum";
+
+// The container metadata that stores `description`: the text and its checksum. InputError
+// naming `file` when the description cannot be encoded (a string that is not UTF-8).
+std::map<std::string, std::string> mapMetadataEntries(const nlohmann::json& description, const std::string& file);
 
 // Atomic: written to a temporary file beside `path`, then renamed, so an interrupted write
 // never damages an existing map. InputError naming the image for inconsistent sizes.

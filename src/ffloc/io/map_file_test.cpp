@@ -4,9 +4,12 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <functional>
+#include <iterator>
 #include <random>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/hash.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/half.h"
 
@@ -119,6 +122,94 @@ TEST(MapFile, EmptyMapRoundTrips) {
   const auto dir = testing::makeTempDir("ffloc-map");
   writeMapFile(smallMap(0), dir / "empty.ffmap");
   EXPECT_TRUE(readMapFile(dir / "empty.ffmap").images.empty());
+}
+
+// Rewrites a map with its metadata (and, when given, its descriptors) edited and every checksum
+// made right again, as a damaged map whose damage the checksums do not catch would be.
+void rewriteSealed(const std::filesystem::path& path, const std::function<void(nlohmann::json&)>& edit,
+                   const std::vector<float>& descriptors = {}) {
+  std::vector<std::vector<uint8_t>> copies;
+  std::vector<TensorView> tensors;
+  nlohmann::json description;
+  {
+    const auto archive = openSafetensors(path);
+    description = readMapMetadata(*archive, path.string());
+    for (const std::string& name : archive->names()) {
+      TensorView view = archive->at(name);
+      if (name == "descriptors" && !descriptors.empty())
+        view.data = reinterpret_cast<const uint8_t*>(descriptors.data());
+      copies.emplace_back(view.data, view.data + view.nbytes);
+      view.data = copies.back().data();
+      description["checksums"][name] = hex64(fnv1a64(view.data, view.nbytes));
+      tensors.push_back(view);
+    }
+  }
+  edit(description);
+  writeSafetensors(path, tensors, mapMetadataEntries(description, path.string()));
+}
+
+std::string readError(const std::filesystem::path& path) {
+  try {
+    readMapFile(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(read without an error)";
+}
+
+// The outside probe's findings: each of these loaded before the reader checked them.
+TEST(MapFile, RefusesMetadataThatNoMapWouldHold) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  const auto path = dir / "scene.ffmap";
+  struct Case {
+    std::function<void(nlohmann::json&)> edit;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {[](nlohmann::json& m) { m["images"][1]["preprocess"]["height"] = -84; }, "images[1].preprocess.height"},
+      {[](nlohmann::json& m) { m["images"][0]["camera_to_world"][0][1] = 1000; }, "not orthonormal"},
+      {[](nlohmann::json& m) { m["images"][0]["intrinsics"]["fx"] = -351; }, "images[0].intrinsics.fx': must be positive"},
+      {[](nlohmann::json& m) { m["images"][2]["intrinsics"]["fy"] = 0; }, "images[2].intrinsics.fy': must be positive"},
+      {[](nlohmann::json& m) { m["images"][0]["preprocess"]["crop_x"] = -1e5; }, "images[0].preprocess.crop_x"},
+      {[](nlohmann::json& m) { m["images"][0]["preprocess"]["crop_y"] = 1000; }, "images[0].preprocess.crop_y"},
+      {[](nlohmann::json& m) { m["images"][0]["preprocess"]["original_width"] = 0; }, "preprocess.original_width"},
+      {[](nlohmann::json& m) { m["images"][0]["intrinsics"]["width"] = 500; }, "intrinsics are of a 500x384 image"},
+      {[](nlohmann::json& m) { m["images"][2]["name"] = "frame-0.png"; }, "duplicate image name 'frame-0.png'"},
+      {[](nlohmann::json& m) { m["images"][0]["grid"] = {3.5, 4}; }, "images[0].grid"},
+      {[](nlohmann::json& m) { m["version"] = 1e30; }, "'version' must be a small non-negative integer"},
+      {[](nlohmann::json& m) { m["token_dim"] = 1e30; }, "field 'token_dim'"},
+      {[](nlohmann::json& m) { m["images"][0]["intrinsics"]["height"] = 4294967680.0; }, "intrinsics.height"},
+  };
+  for (const Case& bad : cases) {
+    writeMapFile(smallMap(), path);
+    rewriteSealed(path, bad.edit);
+    const std::string message = readError(path);
+    EXPECT_NE(message.find(bad.expected), std::string::npos) << message;
+    EXPECT_NE(message.find(path.string()), std::string::npos) << message;
+  }
+  writeMapFile(smallMap(), path);
+  std::vector<float> descriptors(3 * 16, 0.5f);
+  descriptors[17] = std::nanf("");
+  rewriteSealed(path, [](nlohmann::json&) {}, descriptors);
+  EXPECT_NE(readError(path).find("'descriptors' holds NaN"), std::string::npos) << readError(path);
+}
+
+TEST(MapFile, MetadataChecksumCatchesAChangedPose) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  const auto path = dir / "scene.ffmap";
+  writeMapFile(smallMap(), path);
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  // Two digits of the first translation (0.2, escaped inside the header's JSON string): another
+  // valid pose, which only the metadata checksum can tell from the written one.
+  const size_t at = bytes.find("0.2]");
+  ASSERT_NE(at, std::string::npos);
+  bytes.replace(at, 3, "0.7");
+  std::ofstream(path, std::ios::binary) << bytes;
+  EXPECT_NE(readError(path).find("map metadata checksum mismatch"), std::string::npos) << readError(path);
 }
 
 }  // namespace

@@ -9,6 +9,14 @@
 namespace ffloc::pickle {
 namespace {
 
+// What the machine may build, counted in bytes as it goes and never given back: values, stack
+// slots, references held by tuples, lists and dicts, strings and memo entries. A real state
+// dict's pickle builds a few MB (DUSt3R's 2.2 GB checkpoint: a 100 KB pickle), but every
+// one-byte opcode builds a value of ~130 bytes, and REDUCE, DUP and BINGET can copy large tuples
+// over and over: without a bound, a 16 MB pickle took 1.5 GB, and a crafted one could take
+// any amount.
+constexpr size_t kMaxMemoryBytes = size_t{256} << 20;
+
 class Machine {
  public:
   Machine(const uint8_t* data, size_t size, const std::string& source)
@@ -43,11 +51,22 @@ class Machine {
   }
   std::string takeText(uint64_t length) {
     if (length > size_ - at_) fail("string of " + std::to_string(length) + " bytes runs past the end");
+    charge(length);
     const uint8_t* bytes = take(length);
     return std::string(reinterpret_cast<const char*>(bytes), length);
   }
 
+  void charge(size_t bytes) {
+    if (bytes > kMaxMemoryBytes - used_bytes_)
+      fail("the pickle builds more than " + std::to_string(kMaxMemoryBytes >> 20) +
+           " MB of objects, far beyond a state dict's (refused to bound memory)");
+    used_bytes_ += bytes;
+  }
+  // Charged for `count` references (stack slots, items, entries).
+  void chargeReferences(size_t count) { charge(count * 2 * sizeof(Value*)); }
+
   Value* make(Kind kind) {
+    charge(sizeof(Value));
     Value& value = result_.arena.emplace_back();
     value.kind = kind;
     return &value;
@@ -63,7 +82,10 @@ class Machine {
     return value;
   }
 
-  void push(Value* value) { stack_.push_back(value); }
+  void push(Value* value) {
+    chargeReferences(1);
+    stack_.push_back(value);
+  }
   Value* pop() {
     if (stack_.size() <= floor()) fail("stack underflow");
     Value* value = stack_.back();
@@ -85,12 +107,16 @@ class Machine {
     return items;
   }
   Value* makeTuple(const std::vector<Value*>& items) {
+    chargeReferences(items.size());
     Value* tuple = make(Kind::kTuple);
     tuple->items.assign(items.begin(), items.end());
     return tuple;
   }
 
-  void memoize(uint64_t key) { memo_[key] = top(); }
+  void memoize(uint64_t key) {
+    charge(kMemoEntryBytes);
+    memo_[key] = top();
+  }
   Value* recall(uint64_t key) {
     const auto found = memo_.find(key);
     if (found == memo_.end()) fail("memo key " + std::to_string(key) + " was never stored");
@@ -101,6 +127,7 @@ class Machine {
     if (target->kind != Kind::kList && target->kind != Kind::kObject) {
       fail("APPEND(S) onto a value that is not a list");
     }
+    chargeReferences(items.size());
     target->items.insert(target->items.end(), items.begin(), items.end());
   }
   void setItems(Value* target, const std::vector<Value*>& pairs) {
@@ -108,6 +135,7 @@ class Machine {
       fail("SETITEM(S) onto a value that is not a dict");
     }
     if (pairs.size() % 2 != 0) fail("SETITEMS with an odd number of stack items");
+    chargeReferences(pairs.size());
     // Duplicated keys are kept in order; readers take the last one, as Python would.
     for (size_t i = 0; i < pairs.size(); i += 2) target->entries.emplace_back(pairs[i], pairs[i + 1]);
   }
@@ -118,6 +146,7 @@ class Machine {
     }
     Value* object = make(Kind::kObject);
     object->callable = callable;
+    chargeReferences(arguments->items.size());
     object->items = arguments->items;
     return object;
   }
@@ -131,6 +160,9 @@ class Machine {
   std::vector<Value*> stack_;
   std::vector<size_t> marks_;
   std::unordered_map<uint64_t, Value*> memo_;
+  // A node of the memo's hash map: key, value, next pointer, cached hash, bucket slot.
+  static constexpr size_t kMemoEntryBytes = 48;
+  size_t used_bytes_ = 0;
 };
 
 Unpickled Machine::run() {
@@ -151,6 +183,7 @@ Unpickled Machine::run() {
         return std::move(result_);
       }
       case '(':  // MARK
+        chargeReferences(1);
         marks_.push_back(stack_.size());
         break;
       case '0':  // POP
@@ -245,6 +278,7 @@ Unpickled Machine::run() {
       case 0x91: {  // FROZENSET
         Value* list = make(Kind::kList);
         const std::vector<Value*> items = popToMark();
+        chargeReferences(items.size());
         list->items.assign(items.begin(), items.end());
         push(list);
         break;
@@ -295,6 +329,7 @@ Unpickled Machine::run() {
       case 'c': {  // GLOBAL "module\nname\n"
         const std::string module = takeLine();
         const std::string name = takeLine();
+        charge(module.size() + name.size());
         Value* global = make(Kind::kGlobal);
         global->text = module + "." + name;
         push(global);
@@ -306,6 +341,7 @@ Unpickled Machine::run() {
         if (name->kind != Kind::kString || module->kind != Kind::kString) {
           fail("STACK_GLOBAL operands are not strings");
         }
+        charge(module->text.size() + name->text.size());
         Value* global = make(Kind::kGlobal);
         global->text = module->text + "." + name->text;
         push(global);

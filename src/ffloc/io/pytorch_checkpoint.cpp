@@ -56,6 +56,7 @@ class PytorchCheckpointArchive : public TensorArchive {
   std::unordered_map<std::string, Storage> storages_;
   // Gathered copies of non-contiguous tensors, which cannot be views into the file.
   std::deque<std::vector<uint8_t>> copies_;
+  uint64_t copied_bytes_ = 0;
 };
 
 PytorchCheckpointArchive::PytorchCheckpointArchive(const std::filesystem::path& path) : file_(path) {
@@ -209,11 +210,13 @@ TensorView PytorchCheckpointArchive::rebuildTensor(const std::string& name,
     view.data = storage.data + offset * element_size;
     return view;
   }
-  // Zero strides (expanded tensors) can describe far more elements than are stored; the copy
-  // must not outgrow the file.
-  if (numel > file_.size() / element_size) {
-    failTensor(name, "non-contiguous view " + view.shapeString() + " is larger than the file");
+  // Zero strides (expanded tensors) can describe far more elements than are stored, and many
+  // names can view one storage: the copies together must not outgrow the file.
+  if (numel > (file_.size() - copied_bytes_) / element_size) {
+    failTensor(name, "non-contiguous view " + view.shapeString() +
+                         (copied_bytes_ > 0 ? ", with the copies before it, is" : " is") + " larger than the file");
   }
+  copied_bytes_ += view.nbytes;
   std::vector<uint8_t>& copy = copies_.emplace_back(view.nbytes);
   std::vector<int64_t> index(view.shape.size(), 0);
   uint64_t source = offset;

@@ -9,141 +9,15 @@
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/pickle.h"
 #include "ffloc/io/tensor_archive.h"
+#include "ffloc/io/testing/torch_save_writer.h"
 #include "ffloc/io/zip_reader.h"
 
 namespace ffloc {
 namespace {
 
-void appendLe(std::string* out, uint64_t value, int bytes) {
-  for (int i = 0; i < bytes; ++i) out->push_back(static_cast<char>((value >> (8 * i)) & 0xff));
-}
-
-// Emits the pickle opcodes torch.save() uses, so that checkpoints with layouts the fixture lacks
-// (plain state dicts, strided views, other dtypes, damage) can be built in a test.
-struct PickleWriter {
-  std::string bytes = std::string("\x80\x02", 2);
-
-  void op(char opcode) { bytes.push_back(opcode); }
-  void text(const std::string& value) {
-    op('X');
-    appendLe(&bytes, value.size(), 4);
-    bytes += value;
-  }
-  void integer(int32_t value) {
-    op('J');
-    appendLe(&bytes, static_cast<uint32_t>(value), 4);
-  }
-  void global(const std::string& module, const std::string& name) {
-    op('c');
-    bytes += module + "\n" + name + "\n";
-  }
-  void ints(const std::vector<int>& values) {
-    op('(');
-    for (int value : values) integer(value);
-    op('t');
-  }
-  void tensor(const std::string& storage_type, const std::string& key, int storage_numel,
-              int offset, const std::vector<int>& size, const std::vector<int>& stride) {
-    global("torch._utils", "_rebuild_tensor_v2");
-    op('(');
-    op('(');
-    text("storage");
-    global("torch", storage_type);
-    text(key);
-    text("cpu");
-    integer(storage_numel);
-    op('t');
-    op('Q');
-    integer(offset);
-    ints(size);
-    ints(stride);
-    op('\x89');
-    global("collections", "OrderedDict");
-    op(')');
-    op('R');
-    op('t');
-    op('R');
-  }
-  std::string finish() { return bytes + "."; }
-};
-
-struct Member {
-  std::string name;
-  std::string data;
-  uint16_t method = 0;
-};
-
-// A zip archive of stored members; with zip64, every size and offset goes through the zip64
-// extra field and end records, as for a checkpoint beyond 4 GB.
-std::string makeZip(const std::vector<Member>& members, bool zip64) {
-  std::string out, directory;
-  for (const Member& member : members) {
-    const uint64_t offset = out.size();
-    appendLe(&out, 0x04034b50, 4);
-    appendLe(&out, 20, 2);
-    appendLe(&out, 0, 2);
-    appendLe(&out, member.method, 2);
-    appendLe(&out, 0, 4);  // time, date
-    appendLe(&out, 0, 4);  // crc (not checked)
-    appendLe(&out, member.data.size(), 4);
-    appendLe(&out, member.data.size(), 4);
-    appendLe(&out, member.name.size(), 2);
-    appendLe(&out, 3, 2);
-    out += member.name + "abc";  // an unknown extra field moves the data
-    out += member.data;
-
-    appendLe(&directory, 0x02014b50, 4);
-    appendLe(&directory, 45, 2);
-    appendLe(&directory, 45, 2);
-    appendLe(&directory, 0, 2);
-    appendLe(&directory, member.method, 2);
-    appendLe(&directory, 0, 4);
-    appendLe(&directory, 0, 4);
-    appendLe(&directory, zip64 ? 0xffffffff : member.data.size(), 4);
-    appendLe(&directory, zip64 ? 0xffffffff : member.data.size(), 4);
-    appendLe(&directory, member.name.size(), 2);
-    appendLe(&directory, zip64 ? 28 : 0, 2);
-    appendLe(&directory, 0, 2);
-    appendLe(&directory, 0, 2);
-    appendLe(&directory, 0, 2);
-    appendLe(&directory, 0, 4);
-    appendLe(&directory, zip64 ? 0xffffffff : offset, 4);
-    directory += member.name;
-    if (zip64) {
-      appendLe(&directory, 0x0001, 2);
-      appendLe(&directory, 24, 2);
-      appendLe(&directory, member.data.size(), 8);
-      appendLe(&directory, member.data.size(), 8);
-      appendLe(&directory, offset, 8);
-    }
-  }
-  const uint64_t directory_offset = out.size();
-  out += directory;
-  if (zip64) {
-    const uint64_t record = out.size();
-    appendLe(&out, 0x06064b50, 4);
-    appendLe(&out, 44, 8);
-    appendLe(&out, 45, 2);
-    appendLe(&out, 45, 2);
-    appendLe(&out, 0, 8);
-    appendLe(&out, members.size(), 8);
-    appendLe(&out, members.size(), 8);
-    appendLe(&out, directory.size(), 8);
-    appendLe(&out, directory_offset, 8);
-    appendLe(&out, 0x07064b50, 4);
-    appendLe(&out, 0, 4);
-    appendLe(&out, record, 8);
-    appendLe(&out, 1, 4);
-  }
-  appendLe(&out, 0x06054b50, 4);
-  appendLe(&out, 0, 4);
-  appendLe(&out, zip64 ? 0xffff : members.size(), 2);
-  appendLe(&out, zip64 ? 0xffff : members.size(), 2);
-  appendLe(&out, zip64 ? 0xffffffff : directory.size(), 4);
-  appendLe(&out, zip64 ? 0xffffffff : directory_offset, 4);
-  appendLe(&out, 0, 2);
-  return out;
-}
+using testing::makeZip;
+using testing::PickleWriter;
+using testing::ZipMember;
 
 std::string floatBytes(const std::vector<float>& values) {
   return std::string(reinterpret_cast<const char*>(values.data()), values.size() * 4);
@@ -181,7 +55,7 @@ std::string plainStateDictPickle() {
   return pickle.finish();
 }
 
-std::vector<Member> plainMembers(const std::string& pickle) {
+std::vector<ZipMember> plainMembers(const std::string& pickle) {
   const std::string half("\x00\x3c\x00\xc0", 4);  // 1.0, -2.0
   return {{"archive/data.pkl", pickle},
           {"archive/data/0", floatBytes({0, 1, 2, 3, 4, 5, 6, 7})},
@@ -292,7 +166,7 @@ TEST(PytorchCheckpoint, ReadsParametersAndWrappedStateDicts) {
 TEST(PytorchCheckpoint, DamagedCheckpointsRaiseInputErrorNamingTheProblem) {
   const auto dir = testing::makeTempDir("ffloc-pth-errors");
   const auto path = dir / "bad.pth";
-  auto openWith = [&](const std::vector<Member>& members) {
+  auto openWith = [&](const std::vector<ZipMember>& members) {
     writeFile(path, makeZip(members, false));
     return messageOf([&] { openPytorchCheckpoint(path); });
   };
@@ -301,7 +175,7 @@ TEST(PytorchCheckpoint, DamagedCheckpointsRaiseInputErrorNamingTheProblem) {
     return message.find(part) != std::string::npos;
   };
 
-  std::vector<Member> members = plainMembers(good);
+  std::vector<ZipMember> members = plainMembers(good);
   members.erase(members.begin() + 1);
   std::string message = openWith(members);
   EXPECT_TRUE(contains(message, "bad.pth") && contains(message, "archive/data/0")) << message;
@@ -465,6 +339,52 @@ TEST(Pickle, DecodesScalarsAndContainers) {
   EXPECT_TRUE(tuple->items[0]->boolean);
   EXPECT_EQ(tuple->items[1]->kind, pickle::Kind::kNone);
   EXPECT_EQ(pickle::dictGet(result.root, "l")->items.size(), 2u);
+}
+
+std::string unpickleError(const std::string& bytes) {
+  return messageOf([&] { pickle::unpickle(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), "inline"); });
+}
+
+// The outside probe's 16 MB pickle took 1.5 GB; these would take gigabytes from a few hundred
+// kilobytes: each REDUCE copies the arguments of a 100,000-item tuple, each STACK_GLOBAL joins
+// a 1 MB string with itself.
+TEST(Pickle, MemoryIsBoundedWhateverTheOpcodes) {
+  PickleWriter copies;
+  copies.op('(');
+  copies.op('N');
+  for (int i = 1; i < 100000; ++i) copies.op('2');  // DUP
+  copies.op('t');
+  copies.bytes += std::string("q\x00", 2);  // BINPUT 0: the tuple
+  copies.op('N');
+  copies.bytes += "q\x01";  // BINPUT 1: a callable
+  for (int i = 0; i < 2000; ++i) copies.bytes += std::string("h\x01h\x00R0", 6);  // callable(*tuple), popped
+  EXPECT_NE(unpickleError(copies.finish()).find("more than 256 MB of objects"), std::string::npos)
+      << unpickleError(copies.finish());
+
+  PickleWriter globals;
+  globals.text(std::string(1 << 20, 'm'));
+  globals.bytes += std::string("q\x00", 2);
+  for (int i = 0; i < 1000; ++i) globals.bytes += std::string("h\x00h\x00\x93" "0", 6);  // a 2 MB "module.name", popped
+  EXPECT_NE(unpickleError(globals.finish()).find("more than 256 MB of objects"), std::string::npos)
+      << unpickleError(globals.finish());
+}
+
+// Sixty names for one expanded view (stride 0) of a 32-byte storage: each 512-byte copy fits in
+// the file, the copies together do not.
+TEST(PytorchCheckpoint, NonContiguousCopiesTogetherStayWithinTheFile) {
+  const auto dir = testing::makeTempDir("ffloc-checkpoint");
+  PickleWriter pickle;
+  pickle.op('}');
+  pickle.op('(');
+  for (int i = 0; i < 60; ++i) {
+    pickle.text("view" + std::to_string(i));
+    pickle.tensor("FloatStorage", "0", 8, 0, {16, 8}, {0, 1});
+  }
+  pickle.op('u');
+  const auto path = dir / "views.pth";
+  writeFile(path, makeZip(plainMembers(pickle.finish()), false));
+  const std::string message = messageOf([&] { openPytorchCheckpoint(path); });
+  EXPECT_NE(message.find("with the copies before it, is larger than the file"), std::string::npos) << message;
 }
 
 }  // namespace

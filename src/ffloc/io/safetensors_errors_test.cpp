@@ -52,7 +52,8 @@ class SafetensorsErrors : public ::testing::Test {
 
 TEST_F(SafetensorsErrors, ShortAndGarbageFiles) {
   expectFailure(write(""), {"too short"});
-  expectFailure(write(""), {"unrecognised weights format"}, true);
+  expectFailure(write(""), {"file too short (0 bytes)"}, true);
+  expectFailure(write("{}"), {"file too short (2 bytes)"}, true);
   expectFailure(write("abc"), {"too short"});
   expectFailure(write("this is not a weights file at all"), {"exceeds the file size"});
   expectFailure(write("this is not a weights file at all"), {"unrecognised"}, true);

@@ -83,12 +83,17 @@ std::unique_ptr<TensorArchive> openTensorArchive(const std::filesystem::path& pa
   if (size >= 4 && head[0] == 'P' && head[1] == 'K' && head[2] == 3 && head[3] == 4) {
     return openPytorchCheckpoint(path);
   }
-  if (size >= 9 && head[8] == '{') return openSafetensors(path);
   if (size >= 2 && head[0] == 0x80 && head[1] <= 5) {
     throwInputError(path.string(), 0,
                     "legacy (pre-1.6, non-zip) torch.save format is not supported; re-save it "
                     "with torch.save(..., _use_new_zipfile_serialization=True)");
   }
+  // The smallest weights file, a safetensors file without tensors, is an 8-byte length and "{}".
+  if (size < 10) {
+    throwInputError(path.string(), 0,
+                    "file too short (" + std::to_string(size) + " bytes) for a safetensors file or a PyTorch checkpoint");
+  }
+  if (head[8] == '{') return openSafetensors(path);
   throwInputError(path.string(), 0,
                   "unrecognised weights format (neither a safetensors header nor a zip-format "
                   "PyTorch checkpoint)");

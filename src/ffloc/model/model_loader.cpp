@@ -14,6 +14,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/hash.h"
 #include "ffloc/core/random.h"
+#include "ffloc/io/input_file.h"
 #include "ffloc/model/parameter_table.h"
 
 namespace ffloc {
@@ -155,7 +156,8 @@ std::string defaultModelPath() {
 
 LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& options) {
   const std::string spec = requested == "default" ? defaultModelPath() : requested;
-  if (requested == "default" && !std::filesystem::is_regular_file(spec)) {
+  std::error_code ignored;  // a default path that cannot be read is as missing as an absent one
+  if (requested == "default" && !std::filesystem::is_regular_file(spec, ignored)) {
     throwInputError(spec, 0, "the default model is missing (set FFLOC_MODEL, or pass --model; docs/training.md trains one)");
   }
   if (options.dtype != at::kFloat && options.dtype != at::kBFloat16)
@@ -165,7 +167,7 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   if (spec.rfind("random:", 0) == 0) {
     loaded = randomModel(spec);
   } else {
-    if (!std::filesystem::is_regular_file(spec)) throwInputError(spec, 0, "model weights: file not found");
+    requireRegularFile(spec, "model weights: file");
     const auto archive = openTensorArchive(spec);
     FastForwardConfig config;
     config.dust3r = configFromArchive(*archive);

@@ -85,7 +85,7 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
   if (bytes.empty()) throw InputError("image: the request carries no image");
   if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max()))
     throw InputError("image: " + std::to_string(bytes.size()) + " bytes is more than an image may have");
-  if (const std::optional<cv::Size> declared = encodedImageSize(bytes);
+  if (const std::optional<cv::Size> declared = encodedFrameSize(bytes);
       declared && static_cast<size_t>(declared->width) * static_cast<size_t>(declared->height) > max_image_pixels) {
     throw InputError(pixelLimitError(*declared, max_image_pixels));
   }
