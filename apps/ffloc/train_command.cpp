@@ -76,16 +76,18 @@ Scene loadTrainingData(const std::string& spec) {
 
 std::string validationSummary(const ValidationStats& stats) {
   char text[256];
-  std::snprintf(text, sizeof(text), "  val loss %.4f, pose median %.3g / %.3g deg, %.0f%% in 10cm/10deg", stats.loss,
-                stats.median_translation_error, stats.median_rotation_error_deg, 100.0 * stats.within_10cm_10deg);
+  std::snprintf(text, sizeof(text),
+                "  val loss %.4f, match %.0f%%, pose median %.3g / %.3g deg, %.0f%% in 10cm/10deg, %.0f%% in 25cm/5deg",
+                stats.loss, 100.0 * stats.match_accuracy, stats.median_translation_error,
+                stats.median_rotation_error_deg, 100.0 * stats.within_10cm_10deg, 100.0 * stats.within_25cm_5deg);
   return text;
 }
 
 const char* kCsvHeader =
-    "step,loss,query_loss,map_loss,query_error,map_error,learning_rate,grad_norm,samples_per_s,step_s,data_wait_s,"
-    "allreduce_s,optimizer_s,"
-    "val_loss,val_query_error,val_map_error,val_median_translation,val_median_rotation_deg,val_10cm_10deg,"
-    "val_25cm_5deg\n";
+    "step,loss,query_loss,map_loss,match_loss,match_accuracy,query_error,map_error,learning_rate,grad_norm,"
+    "samples_per_s,step_s,data_wait_s,allreduce_s,optimizer_s,"
+    "val_loss,val_query_error,val_map_error,val_match_accuracy,val_median_translation,val_median_rotation_deg,"
+    "val_10cm_10deg,val_25cm_5deg\n";
 
 // This process's command line, as the kernel holds it, for the ranks --nproc-per-node starts.
 std::vector<std::string> ownArguments() {
@@ -210,28 +212,31 @@ void runTrain(const TrainArguments& args) {
     std::optional<ValidationStats> validation;
     if (validate_now) validation = trainer.validate();
     char row[512];
-    std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
-                  static_cast<long long>(stats.step), stats.loss, stats.query_loss, stats.map_loss, stats.query_error,
+    std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
+                  static_cast<long long>(stats.step), stats.loss, stats.query_loss, stats.map_loss, stats.match_loss,
+                  stats.match_accuracy, stats.query_error,
                   stats.map_error, stats.learning_rate, stats.grad_norm, sample_rate, window_step / steps_in_window,
                   window_wait / steps_in_window, window_allreduce / steps_in_window, window_optimizer / steps_in_window);
     log << row;
     if (validation) {
-      std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g", validation->loss,
-                    validation->query_error, validation->map_error, validation->median_translation_error,
+      std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.4g,%.4g", validation->loss,
+                    validation->query_error, validation->map_error, validation->match_accuracy,
+                    validation->median_translation_error,
                     validation->median_rotation_error_deg, validation->within_10cm_10deg,
                     validation->within_25cm_5deg);
       log << row;
     } else {
-      log << ",,,,,,";
+      log << ",,,,,,,";
     }
     log << "\n" << std::flush;
     if (!args.quiet) {
       const double eta = rate > 0 ? static_cast<double>(config.steps - stats.step) / rate : 0.0;
       std::fprintf(stderr,
-                   "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  lr %.2e  |g| %.3g  %.2f samples/s"
-                   " (%.0f%% waiting for data)  eta %.0f s%s\n",
+                   "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  match %.0f%%  lr %.2e  |g| %.3g"
+                   "  %.2f samples/s (%.0f%% waiting for data)  eta %.0f s%s\n",
                    static_cast<long long>(stats.step), static_cast<long long>(config.steps), stats.loss,
                    window_loss / static_cast<double>(window_steps), stats.query_error, stats.map_error,
+                   100.0 * stats.match_accuracy,
                    stats.learning_rate, stats.grad_norm, sample_rate, 100.0 * wait_share, eta,
                    validation ? validationSummary(*validation).c_str() : "");
     }

@@ -5,24 +5,10 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/root_sift.h"
 #include "ffloc/io/image.h"
 
 namespace ffloc {
-namespace {
-
-// RootSIFT (Arandjelovic & Zisserman 2012): L1-normalise, then square-root, so Euclidean
-// distance compares descriptors like the Hellinger kernel; it matches better than raw SIFT.
-void toRootSift(cv::Mat& descriptors) {
-  for (int r = 0; r < descriptors.rows; ++r) {
-    float* row = descriptors.ptr<float>(r);
-    double l1 = 0;
-    for (int c = 0; c < descriptors.cols; ++c) l1 += std::abs(row[c]);
-    const double inv = l1 > 0 ? 1.0 / l1 : 0.0;
-    for (int c = 0; c < descriptors.cols; ++c) row[c] = static_cast<float>(std::sqrt(std::abs(row[c]) * inv));
-  }
-}
-
-}  // namespace
 
 void SiftOptions::check() const {
   if (max_image_size < 16) throw InputError("max_image_size: must be at least 16 pixels, got " + std::to_string(max_image_size));

@@ -74,4 +74,18 @@ PreprocessedImage preprocessImage(const cv::Mat& rgb, const Intrinsics& camera, 
   return out;
 }
 
+cv::Mat1f preprocessDepthNearest(const cv::Mat1f& depth, const PreprocessGeometry& geometry) {
+  cv::Mat1f out(geometry.height, geometry.width, 0.0f);
+  for (int y = 0; y < geometry.height; ++y) {
+    for (int x = 0; x < geometry.width; ++x) {
+      const Eigen::Vector2d original = geometry.toOriginal({x, y});
+      const long u = std::lround(original.x()), v = std::lround(original.y());
+      if (u < 0 || v < 0 || u >= depth.cols || v >= depth.rows) continue;
+      const float d = depth(static_cast<int>(v), static_cast<int>(u));
+      if (std::isfinite(d) && d > 0) out(y, x) = d;
+    }
+  }
+  return out;
+}
+
 }  // namespace ffloc

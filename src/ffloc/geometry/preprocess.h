@@ -42,4 +42,8 @@ struct PreprocessedImage {
 PreprocessedImage preprocessImage(const cv::Mat& rgb, const Intrinsics& camera,
                                   const PreprocessOptions& options = {});
 
+// Nearest-neighbour resampling of a depth map (in the original image grid) into the
+// preprocessed image grid; 0 (and non-finite or non-positive depth) becomes invalid, 0.
+cv::Mat1f preprocessDepthNearest(const cv::Mat1f& depth, const PreprocessGeometry& geometry);
+
 }  // namespace ffloc

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <opencv2/core.hpp>
 #include <vector>
 
 #include "ffloc/geometry/camera.h"
@@ -22,5 +23,10 @@ Ray pixelRay(const Intrinsics& camera, const Pose& camera_to_world, const Eigen:
 // camera.width x camera.height, row-major (token n = row n / cols, col n % cols). The centre of
 // patch (r, c) is pixel ((c + 0.5) * patch - 0.5, (r + 0.5) * patch - 0.5).
 std::vector<Ray> patchRays(const Intrinsics& camera, const Pose& camera_to_world, int patch_size = 16);
+
+// The world point seen at each patch centre (as patchRays), from the image's z-depth map in
+// the same pixel grid, read at the nearest pixel; NaN where the depth there is 0 (missing).
+std::vector<Eigen::Vector3d> patchCentrePoints(const cv::Mat1f& depth, const Intrinsics& camera,
+                                               const Pose& camera_to_world, int patch_size = 16);
 
 }  // namespace ffloc

@@ -22,6 +22,7 @@ constexpr const char* kVladVocabularyTensor = "vlad_vocabulary";
 constexpr const char* kVladDescriptorsTensor = "vlad_descriptors";
 
 std::string tokensTensorName(size_t index) { return "tokens." + std::to_string(index); }
+std::string pointsTensorName(size_t index) { return "points." + std::to_string(index); }
 
 // Sides of an image, in pixels, beyond any camera; and token widths beyond any model.
 constexpr int64_t kMaxImageSide = 1 << 20;
@@ -103,6 +104,19 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
     checksums[view.name] = hex64(fnv1a64(view.data, view.nbytes));
     tensors.push_back(view);
     descriptors.insert(descriptors.end(), image.descriptor.begin(), image.descriptor.end());
+    if (!image.token_points.empty()) {
+      if (image.token_points.size() != 3 * image.tokenCount())
+        throw InputError(where + ": " + std::to_string(image.token_points.size()) + " point values for " +
+                         std::to_string(image.tokenCount()) + " tokens");
+      TensorView points;
+      points.name = pointsTensorName(i);
+      points.dtype = DType::kF32;
+      points.shape = {static_cast<int64_t>(image.tokenCount()), 3};
+      points.data = reinterpret_cast<const uint8_t*>(image.token_points.data());
+      points.nbytes = image.token_points.size() * sizeof(float);
+      checksums[points.name] = hex64(fnv1a64(points.data, points.nbytes));
+      tensors.push_back(points);
+    }
 
     const Intrinsics& k = image.intrinsics;
     const PreprocessGeometry& g = image.geometry;
@@ -291,6 +305,19 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     std::memcpy(image.descriptor.data(), descriptors.data + i * descriptor_dim * sizeof(float),
                 descriptor_dim * sizeof(float));
     if (vlad) image.vlad_descriptor.assign(vlad + i * vlad_dim, vlad + (i + 1) * vlad_dim);
+    if (archive->contains(pointsTensorName(i))) {
+      const TensorView& points = verified(pointsTensorName(i));
+      if (points.dtype != DType::kF32 || points.shape != std::vector<int64_t>{static_cast<int64_t>(image.tokenCount()), 3})
+        throwInputError(file, 0, "tensor '" + points.name + "' of image '" + image.name + "' has shape " +
+                                     points.shapeString() + " " + toString(points.dtype) + ", expected (" +
+                                     std::to_string(image.tokenCount()) + ", 3) F32");
+      image.token_points.resize(3 * image.tokenCount());
+      std::memcpy(image.token_points.data(), points.data, points.nbytes);
+      // NaN marks a token without a point; an infinite coordinate is damage.
+      for (float value : image.token_points) {
+        if (std::isinf(value)) throwInputError(file, 0, "tensor '" + points.name + "' holds infinite values");
+      }
+    }
     map.images.push_back(std::move(image));
   }
   return map;

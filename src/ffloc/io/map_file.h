@@ -26,6 +26,10 @@ struct MapImage {
   std::vector<uint16_t> tokens;      // fp16 bits, row-major (token, channel)
   std::vector<float> descriptor;     // global descriptor for retrieval
   std::vector<float> vlad_descriptor;  // the classical one, when the map has a VLAD vocabulary
+  // Each token's 3D point (world frame, scene units), row-major (token, xyz), NaN where the token
+  // has none; empty when the mapping frame had no depth. Models with a point encoder or a
+  // matching head use them (fastforward_config.h).
+  std::vector<float> token_points;
 
   size_t tokenCount() const { return static_cast<size_t>(grid_rows) * grid_cols; }
 };

@@ -13,7 +13,8 @@ void Dust3rConfig::validate() const {
     throwInputError("Dust3rConfig", 0, field + ": " + what);
   };
   if (patch_size <= 0) fail("patch_size", "must be positive");
-  if (enc_dim <= 0 || enc_depth <= 0 || enc_heads <= 0) fail("enc", "sizes must be positive");
+  // No encoder block is a valid network: a frozen classical encoder feeds the decoder directly.
+  if (enc_dim <= 0 || enc_depth < 0 || enc_heads <= 0) fail("enc", "width and heads must be positive, depth not negative");
   if (dec_dim <= 0 || dec_heads <= 0) fail("dec", "sizes must be positive");
   // Fewer layers would make two DPT hooks read the same decoder layer.
   if (dec_depth < 4) fail("dec_depth", "must be at least 4 for the DPT hooks");

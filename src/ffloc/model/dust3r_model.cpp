@@ -73,11 +73,13 @@ Dust3rModel::Dust3rModel(const Dust3rConfig& config) : config_(config) {
   heads_[1] = DptHead(c.head, dim_tokens);
 }
 
-void Dust3rModel::registerBackbone(ParameterTable& table) {
-  table.add("mask_token", {1, 1, config_.dec_dim}, &mask_token_);
-  patch_embed_.registerIn(table, "patch_embed.proj");
-  for (size_t i = 0; i < enc_blocks_.size(); ++i) enc_blocks_[i].registerIn(table, "enc_blocks." + std::to_string(i));
-  enc_norm_.registerIn(table, "enc_norm");
+void Dust3rModel::registerBackbone(ParameterTable& table, bool with_encoder) {
+  if (with_encoder) {
+    table.add("mask_token", {1, 1, config_.dec_dim}, &mask_token_);
+    patch_embed_.registerIn(table, "patch_embed.proj");
+    for (size_t i = 0; i < enc_blocks_.size(); ++i) enc_blocks_[i].registerIn(table, "enc_blocks." + std::to_string(i));
+    enc_norm_.registerIn(table, "enc_norm");
+  }
   decoder_embed_.registerIn(table, "decoder_embed");
   for (size_t i = 0; i < dec_blocks_.size(); ++i) dec_blocks_[i].registerIn(table, "dec_blocks." + std::to_string(i));
   dec_norm_.registerIn(table, "dec_norm");
@@ -85,13 +87,14 @@ void Dust3rModel::registerBackbone(ParameterTable& table) {
 }
 
 void Dust3rModel::registerHeads(ParameterTable& table, Dust3rHeads heads) {
+  if (heads == Dust3rHeads::kNone) return;
   heads_[0].registerIn(table, "downstream_head1.dpt");
   if (heads == Dust3rHeads::kBoth) heads_[1].registerIn(table, "downstream_head2.dpt");
 }
 
-ParameterTable Dust3rModel::parameterTable(Dust3rHeads heads) {
+ParameterTable Dust3rModel::parameterTable(Dust3rHeads heads, bool with_encoder) {
   ParameterTable table;
-  registerBackbone(table);
+  registerBackbone(table, with_encoder);
   registerHeads(table, heads);
   return table;
 }
@@ -108,7 +111,7 @@ void Dust3rModel::to(at::Device device, at::ScalarType backbone_dtype, at::Scala
     }
   }
   ParameterTable backbone, heads;
-  registerBackbone(backbone);
+  registerBackbone(backbone, true);
   registerHeads(heads, Dust3rHeads::kBoth);
   for (const auto& entry : backbone.entries()) {
     if (entry.tensor->defined()) *entry.tensor = entry.tensor->to(device, backbone_dtype);

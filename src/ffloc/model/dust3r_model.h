@@ -39,8 +39,9 @@ Dust3rPointMap pointsFromRaw(const at::Tensor& channels_last);
 // The same for a (B, 4, H, W) DPT output: (B, H, W, 3) points, (B, H, W) confidence.
 Dust3rPointMap pointMapFromRaw(const at::Tensor& raw);
 
-// Which DPT heads a model holds. FastForward keeps only the first (the query head).
-enum class Dust3rHeads { kBoth, kFirstOnly };
+// Which DPT heads a model holds. FastForward keeps only the first (the query head), or none
+// when another head predicts the query's points.
+enum class Dust3rHeads { kBoth, kFirstOnly, kNone };
 
 // Patch (row, col) positions of an image of rows x cols patches, row-major: (batch, rows*cols, 2)
 // int64.
@@ -63,8 +64,9 @@ class Dust3rModel {
   at::Device device() const { return device_; }
 
   // The state_dict (1009 keys for the large config), pointing into this model: rebuild it after
-  // the model is moved.
-  ParameterTable parameterTable(Dust3rHeads heads = Dust3rHeads::kBoth);
+  // the model is moved. Without the encoder (a model fed by another tokeniser) the table starts
+  // at decoder_embed.
+  ParameterTable parameterTable(Dust3rHeads heads = Dust3rHeads::kBoth, bool with_encoder = true);
   // Strict load (see loadParameters); the tensors then get the current dtype and device.
   void loadWeights(const TensorArchive& archive);
   // Moves every tensor to `device`, casting the backbone to `backbone_dtype` and the heads to
@@ -90,7 +92,7 @@ class Dust3rModel {
                                TensorTrace* trace = nullptr) const;
 
  private:
-  void registerBackbone(ParameterTable& table);
+  void registerBackbone(ParameterTable& table, bool with_encoder);
   void registerHeads(ParameterTable& table, Dust3rHeads heads);
 
   Dust3rConfig config_;

@@ -7,21 +7,18 @@
 
 #include "ffloc/io/tensor_archive.h"
 #include "ffloc/model/dust3r_model.h"
+#include "ffloc/model/fastforward_config.h"
+#include "ffloc/model/matching_head.h"
+#include "ffloc/model/point_encoding.h"
 #include "ffloc/model/ray_encoding.h"
 
 namespace ffloc {
 
 // FastForward (paper, section 3): the query image and a map of N tokens sampled from K mapping
-// images go through DUSt3R's two-branch decoder; the query branch (dec_blocks) feeds a DPT head
-// that predicts query 3D coordinates in the normalised scene, the map branch (dec_blocks2) a
-// one-layer head that predicts the map tokens' coordinates (a training signal).
-struct FastForwardConfig {
-  Dust3rConfig dust3r;
-  RayEncoderConfig rays;
-  // Long side of the images the model was trained on; mapping and localisation preprocess to it
-  // unless told otherwise. DUSt3R's 512; a FastForward checkpoint records its own.
-  int64_t input_long_side = 512;
-};
+// images go through DUSt3R's two-branch decoder; the query branch (dec_blocks) feeds the query
+// head (DPT, or the matching head of fastforward_config.h) that predicts query 3D coordinates in
+// the normalised scene, the map branch (dec_blocks2) a one-layer head that predicts the map
+// tokens' coordinates (a training signal).
 
 // N map tokens, each remembering where it came from.
 struct MapTokens {
@@ -30,6 +27,10 @@ struct MapTokens {
   at::Tensor rays;         // (1, N, 6) float32 normalised camera origin + viewing direction
   at::Tensor image_index;  // (1, N) int64 index of the mapping image
   at::Tensor token_index;  // (1, N) int64 token index inside that image
+  // The token's 3D point in the normalised frame where its mapping frame had one (depth or a
+  // triangulated point), for models with a point encoder or a matching head; else undefined.
+  at::Tensor points;       // (1, N, 3) float32, 0 where none
+  at::Tensor point_valid;  // (1, N) bool
 };
 
 // `count` distinct (image, token) pairs drawn uniformly from mapping images with the given token
@@ -38,14 +39,16 @@ struct MapTokens {
 at::Tensor sampleMapTokenIndices(const std::vector<int64_t>& tokens_per_image, int64_t count, uint64_t seed);
 
 // Gathers the map tokens listed in `indices` ((M, 2) image, token) from per-image encodings
-// (batch 1) and per-image ray tensors ((1, T_k, 6)). InputError for out-of-range indices or
-// inconsistent inputs.
+// (batch 1), per-image ray tensors ((1, T_k, 6)) and, when given, per-image point tensors
+// ((1, T_k, 3) normalised, non-finite where a token has no point). InputError for out-of-range
+// indices or inconsistent inputs.
 MapTokens gatherMapTokens(const std::vector<Dust3rEncoding>& images, const std::vector<at::Tensor>& rays,
-                          const at::Tensor& indices);
+                          const at::Tensor& indices, const std::vector<at::Tensor>& points = {});
 
 struct FastForwardPrediction {
   Dust3rPointMap query;  // (1, H, W, 3) / (1, H, W), normalised scene frame
   Dust3rPointMap map;    // (1, N, 3) / (1, N)
+  at::Tensor match_logits;  // the matching head's (B, T_query, N + 1) logits; undefined for DPT
 };
 
 class FastForwardModel {
@@ -56,7 +59,8 @@ class FastForwardModel {
   const Dust3rModel& dust3r() const { return dust3r_; }
 
   // DUSt3R's keys without downstream_head2, plus ray_embed.fc{1,2}.{weight,bias} and
-  // map_head.{weight,bias}.
+  // map_head.{weight,bias}; with the dense-sift encoder no encoder keys, with a point encoder
+  // point_embed.fc{1,2}.*, with the matching head match_head.* instead of downstream_head1.
   ParameterTable parameterTable();
   // Strict load of a FastForward checkpoint.
   void loadWeights(const TensorArchive& archive);
@@ -64,11 +68,14 @@ class FastForwardModel {
   // (its second head is ignored); the ray MLP's first layer and the map head Xavier-uniform with
   // zero biases from `seed`, the ray MLP's last layer zero so that map tokens start as DUSt3R's.
   void initializeFromDust3r(const TensorArchive& dust3r, uint64_t seed = 0);
+  // The matching family's start (matching_head.h): the untrained model is nearest-neighbour
+  // matching of its encoder's descriptors. Other parameters keep their values.
+  void initializeMatchingHeadAsNearestNeighbour();
   // As Dust3rModel::to; the ray MLP follows the backbone dtype, the map head stays float32.
   void to(at::Device device, at::ScalarType backbone_dtype, at::ScalarType head_dtype = at::kFloat);
 
-  // Shared encoder (see Dust3rModel::encode).
-  Dust3rEncoding encode(const at::Tensor& images) const { return dust3r_.encode(images); }
+  // Shared encoder: DUSt3R's ViT (Dust3rModel::encode) or dense SIFT, in the backbone dtype.
+  Dust3rEncoding encode(const at::Tensor& images) const;
 
   // Trace names: the query is "view1", the map "view2" (DUSt3R's names), plus "map.rays_embed".
   FastForwardPrediction forward(const Dust3rEncoding& query, const MapTokens& map,
@@ -80,7 +87,9 @@ class FastForwardModel {
   FastForwardConfig config_;
   Dust3rModel dust3r_;
   RayEncoder ray_embed_;
+  PointEncoder point_embed_;
   nn::Linear map_head_;
+  MatchingHead match_head_;
 };
 
 }  // namespace ffloc

@@ -33,12 +33,16 @@ MapLayout planMap(const std::vector<MapCamera>& cameras, int patch_size, int64_t
   return layout;
 }
 
-MapTokens assembleMapTokens(const MapLayout& layout, const std::vector<Dust3rEncoding>& encodings) {
-  return gatherMapTokens(encodings, layout.rays, layout.indices);
+MapTokens assembleMapTokens(const MapLayout& layout, const std::vector<Dust3rEncoding>& encodings,
+                            const std::vector<at::Tensor>& points) {
+  return gatherMapTokens(encodings, layout.rays, layout.indices, points);
 }
 
 Correspondences queryCorrespondences(const Dust3rPointMap& query, int64_t batch_index,
-                                     const SceneNormalization& normalization, const PreprocessGeometry* to_original) {
+                                     const SceneNormalization& normalization, int64_t grid_stride,
+                                     const PreprocessGeometry* to_original) {
+  if (grid_stride < 1) throw std::invalid_argument("queryCorrespondences: grid_stride must be at least 1");
+  const double stride = static_cast<double>(grid_stride);
   const at::Tensor points = query.pts3d[batch_index].to(at::kDouble).contiguous();  // (H, W, 3)
   const at::Tensor confidence = query.conf[batch_index].to(at::kFloat).contiguous();
   const int64_t height = points.size(0), width = points.size(1);
@@ -51,7 +55,7 @@ Correspondences queryCorrespondences(const Dust3rPointMap& query, int64_t batch_
       const int64_t i = y * width + x;
       const Eigen::Vector3d point(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
       if (!point.allFinite() || !std::isfinite(conf[i])) continue;
-      const Eigen::Vector2d pixel(static_cast<double>(x), static_cast<double>(y));
+      const Eigen::Vector2d pixel((x + 0.5) * stride - 0.5, (y + 0.5) * stride - 0.5);
       out.add(to_original ? to_original->toOriginal(pixel) : pixel, normalization.toWorld(point), conf[i]);
     }
   }

@@ -32,14 +32,18 @@ struct MapLayout {
 // InputError naming the image when a camera's size does not hold a whole token grid.
 MapLayout planMap(const std::vector<MapCamera>& cameras, int patch_size, int64_t token_count, uint64_t seed);
 
-// The layout's tokens gathered from the images' encodings (one per camera, batch 1).
-MapTokens assembleMapTokens(const MapLayout& layout, const std::vector<Dust3rEncoding>& encodings);
+// The layout's tokens gathered from the images' encodings (one per camera, batch 1), with their
+// points when `points` holds one (1, T_k, 3) tensor per camera (normalised frame; NaN: none).
+MapTokens assembleMapTokens(const MapLayout& layout, const std::vector<Dust3rEncoding>& encodings,
+                            const std::vector<at::Tensor>& points = {});
 
-// Every pixel of sample `batch_index` of a query prediction with its point back in the world frame
-// (non-finite predictions skipped). Pixels stay in the prediction's grid, or go back to the
-// original image through `to_original`.
+// Every cell of sample `batch_index` of a query prediction with its point back in the world frame
+// (non-finite predictions skipped). Cell (x, y) is the preprocessed image's pixel
+// ((x + 0.5) s - 0.5, (y + 0.5) s - 0.5) for the model's grid stride s
+// (FastForwardConfig::queryGridStride: 1 for a per-pixel head), which then goes back to the
+// original image through `to_original` when given.
 Correspondences queryCorrespondences(const Dust3rPointMap& query, int64_t batch_index,
-                                     const SceneNormalization& normalization,
+                                     const SceneNormalization& normalization, int64_t grid_stride,
                                      const PreprocessGeometry* to_original = nullptr);
 
 }  // namespace ffloc

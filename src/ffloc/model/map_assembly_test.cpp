@@ -114,13 +114,13 @@ TEST(MapAssembly, QueryPointsGoBackToTheWorldAndTheOriginalPixels) {
   geometry.width = 3;
   geometry.height = 2;
 
-  const Correspondences grid = queryCorrespondences(query, 1, layout.normalization);
+  const Correspondences grid = queryCorrespondences(query, 1, layout.normalization, 1);
   ASSERT_EQ(grid.size(), 5u);  // the NaN pixel is left out
   EXPECT_EQ(grid.pixels[1], Eigen::Vector2d(1, 0));
   EXPECT_TRUE(grid.points[1].isApprox(layout.normalization.toWorld(Eigen::Vector3d(0.25, 0, 1.0))));
   EXPECT_EQ(grid.confidences[1], 2.0f);
 
-  const Correspondences original = queryCorrespondences(query, 1, layout.normalization, &geometry);
+  const Correspondences original = queryCorrespondences(query, 1, layout.normalization, 1, &geometry);
   EXPECT_TRUE(original.pixels[1].isApprox(geometry.toOriginal(Eigen::Vector2d(1, 0))));
   EXPECT_TRUE(original.pixels[1].isApprox(Eigen::Vector2d(2.5, 0.5)));
 }

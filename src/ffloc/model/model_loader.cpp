@@ -70,6 +70,11 @@ int64_t inputLongSide(const TensorArchive& archive, int64_t patch_size) {
   return value;
 }
 
+// The identity's size part: the network's widths and depths, and its family.
+std::string sizesName(const FastForwardConfig& c) {
+  return (c.encoder == TokenEncoderKind::kDenseSift ? "sift-" : "") + sizesName(c.dust3r);
+}
+
 LoadedModel randomModel(const std::string& spec) {
   // "random:<preset>[:<seed>]"
   const std::string rest = spec.substr(std::strlen("random:"));
@@ -84,15 +89,22 @@ LoadedModel randomModel(const std::string& spec) {
   }
   FastForwardConfig config;
   try {
-    config.dust3r = Dust3rConfig::preset(preset);
+    config = FastForwardConfig::preset(preset);
   } catch (const InputError&) {
-    throwInputError("model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny, small or large)");
+    throwInputError("model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny, small, large, sift-tiny or sift-small)");
   }
   LoadedModel loaded;
   loaded.model = std::make_unique<FastForwardModel>(config);
   randomizeParameters(*loaded.model, seed);
-  loaded.id = "random-" + preset + "/" + sizesName(config.dust3r) + "/" + hex64(parameterFingerprint(*loaded.model));
-  loaded.description = "random " + preset + " FastForward (seed " + std::to_string(seed) + ", untrained)";
+  loaded.id = "random-" + preset + "/" + sizesName(config) + "/" + hex64(parameterFingerprint(*loaded.model));
+  if (config.query_head == QueryHeadKind::kMatching) {
+    loaded.model->initializeMatchingHeadAsNearestNeighbour();
+    loaded.id = "init-" + preset + "/" + sizesName(config) + "/" + hex64(parameterFingerprint(*loaded.model));
+    loaded.description = "untrained " + preset + " FastForward (seed " + std::to_string(seed) +
+                         "): nearest-neighbour matching of its dense-SIFT tokens";
+  } else {
+    loaded.description = "random " + preset + " FastForward (seed " + std::to_string(seed) + ", untrained)";
+  }
   return loaded;
 }
 
@@ -169,7 +181,23 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   } else {
     requireRegularFile(spec, "model weights: file");
     const auto archive = openTensorArchive(spec);
+    const auto architecture = archive->metadata().find("architecture");
     FastForwardConfig config;
+    if (architecture != archive->metadata().end() && archive->contains("map_head.weight")) {
+      nlohmann::json json;
+      try {
+        json = nlohmann::json::parse(architecture->second);
+      } catch (const nlohmann::json::exception&) {
+        throwInputError(spec, 0, "metadata 'architecture': not JSON");
+      }
+      config = fastForwardConfigFromJson(json, spec + ": metadata 'architecture'");
+      loaded.model = std::make_unique<FastForwardModel>(config);
+      loaded.model->loadWeights(*archive);
+      loaded.id = "fastforward/" + sizesName(config) + "/" + hex64(parameterFingerprint(*loaded.model));
+      loaded.description = "FastForward checkpoint " + spec;
+      loaded.model->to(at::kCPU, options.dtype, options.dtype);
+      return loaded;
+    }
     config.dust3r = configFromArchive(*archive);
     const std::string sizes = sizesName(config.dust3r);
     if (archive->contains("map_head.weight")) {

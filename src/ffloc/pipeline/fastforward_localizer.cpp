@@ -2,9 +2,12 @@
 #include "ffloc/pipeline/fastforward_localizer.h"
 
 #include <ATen/core/Tensor.h>
+#include <ATen/ops/empty.h>
 #include <ATen/ops/from_blob.h>
+#include <ATen/ops/full.h>
 #include <c10/core/InferenceMode.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -100,6 +103,25 @@ EncodedQuery FastForwardLocalizer::encode(const cv::Mat& rgb, const Intrinsics& 
   return query;
 }
 
+namespace {
+
+// A map image's token points in the query's normalised frame, (1, T, 3) with NaN where a token has
+// none; undefined when the image has no points.
+at::Tensor normalizedTokenPoints(const MapImage& image, const SceneNormalization& normalization) {
+  if (image.token_points.empty()) return {};
+  const int64_t count = static_cast<int64_t>(image.tokenCount());
+  at::Tensor out = at::empty({1, count, 3}, at::kFloat);
+  float* data = out.data_ptr<float>();
+  for (int64_t i = 0; i < count; ++i) {
+    const Eigen::Vector3d world(image.token_points[3 * i], image.token_points[3 * i + 1], image.token_points[3 * i + 2]);
+    const Eigen::Vector3d point = world.allFinite() ? normalization.normalize(world) : world;
+    for (int c = 0; c < 3; ++c) data[3 * i + c] = static_cast<float>(point[c]);
+  }
+  return out;
+}
+
+}  // namespace
+
 void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<size_t>& selected, uint64_t seed,
                                   const LocalizeOptions& options, QueryPrediction& out) const {
   out.camera = query.image.camera;
@@ -116,6 +138,7 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
 
   const at::ScalarType dtype = model_.dust3r().backboneDtype();
   std::vector<Dust3rEncoding> images;
+  std::vector<at::Tensor> points;  // per image, normalised; none unless every image has them
   for (size_t index : selected) {
     const MapImage& image = map_.images[index];
     const int64_t count = static_cast<int64_t>(image.tokenCount());
@@ -127,10 +150,16 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
     encoded.height = static_cast<int64_t>(image.grid_rows) * patch;
     encoded.width = static_cast<int64_t>(image.grid_cols) * patch;
     images.push_back(std::move(encoded));
+    points.push_back(normalizedTokenPoints(image, layout.normalization));
   }
-  const FastForwardPrediction prediction = model_.forward(query.encoding, assembleMapTokens(layout, images));
-  out.correspondences =
-      queryCorrespondences(prediction.query, 0, out.normalization, &query.image.preprocessed.geometry);
+  const bool has_points = std::any_of(points.begin(), points.end(), [](const at::Tensor& p) { return p.defined(); });
+  for (size_t i = 0; i < points.size() && has_points; ++i) {
+    if (!points[i].defined()) points[i] = at::full({1, images[i].tokens.size(1), 3}, NAN, at::kFloat);
+  }
+  const FastForwardPrediction prediction =
+      model_.forward(query.encoding, assembleMapTokens(layout, images, has_points ? points : std::vector<at::Tensor>{}));
+  out.correspondences = queryCorrespondences(prediction.query, 0, out.normalization, model_.config().queryGridStride(),
+                                             &query.image.preprocessed.geometry);
 }
 
 QueryPrediction FastForwardLocalizer::firstPrediction(const cv::Mat& rgb, const Intrinsics& intrinsics,

@@ -11,6 +11,9 @@
 #include "ffloc/classical/vlad.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
+#include "ffloc/data/depth.h"
+#include "ffloc/geometry/preprocess.h"
+#include "ffloc/geometry/rays.h"
 #include "ffloc/pipeline/prepared_image.h"
 #include "ffloc/pipeline/query_descriptor.h"
 
@@ -35,6 +38,16 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
   image.tokens.resize(static_cast<size_t>(half.numel()));
   std::memcpy(image.tokens.data(), half.data_ptr(), image.tokens.size() * sizeof(uint16_t));
   image.descriptor = encodingDescriptor(encoding, options.descriptor);
+  const FastForwardConfig& config = model.config();
+  if (frame.depth && (config.points.enabled() || config.query_head == QueryHeadKind::kMatching)) {
+    const cv::Mat1f depth = preprocessDepthNearest(readDepthMetres(frame), prepared.preprocessed.geometry);
+    const std::vector<Eigen::Vector3d> points =
+        patchCentrePoints(depth, image.intrinsics, frame.camera_to_world, static_cast<int>(patch));
+    image.token_points.reserve(3 * points.size());
+    for (const Eigen::Vector3d& point : points) {
+      for (int c = 0; c < 3; ++c) image.token_points.push_back(static_cast<float>(point[c]));
+    }
+  }
   return image;
 }
 

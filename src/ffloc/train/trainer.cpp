@@ -21,6 +21,7 @@
 #include "ffloc/train/autocast.h"
 #include "ffloc/train/confidence_loss.h"
 #include "ffloc/train/data_parallel.h"
+#include "ffloc/train/matching_loss.h"
 #include "ffloc/train/training_checkpoint.h"
 
 namespace ffloc {
@@ -114,6 +115,7 @@ uint64_t validationSampleSeed(uint64_t validation_seed, int64_t index) {
 
 struct Trainer::Losses {
   ConfidenceLossTerm query, map;
+  MatchingLossTerm match;  // the matching head's; loss undefined for a DPT head
   at::Tensor total;
   double scale = 1;
 };
@@ -240,6 +242,14 @@ std::vector<FastForwardPrediction> Trainer::predict(const std::vector<TrainingSa
     map.rays = stack(&MapTokens::rays);
     map.image_index = stack(&MapTokens::image_index);
     map.token_index = stack(&MapTokens::token_index);
+    // Every sampled token's point, from the mapping frames' depth as a map built with depth has.
+    std::vector<at::Tensor> points, point_valid;
+    for (size_t s : members) {
+      points.push_back(samples[s].map_points.to(device_));
+      point_valid.push_back(samples[s].map_valid.to(device_));
+    }
+    map.points = at::cat(points, 0);
+    map.point_valid = at::cat(point_valid, 0);
     const FastForwardPrediction batch = model_->forward(encode(at::cat(images, 0)), map);
     for (size_t i = 0; i < members.size(); ++i) {
       const int64_t row = static_cast<int64_t>(i);
@@ -248,18 +258,40 @@ std::vector<FastForwardPrediction> Trainer::predict(const std::vector<TrainingSa
       one.query.conf = batch.query.conf.narrow(0, row, 1);
       one.map.pts3d = batch.map.pts3d.narrow(0, row, 1);
       one.map.conf = batch.map.conf.narrow(0, row, 1);
+      if (batch.match_logits.defined()) one.match_logits = batch.match_logits.narrow(0, row, 1);
     }
   }
   return out;
 }
 
-Trainer::Losses Trainer::lossesOf(const Dust3rPointMap& query, const Dust3rPointMap& map,
-                                  const TrainingSample& sample) const {
+Trainer::Losses Trainer::lossesOf(const FastForwardPrediction& prediction, const TrainingSample& sample) const {
   Losses losses;
-  losses.query = confidenceLoss(query.pts3d, query.conf, sample.query_points, sample.query_valid, config_.alpha);
-  losses.map = confidenceLoss(map.pts3d, map.conf, sample.map_points, sample.map_valid, config_.alpha);
-  losses.total = losses.query.loss + losses.map.loss;
+  losses.map = confidenceLoss(prediction.map.pts3d, prediction.map.conf, sample.map_points, sample.map_valid, config_.alpha);
   losses.scale = sample.layout.normalization.scale;
+  if (!prediction.match_logits.defined()) {
+    losses.query = confidenceLoss(prediction.query.pts3d, prediction.query.conf, sample.query_points, sample.query_valid,
+                                  config_.alpha);
+    losses.total = losses.query.loss + losses.map.loss;
+    return losses;
+  }
+  const int64_t patch = model_->config().dust3r.patch_size;
+  const PatchGroundTruth truth = patchCentreGroundTruth(sample.query_points.to(device_), sample.query_valid.to(device_), patch);
+  losses.query = confidenceLoss(prediction.query.pts3d, prediction.query.conf, truth.points, truth.valid, config_.alpha);
+  // A token is the right match when its point lies within match_radius patch footprints of the
+  // patch's true point; the footprint grows with the distance from the query camera.
+  const at::Tensor points = truth.points.reshape({-1, 3}), valid = truth.valid.reshape({-1});
+  const Eigen::Vector3d centre = sample.layout.normalization.normalize(sample.query_pose).t;
+  const at::Tensor camera = at::tensor(std::vector<float>{static_cast<float>(centre.x()), static_cast<float>(centre.y()),
+                                                          static_cast<float>(centre.z())})
+                                .to(device_);
+  const at::Tensor radius = (points - camera).norm(2, -1) *
+                            (config_.match_radius * static_cast<double>(patch) / sample.query_camera.fx);
+  const at::Tensor targets = matchingTargets(points, valid, sample.map_points[0].to(device_),
+                                             sample.map_valid[0].to(device_), radius);
+  losses.match = matchingLoss(prediction.match_logits[0], targets);
+  // The map head's targets are the points its tokens already carry: logged, not trained on, so
+  // that its large early errors do not dominate the clipped gradient.
+  losses.total = losses.query.loss + config_.match_weight * losses.match.loss;
   return losses;
 }
 
@@ -269,11 +301,15 @@ BatchLosses Trainer::accumulateGradients(const std::vector<TrainingSample>& samp
   const std::vector<FastForwardPrediction> predictions = predict(samples);
   std::vector<at::Tensor> totals;
   for (size_t i = 0; i < samples.size(); ++i) {
-    const Losses losses = lossesOf(predictions[i].query, predictions[i].map, samples[i]);
+    const Losses losses = lossesOf(predictions[i], samples[i]);
     totals.push_back(losses.total);
     sums.loss += losses.total.item<double>();
     sums.query_loss += losses.query.loss.item<double>();
     sums.map_loss += losses.map.loss.item<double>();
+    if (losses.match.loss.defined()) {
+      sums.match_loss += losses.match.loss.item<double>();
+      sums.match_accuracy += losses.match.accuracy;
+    }
     sums.query_error += losses.query.error.item<double>() * losses.scale;
     sums.map_error += losses.map.error.item<double>() * losses.scale;
     ++sums.samples;
@@ -313,6 +349,8 @@ TrainingStepStats Trainer::step() {
     sums.map_loss += pass_sums.map_loss;
     sums.query_error += pass_sums.query_error;
     sums.map_error += pass_sums.map_error;
+    sums.match_loss += pass_sums.match_loss;
+    sums.match_accuracy += pass_sums.match_accuracy;
     sums.samples += pass_sums.samples;
   }
   TrainingStepStats stats = update(sums);
@@ -338,14 +376,14 @@ TrainingStepStats Trainer::update(BatchLosses sums) {
   auto start = std::chrono::steady_clock::now();
   if (parallel_) {
     parallel_->allReduceSum(gradientsOf(optimizer_->parameters()));
-    at::Tensor totals = at::tensor(std::vector<double>{sums.loss, sums.query_loss, sums.map_loss, sums.query_error,
-                                                       sums.map_error, static_cast<double>(sums.samples),
-                                                       stop_requested_ ? 1.0 : 0.0},
+    at::Tensor totals = at::tensor(std::vector<double>{sums.loss, sums.query_loss, sums.map_loss, sums.match_loss,
+                                                       sums.match_accuracy, sums.query_error, sums.map_error,
+                                                       static_cast<double>(sums.samples), stop_requested_ ? 1.0 : 0.0},
                                    at::TensorOptions().dtype(at::kDouble));
     parallel_->allReduceSum({totals});
     const double* reduced = totals.data_ptr<double>();
-    sums = {reduced[0], reduced[1], reduced[2], reduced[3], reduced[4], static_cast<int64_t>(reduced[5])};
-    stop_requested_ = reduced[6] > 0;
+    sums = {reduced[0], reduced[1], reduced[2], reduced[3], reduced[4], reduced[5], reduced[6], static_cast<int64_t>(reduced[7])};
+    stop_requested_ = reduced[8] > 0;
     stats.allreduce_seconds = secondsSince(start);
   }
   start = std::chrono::steady_clock::now();
@@ -359,6 +397,8 @@ TrainingStepStats Trainer::update(BatchLosses sums) {
   stats.loss = sums.loss / count;
   stats.query_loss = sums.query_loss / count;
   stats.map_loss = sums.map_loss / count;
+  stats.match_loss = sums.match_loss / count;
+  stats.match_accuracy = sums.match_accuracy / count;
   stats.query_error = sums.query_error / count;
   stats.map_error = sums.map_error / count;
   stats.samples = sums.samples;
@@ -379,14 +419,20 @@ ValidationStats Trainer::validate() {
   for (int i = 0; i < config_.validation_samples; ++i) {
     const TrainingSample sample = validationSample(i);
     const FastForwardPrediction prediction = predict({sample}).front();
-    const Losses losses = lossesOf(prediction.query, prediction.map, sample);
+    const Losses losses = lossesOf(prediction, sample);
     stats.loss += losses.total.item<double>();
     stats.query_error += losses.query.error.item<double>() * losses.scale;
     stats.map_error += losses.map.error.item<double>() * losses.scale;
+    if (losses.match.loss.defined()) {
+      stats.match_loss += losses.match.loss.item<double>();
+      stats.match_accuracy += losses.match.accuracy;
+    }
     ++stats.samples;
 
     const PnpResult pnp =
-        estimatePose(queryCorrespondences(prediction.query, 0, sample.layout.normalization), sample.query_camera);
+        estimatePose(queryCorrespondences(prediction.query, 0, sample.layout.normalization,
+                                          model_->config().queryGridStride()),
+                     sample.query_camera);
     const bool solved = pnp.status == PnpStatus::kSuccess;
     const double infinity = std::numeric_limits<double>::infinity();
     const double t = solved ? translationError(pnp.camera_to_world, sample.query_pose) : infinity;
@@ -399,6 +445,8 @@ ValidationStats Trainer::validate() {
   stats.loss /= stats.samples;
   stats.query_error /= stats.samples;
   stats.map_error /= stats.samples;
+  stats.match_loss /= stats.samples;
+  stats.match_accuracy /= stats.samples;
   stats.within_10cm_10deg /= stats.samples;
   stats.within_25cm_5deg /= stats.samples;
   stats.median_translation_error = median(translation_errors);

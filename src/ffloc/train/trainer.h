@@ -21,6 +21,9 @@ struct TrainingStepStats {
   int64_t step = 0;  // 1-based: the number of updates done after this one
   // Means over the step's global batch (every rank's samples).
   double loss = 0, query_loss = 0, map_loss = 0;
+  // The matching head's cross-entropy and the share of patches whose best token is the target
+  // (matching_loss.h); 0 for a DPT head.
+  double match_loss = 0, match_accuracy = 0;
   // Mean ||X - Xgt|| times the sample's scene scale s: metres on metric data.
   double query_error = 0, map_error = 0;
   double learning_rate = 0;
@@ -41,6 +44,7 @@ struct TrainingStepStats {
 // a failed PnP counts as an infinite error).
 struct ValidationStats {
   double loss = 0, query_error = 0, map_error = 0;  // means over the samples
+  double match_loss = 0, match_accuracy = 0;
   double median_translation_error = 0;              // of the PnP poses
   double median_rotation_error_deg = 0;
   double within_10cm_10deg = 0;  // fraction of samples
@@ -50,7 +54,7 @@ struct ValidationStats {
 
 // Sums over some samples of what TrainingStepStats reports as means.
 struct BatchLosses {
-  double loss = 0, query_loss = 0, map_loss = 0, query_error = 0, map_error = 0;
+  double loss = 0, query_loss = 0, map_loss = 0, match_loss = 0, match_accuracy = 0, query_error = 0, map_error = 0;
   int64_t samples = 0;
 };
 
@@ -115,7 +119,7 @@ class Trainer {
  private:
   struct Losses;
   std::vector<FastForwardPrediction> predict(const std::vector<TrainingSample>& samples) const;
-  Losses lossesOf(const Dust3rPointMap& query, const Dust3rPointMap& map, const TrainingSample& sample) const;
+  Losses lossesOf(const FastForwardPrediction& prediction, const TrainingSample& sample) const;
   TrainingStepStats update(BatchLosses sums);
   TrainingSample drawTrainingSample(int64_t ordinal);
 

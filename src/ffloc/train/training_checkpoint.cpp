@@ -110,6 +110,8 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   fs::remove_all(partial);
   fs::create_directories(partial);
   const std::string config_json = toJson(config).dump();
+  nlohmann::json architecture = toJson(model.config());
+  architecture["input_long_side"] = config.long_side;
 
   std::vector<std::pair<std::string, at::Tensor>> weights;
   const ParameterTable table = model.parameterTable();
@@ -118,6 +120,7 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
                {{"format", "ffloc-fastforward"},
                 {"step", std::to_string(step)},
                 {"input_long_side", std::to_string(config.long_side)},
+                {"architecture", architecture.dump()},
                 {"world_size", std::to_string(world_size)},
                 {"training_config", config_json}});
   writeTensors(partial / "optimizer.safetensors", optimizer.state(),

@@ -36,6 +36,8 @@ const std::map<std::string, FieldBinding>& fieldBindings() {
       {"long_side", bindField(&TrainingConfig::long_side)},
       {"colour_jitter", bindField(&TrainingConfig::colour_jitter)},
       {"alpha", bindField(&TrainingConfig::alpha)},
+      {"match_weight", bindField(&TrainingConfig::match_weight)},
+      {"match_radius", bindField(&TrainingConfig::match_radius)},
       {"steps", bindField(&TrainingConfig::steps)},
       {"warmup_steps", bindField(&TrainingConfig::warmup_steps)},
       {"learning_rate", bindField(&TrainingConfig::learning_rate)},
@@ -82,6 +84,8 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (long_side < 16) fail("long_side", "must be at least 16");
   if (!(colour_jitter >= 0 && colour_jitter < 1)) fail("colour_jitter", "must be in [0, 1)");
   if (!(alpha > 0)) fail("alpha", "must be positive");
+  if (!(match_weight >= 0 && match_weight <= 1e3)) fail("match_weight", "must be in [0, 1000]");
+  if (!(match_radius > 0 && match_radius <= 16)) fail("match_radius", "must be in (0, 16] patch footprints");
   if (steps < 1) fail("steps", "must be positive");
   if (warmup_steps < 0 || warmup_steps > steps) fail("warmup_steps", "must be in [0, steps]");
   if (!(learning_rate > 0)) fail("learning_rate", "must be positive");

@@ -31,6 +31,11 @@ struct TrainingConfig {
 
   // Loss (confidence_loss.h).
   double alpha = 0.2;
+  // The matching head's cross-entropy (matching_loss.h), for models that have one: its weight
+  // beside Eq. 2, and the radius, in patch footprints at the patch's depth, within which a map
+  // token's point counts as the patch's match.
+  double match_weight = 1.0;
+  double match_radius = 0.5;
 
   // Optimiser and schedule.
   int64_t steps = 1000;

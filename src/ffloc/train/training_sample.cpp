@@ -1,4 +1,3 @@
-#include "ffloc/geometry/preprocess.h"
 #include "ffloc/train/training_sample.h"
 
 #include <ATen/ops/from_blob.h>
@@ -12,6 +11,8 @@
 #include "ffloc/core/random.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/data/overlap.h"
+#include "ffloc/geometry/preprocess.h"
+#include "ffloc/geometry/rays.h"
 #include "ffloc/model/map_assembly.h"
 #include "ffloc/model/image_tensor.h"
 
@@ -48,20 +49,6 @@ Eigen::Vector3d normalizedPoint(const Frame& frame, const SceneNormalization& no
 }
 
 }  // namespace
-
-cv::Mat1f preprocessDepthNearest(const cv::Mat1f& depth, const PreprocessGeometry& geometry) {
-  cv::Mat1f out(geometry.height, geometry.width, 0.0f);
-  for (int y = 0; y < geometry.height; ++y) {
-    for (int x = 0; x < geometry.width; ++x) {
-      const Eigen::Vector2d original = geometry.toOriginal({x, y});
-      const long u = std::lround(original.x()), v = std::lround(original.y());
-      if (u < 0 || v < 0 || u >= depth.cols || v >= depth.rows) continue;
-      const float d = depth(static_cast<int>(v), static_cast<int>(u));
-      if (std::isfinite(d) && d > 0) out(y, x) = d;
-    }
-  }
-  return out;
-}
 
 TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options)
     : scenes_(std::move(scenes)), options_(options) {
@@ -214,15 +201,14 @@ TrainingSample TrainingSampler::sample(uint64_t seed, int64_t map_tokens) {
     const int64_t* pairs = out.layout.indices.data_ptr<int64_t>();
     float* map_points = out.map_points.data_ptr<float>();
     bool* map_valid = out.map_valid.data_ptr<bool>();
+    std::vector<std::vector<Eigen::Vector3d>> patch_points;
+    for (const PreparedFrame* m : mapping_frames) {
+      patch_points.push_back(patchCentrePoints(m->depth, m->frame.intrinsics, m->frame.camera_to_world, patch));
+    }
     for (int64_t i = 0; i < n; ++i) {
-      const PreparedFrame& m = *mapping_frames[pairs[2 * i]];
-      const int64_t cols = m.depth.cols / patch;
-      const int64_t row = pairs[2 * i + 1] / cols, col = pairs[2 * i + 1] % cols;
-      // The patch centre, where the token's ray goes (rays.h), and the depth of the pixel there.
-      const double u = (col + 0.5) * patch - 0.5, v = (row + 0.5) * patch - 0.5;
-      const float d = m.depth(static_cast<int>(std::lround(v)), static_cast<int>(std::lround(u)));
-      if (d <= 0) continue;
-      const Eigen::Vector3d p = normalizedPoint(m.frame, out.layout.normalization, u, v, d);
+      const Eigen::Vector3d& world = patch_points[pairs[2 * i]][pairs[2 * i + 1]];
+      if (!world.allFinite()) continue;
+      const Eigen::Vector3d p = out.layout.normalization.normalize(world);
       for (int c = 0; c < 3; ++c) map_points[3 * i + c] = static_cast<float>(p[c]);
       map_valid[i] = true;
     }

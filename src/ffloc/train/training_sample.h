@@ -90,8 +90,4 @@ class TrainingSampler {
   std::map<std::tuple<size_t, size_t, size_t>, double> overlaps_;
 };
 
-// Nearest-neighbour resampling of a depth map (in the original image grid) into the
-// preprocessed image grid; 0 stays invalid.
-cv::Mat1f preprocessDepthNearest(const cv::Mat1f& depth, const PreprocessGeometry& geometry);
-
 }  // namespace ffloc
