@@ -11,12 +11,15 @@
 
 #include "command_model.h"
 #include "commands.h"
+#include "ffloc/classical/sift_features.h"
+#include "ffloc/classical/vlad.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/io/image.h"
 #include "ffloc/io/map_file.h"
+#include "ffloc/localization/localizer.h"
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/query_descriptor.h"
@@ -35,6 +38,7 @@ struct RetrievalArguments {
   size_t max_queries = 0;
   uint64_t seed = 0;
   std::string json_path;
+  std::string retrieval = "encoder";
   bool quiet = false;
 };
 
@@ -95,6 +99,9 @@ void runRetrieval(const RetrievalArguments& args) {
     throwInputError(args.map_path, 0, "token width " + std::to_string(map.token_dim) + " differs from the model's " +
                                           std::to_string(enc_dim));
 
+  const FastForwardRetrieval retrieval = parseFastForwardRetrieval(args.retrieval);
+  if (retrieval == FastForwardRetrieval::kVlad && map.vlad_centres.empty())
+    throwInputError(args.map_path, 0, "the map has no VLAD vocabulary (build it with 'ffloc map --vlad')");
   const Scene scene = loadDataset(args.dataset, args.format);
   requireSplits(scene);
   checkMapAgainstDataset(map, args.map_path, scene, enc_dim);
@@ -109,8 +116,12 @@ void runRetrieval(const RetrievalArguments& args) {
   std::vector<std::vector<float>> mapping_descriptors, query_descriptors;
   for (const MapImage& image : map.images) {
     mapping_poses.push_back(image.camera_to_world);
-    mapping_descriptors.push_back(image.descriptor);
+    mapping_descriptors.push_back(retrieval == FastForwardRetrieval::kVlad ? image.vlad_descriptor : image.descriptor);
   }
+  const VladVocabulary vocabulary =
+      map.vlad_centres.empty() ? VladVocabulary()
+                               : VladVocabulary(Eigen::Map<const VladVocabulary::RowMatrixXf>(
+                                     map.vlad_centres.data(), static_cast<Eigen::Index>(map.vlad_centres.size() / 128), 128));
   // The map does not record its preprocessing and pooling settings; `ffloc map` uses the defaults.
   const MappingOptions mapping_options;
   ProgressBar progress("encoding queries", query_frames.size(), args.quiet);
@@ -118,8 +129,14 @@ void runRetrieval(const RetrievalArguments& args) {
   for (size_t i = 0; i < query_frames.size(); ++i) {
     const Frame& frame = scene.frames[query_frames[i]];
     const auto start = std::chrono::steady_clock::now();
-    query_descriptors.push_back(queryDescriptor(*model.model, readImageRgb(frame.image_path), frame.intrinsics,
-                                                frame.name, mapping_options.long_side, mapping_options.descriptor));
+    const cv::Mat rgb = readImageRgb(frame.image_path);
+    if (retrieval == FastForwardRetrieval::kVlad) {
+      const Eigen::VectorXf vlad = vocabulary.describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name).descriptors);
+      query_descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
+    } else {
+      query_descriptors.push_back(queryDescriptor(*model.model, rgb, frame.intrinsics, frame.name,
+                                                  mapping_options.long_side, mapping_options.descriptor));
+    }
     encoding_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     query_poses.push_back(frame.camera_to_world);
     progress.update(i + 1);
@@ -158,6 +175,7 @@ void runRetrieval(const RetrievalArguments& args) {
                               {"mapping_images", map.images.size()},
                               {"queries", query_frames.size()},
                               {"random_seed", args.seed},
+                              {"retrieval", args.retrieval},
                               {"recall", recall},
                               {"median_rank", result.median_rank},
                               {"encoding_ms_per_query", encoding_ms},
@@ -183,6 +201,10 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--max-queries", args->max_queries, "Measure at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the random selection")->capture_default_str();
+  cmd->add_option("--retrieval", args->retrieval,
+                  "What ranks the mapping images: encoder (the model's pooled tokens) or vlad (the classical "
+                  "descriptor; the map must have been built with --vlad)")
+      ->capture_default_str();
   cmd->add_option("--json", args->json_path, "Write the recall table and per-query ranks as JSON here");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   cmd->callback([args, &run] {
