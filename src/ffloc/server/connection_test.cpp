@@ -12,6 +12,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <mutex>
+#include <sstream>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <thread>
@@ -220,6 +221,27 @@ TEST_F(ConnectionTest, QueryOfAClientThatLeftIsNotRun) {
   clients_.clear();
   stop();
   EXPECT_EQ(localizer_.names(), std::vector<std::string>{"stays"});
+}
+
+// A client that leaves while its query runs: the query stops at its next stage (here before PnP,
+// once the localizer's prediction returns) and no answer is made.
+TEST_F(ConnectionTest, QueryOfAClientThatLeftWhileItRanStopsAtTheNextStage) {
+  std::ostringstream log;  // written under the server's lock, read once it has stopped
+  ServerOptions options;
+  options.log = &log;
+  start(options);
+  const std::string image = pngBytes();
+  const int socket_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(socket_fd, "POST " + kQueryPath + "leaves HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                 "Content-Type: image/png\r\nContent-Length: " +
+                                     std::to_string(image.size()) + "\r\n\r\n" + image));
+  localizer_.awaitQueries(1);
+  close(socket_fd);
+  localizer_.open();
+  stop();
+  EXPECT_NE(log.str().find("POST /localize 499 client closed the connection while its query ran; stopped before PnP"),
+            std::string::npos)
+      << log.str();
 }
 
 // Images are decoded only once a query is admitted: with no room to wait, a body that is not an

@@ -337,12 +337,14 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       replyError(response, 400, e.what());
       return;
     }
+    // Asked on this thread, the connection's, between the query's stages.
+    query.options.stop_requested = [] { return DeadlineServer::clientDisconnected(); };
     nlohmann::json body;
     try {
       std::lock_guard<std::mutex> lock(localize_mutex_);
       // A client that left while its query waited (a timeout, a user giving up) would never
       // read the answer: the query is dropped rather than holding the model for nothing. One
-      // that leaves while its query runs is found only when its answer cannot be written.
+      // that leaves while its query runs is stopped at the next stage (stop_requested).
       if (DeadlineServer::clientDisconnected()) {
         replyError(response, kClientClosedRequest, "client closed the connection while its query waited; not run");
         return;
@@ -351,6 +353,10 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       body = localizationJson(query.name, result, *map->localizer);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
+      return;
+    } catch (const QueryStopped& e) {
+      replyError(response, kClientClosedRequest,
+                 std::string("client closed the connection while its query ran; ") + e.what());
       return;
     }
     response.set_content(jsonText(body), kJson);
