@@ -67,4 +67,10 @@ LocalizeOptions localizeOptions(const QueryArguments& args) {
   return ffloc::localizeOptions(settings);
 }
 
+std::filesystem::path sameFolderKey(const std::string& path) {
+  std::filesystem::path canonical = std::filesystem::weakly_canonical(path);
+  // weakly_canonical keeps a trailing separator: "d/" would differ from "d".
+  return canonical.has_filename() ? canonical : canonical.parent_path();
+}
+
 }  // namespace ffloc::cli

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <cstdint>
+#include <filesystem>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -30,5 +31,9 @@ LocalizeOptions localizeOptions(const QueryArguments& args);
 // An error message that starts with a library option field ("top_k: ...") with the field
 // replaced by its flag ("--top-k: ..."): main() says every InputError this way.
 std::string withFlagName(const std::string& message);
+
+// The folder `path` names, however it is spelled ("d", "d/", "x/../d", a link to d), for telling
+// whether two flags name the same dataset.
+std::filesystem::path sameFolderKey(const std::string& path);
 
 }  // namespace ffloc::cli

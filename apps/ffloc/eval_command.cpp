@@ -78,7 +78,7 @@ int runEval(const EvalArguments& args) {
   if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
   for (size_t i = 0; i < args.datasets.size(); ++i)
     for (size_t j = 0; j < i; ++j)
-      if (std::filesystem::weakly_canonical(args.datasets[i]) == std::filesystem::weakly_canonical(args.datasets[j]))
+      if (sameFolderKey(args.datasets[i]) == sameFolderKey(args.datasets[j]))
         throw InputError("--dataset: '" + args.datasets[i] + "' is given twice");
   const size_t rows = methods.size() + (args.map_path.empty() ? 0 : 1);
   if (!args.poses_path.empty() && (rows != 1 || args.datasets.size() != 1))
@@ -134,6 +134,14 @@ int runEval(const EvalArguments& args) {
   std::vector<ReportDataset> report_datasets;
   for (const std::string& dataset : args.datasets) {
     Scene scene = loadDataset(dataset, args.format);
+    if (!args.poses_path.empty()) {
+      for (const size_t index : scene.indices(Split::kQuery)) {
+        const Frame& frame = scene.frames[index];
+        const std::string problem = poseListNameProblem(frame.name);
+        if (!problem.empty())
+          throwInputError(frame.image_path.string(), 0, "--poses: frame '" + frame.name + "': " + problem);
+      }
+    }
     if (!args.protocol.empty()) thinMappingFrames(scene, benchmarkProtocol(args.protocol).mapping_stride);
     if (!scene.metric) non_metric.push_back(scene.name);
     if (!args.html_path.empty()) report_datasets.push_back(reportDataset(scene));

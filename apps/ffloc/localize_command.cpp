@@ -15,6 +15,7 @@
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/io/image.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/localization/localization_json.h"
 #include "ffloc/pipeline/map_localizer.h"
 #include "ffloc/eval/scene_ply.h"
@@ -128,6 +129,15 @@ int runLocalize(const LocalizeArguments& args) {
     queries.push_back({args.image, args.image, fallback});
   } else {
     queries = readQueryList(args.image_list, fallback);
+  }
+
+  // Before the map and the model load: these would fail, or print a replacement character,
+  // only after every query had run.
+  for (const Query& query : queries) {
+    if (args.json && !isUtf8(query.name))
+      throwInputError(query.path.string(), 0, "--json: the query name is not UTF-8, which JSON cannot hold; rename the file");
+    const std::string problem = args.poses_path.empty() ? "" : poseListNameProblem(query.name);
+    if (!problem.empty()) throwInputError(query.path.string(), 0, "--poses: query '" + query.name + "': " + problem);
   }
 
   const MapLocalizer opened = openMapLocalizer(args.map_path, [&] { return loadCommandModel(args.model); });

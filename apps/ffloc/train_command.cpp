@@ -15,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
@@ -72,6 +73,27 @@ Scene loadTrainingData(const std::string& spec) {
   scene.frames = std::move(kept);
   scene.points.clear();  // their observations index the frames that were dropped
   return scene;
+}
+
+// Refuses a dataset given twice (`--data a,a`, or `a` beside `a@mapping`), which would pool its
+// frames twice and weigh them double without a word. One dataset's two splits, DIR@mapping and
+// DIR@query, are distinct frames and may be pooled.
+void requireDistinctData(const std::vector<std::string>& specs, const std::string& flag) {
+  const auto parts = [](const std::string& spec) {
+    const size_t at = spec.rfind('@');
+    const std::string dir = at == std::string::npos ? spec : spec.substr(0, at);
+    return std::make_pair(sameFolderKey(dir), at == std::string::npos ? std::string() : spec.substr(at + 1));
+  };
+  for (size_t i = 0; i < specs.size(); ++i) {
+    for (size_t j = 0; j < i; ++j) {
+      const auto [dir, split] = parts(specs[i]);
+      const auto [earlier_dir, earlier_split] = parts(specs[j]);
+      if (dir == earlier_dir && (split.empty() || earlier_split.empty() || split == earlier_split)) {
+        throwInputError(flag, 0, "'" + specs[j] + "' and '" + specs[i] + "' are the same frames of " + dir.string() +
+                                     "; give each dataset once (DIR@mapping and DIR@query may be pooled)");
+      }
+    }
+  }
 }
 
 std::string validationSummary(const ValidationStats& stats) {
@@ -133,6 +155,8 @@ void runTrain(const TrainArguments& args) {
   config.validate("command line");
   const bool lead = environment.rank == 0;
 
+  requireDistinctData(args.data, "--data");
+  requireDistinctData(args.validation_data, "--val-data");
   std::vector<Scene> scenes;
   for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
   const fs::path run_dir = args.out;

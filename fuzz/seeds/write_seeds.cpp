@@ -142,7 +142,9 @@ MapFile smallMap(bool with_vlad) {
     image.geometry = {64, 48, 32, 24, 0, 0, 32, 24};
     image.grid_rows = 2;
     image.grid_cols = 2;
-    for (int t = 0; t < 2 * 2 * 4; ++t) image.tokens.push_back(static_cast<uint16_t>(0x3800 + 16 * t + i));
+    std::vector<uint16_t> tokens;
+    for (int t = 0; t < 2 * 2 * 4; ++t) tokens.push_back(static_cast<uint16_t>(0x3800 + 16 * t + i));
+    image.tokens = StoredTokens(std::move(tokens));
     image.descriptor = {0.5f, -0.5f, 0.5f * i, 0.25f};
     if (with_vlad) image.vlad_descriptor.assign(128, 0.01f * (i + 1));
     map.images.push_back(image);

@@ -366,6 +366,18 @@ TEST(BadInput, ColmapLongKeypointLineReads) {
   EXPECT_EQ(scene.points[0].observations[0].pixel, Eigen::Vector2d(7 - 0.5, 2.0));
 }
 
+// Parsed in place, the 28 MB line of 4 million short triples still took 288 MB as keypoints: one
+// image's keypoints are bounded (a million, far beyond any extractor), and past the bound the
+// line is refused before the rest of it is held.
+TEST(BadInput, ColmapKeypointsPerImageAreBounded) {
+  const auto dir = makeColmap();
+  std::string keypoints;
+  keypoints.reserve(6'000'010);
+  for (int i = 0; i <= 1'000'000; ++i) keypoints += "1 1 -1 ";
+  writeTextFile(dir / "sparse/0/images.txt", "1 1 0 0 0 0 0 0 1 a.png\n" + keypoints + "\n");
+  expectInputError([&] { loadDataset(dir); }, {"images.txt:2", "more than 1000000 POINTS2D for image 'a.png'"});
+}
+
 // Sizes beyond what an int holds were converted to int before any check (undefined behaviour).
 TEST(BadInput, StrechaAndNerfImageSizesAreCheckedBeforeConversion) {
   const auto dir = makeStrecha();

@@ -72,6 +72,10 @@ bool isComment(const std::string& text) {
   return first != std::string::npos && text[first] == '#';
 }
 
+// Keypoints of one image: far beyond any extractor's, and a bound on what a hostile line costs
+// (a 28 MB POINTS2D line of 4 million short triples took 288 MB).
+constexpr size_t kMaxPointsPerImage = 1'000'000;
+
 struct ColmapImage {
   long id = 0;
   std::string name;
@@ -129,6 +133,10 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
       while (point_tokens.next(&x)) {
         if (!point_tokens.next(&y) || !point_tokens.next(&point_id))
           throwInputError(file.string(), points_line.number, "POINTS2D must be triples X Y POINT3D_ID");
+        if (image.points2d.size() == kMaxPointsPerImage)
+          throwInputError(file.string(), points_line.number,
+                          "more than " + std::to_string(kMaxPointsPerImage) + " POINTS2D for image '" + image.name +
+                              "' (COLMAP's extractors keep tens of thousands)");
         parseInteger(point_id, file, points_line.number, "POINT3D_ID");
         image.points2d.emplace_back(parseDouble(x, file, points_line.number, "X"),
                                     parseDouble(y, file, points_line.number, "Y"));

@@ -10,6 +10,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/format_io.h"
+#include "ffloc/io/image_size.h"
 #include "ffloc/io/json_fields.h"
 #include "ffloc/data/pose_check.h"
 
@@ -112,6 +113,20 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
       frame.depth = depth;
     }
     frame.split = parseSplit(entry);
+    // Read from its header here, as every other reader does: unchecked, a query whose image was
+    // missing or not an image at all reached evaluation, where a method that never reads it
+    // (oracle-depth) scored it 100 %.
+    cv::Size size;
+    try {
+      size = readImageSize(frame.image_path);
+    } catch (const InputError& e) {
+      entry.fail("image", e.what());
+    }
+    if (size.width != frame.intrinsics.width || size.height != frame.intrinsics.height) {
+      entry.fail("image", frame.image_path.string() + " is " + std::to_string(size.width) + "x" +
+                              std::to_string(size.height) + ", but camera '" + id + "' is " +
+                              std::to_string(frame.intrinsics.width) + "x" + std::to_string(frame.intrinsics.height));
+    }
     scene.frames.push_back(std::move(frame));
   }
   return scene;

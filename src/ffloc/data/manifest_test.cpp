@@ -17,6 +17,12 @@ namespace {
 using testing::expectInputError;
 using testing::writeTextFile;
 
+// The reader checks every frame's image from its header.
+void writeImage(const std::filesystem::path& path, int width, int height) {
+  std::filesystem::create_directories(path.parent_path());
+  cv::imwrite(path.string(), cv::Mat(height, width, CV_8UC3, cv::Scalar(40, 80, 120)));
+}
+
 Scene makeScene(const std::filesystem::path& root) {
   Scene scene;
   scene.name = "tiny";
@@ -35,6 +41,7 @@ Scene makeScene(const std::filesystem::path& root) {
     Frame frame;
     frame.name = "images/" + std::to_string(i) + ".png";
     frame.image_path = root / frame.name;
+    writeImage(frame.image_path, 64, 48);
     frame.intrinsics = i == 3 ? b : a;
     frame.camera_to_world.R = Eigen::AngleAxisd(0.3 * i + 0.1, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
     frame.camera_to_world.t = Eigen::Vector3d(M_PI * i, -1.0 / 3.0, 1e-12);
@@ -63,10 +70,10 @@ TEST(Manifest, RoundTripsExactly) {
   EXPECT_EQ(back.root, dir);
   ASSERT_EQ(back.frames.size(), scene.frames.size());
   for (size_t i = 0; i < scene.frames.size(); ++i) testing::expectSameFrame(back.frames[i], scene.frames[i]);
-  // No stray temporary file is left beside it.
+  // No stray temporary file is left beside it (the other entry is the images' folder).
   int files = 0;
   for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator(dir)) ++files;
-  EXPECT_EQ(files, 1);
+  EXPECT_EQ(files, 2);
 }
 
 TEST(Manifest, SharesIdenticalCamerasAndWritesRelativePaths) {
@@ -91,6 +98,7 @@ TEST(Manifest, ReadsDefaults) {
     "cameras": {"cam": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
     "frames": [{"image": "a.png", "camera": "cam", "depth": "a_depth.png",
                 "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  writeImage(dir / "a.png", 4, 3);
   const Scene scene = readManifest(dir / "manifest.json");
   ASSERT_EQ(scene.frames.size(), 1u);
   const Frame& frame = scene.frames[0];
@@ -127,6 +135,7 @@ TEST(Manifest, RejectsBadFieldsNamingThem) {
       {"\"metric\": true", "\"metric\": true,", "invalid JSON"},
   };
   const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeImage(dir / "a.png", 4, 3);
   ASSERT_NO_THROW(readManifest((writeTextFile(dir / "manifest.json", good), dir / "manifest.json")));
   for (const auto& bad : cases) {
     SCOPED_TRACE(bad.edit_to);
@@ -138,6 +147,24 @@ TEST(Manifest, RejectsBadFieldsNamingThem) {
     expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", bad.expected});
   }
   expectInputError([&] { readManifest(dir / "missing.json"); }, {"missing.json", "not found"});
+}
+
+// Images were never looked at: `ffloc eval --methods oracle-depth` scored a query whose image
+// was missing, or was not an image, 100 %.
+TEST(Manifest, MissingBrokenOrMissizedImagesAreRefusedNamingTheFrame) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
+    "cameras": {"0": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": [{"image": "a.png", "camera": "0", "split": "query",
+                "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "frames[0].image", "a.png", "not found"});
+  writeTextFile(dir / "a.png", "not an image");
+  expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "frames[0].image", "a.png"});
+  writeImage(dir / "a.png", 5, 3);
+  expectInputError([&] { readManifest(dir / "manifest.json"); },
+                   {"manifest.json", "frames[0].image", "a.png is 5x3, but camera '0' is 4x3"});
+  writeImage(dir / "a.png", 4, 3);
+  EXPECT_EQ(readManifest(dir / "manifest.json").frames.size(), 1u);
 }
 
 TEST(Manifest, OverflowingNumberIsRejected) {

@@ -2,6 +2,8 @@
 
 #include <sstream>
 
+#include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/eval/report.h"
 
 namespace ffloc {
@@ -14,6 +16,8 @@ std::string worldToCameraLines(const std::vector<FrameResult>& frames, bool with
   out.precision(12);
   for (const FrameResult& f : frames) {
     if (!f.succeeded()) continue;
+    const std::string problem = poseListNameProblem(f.frame);
+    if (!problem.empty()) throw InputError("poses: frame '" + f.frame + "': " + problem);
     const Pose world_to_camera = f.estimate.inverse();
     const Eigen::Quaterniond q = world_to_camera.quaternion();
     out << f.frame << " " << q.w() << " " << q.x() << " " << q.y() << " " << q.z() << " " << world_to_camera.t.x()
@@ -25,6 +29,17 @@ std::string worldToCameraLines(const std::vector<FrameResult>& frames, bool with
 }
 
 }  // namespace
+
+std::string poseListNameProblem(const std::string& name) {
+  if (name.empty()) return "the name is empty";
+  for (const char c : name) {
+    if (c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\v' || c == '\f')
+      return "the name holds whitespace, which separates the fields of a pose list";
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7F) return "the name holds a control character";
+  }
+  if (!isUtf8(name)) return "the name is not UTF-8";
+  return "";
+}
 
 std::string hlocPoseList(const std::vector<FrameResult>& frames) { return worldToCameraLines(frames, false); }
 

@@ -12,13 +12,21 @@
 
 namespace ffloc {
 
+// Why `name` cannot be the first field of a pose list line, empty when it can. The lists are
+// split on whitespace by every reader (hloc's, the map-free benchmark's), so a name with
+// whitespace would be read as another name and numbers, and one with a newline as two lines:
+// such names, names with other control characters, empty names and names that are not UTF-8 are
+// refused rather than escaped, as no reader would undo an escape.
+std::string poseListNameProblem(const std::string& name);
+
 // hloc / Cambridge pose list: one line per succeeded frame, `name qw qx qy qz tx ty tz`, the
 // world-to-camera rotation (Hamilton, scalar first) and translation. Failed frames are left out,
-// as hloc's readers expect.
+// as hloc's readers expect. InputError "poses: frame '<name>': ..." for a name the list cannot
+// hold (poseListNameProblem); callers check their names before the work that makes the poses.
 std::string hlocPoseList(const std::vector<FrameResult>& frames);
 
 // Map-free relocalisation submission lines: `name qw qx qy qz tx ty tz confidence`, world-to-camera,
-// confidence = inlier count. Failed frames are left out.
+// confidence = inlier count. Failed frames are left out; names are refused as hlocPoseList does.
 std::string mapFreeSubmission(const std::vector<FrameResult>& frames);
 
 // A coloured point cloud with camera frusta, as ASCII PLY, for MeshLab or CloudCompare.

@@ -4,6 +4,8 @@
 
 #include <sstream>
 
+#include "ffloc/core/error.h"
+
 namespace ffloc {
 namespace {
 
@@ -32,6 +34,23 @@ TEST(Exports, HlocPoseListIsWorldToCamera) {
   EXPECT_LT((world_to_camera.inverse().matrix() - pose.matrix()).norm(), 1e-9);
   EXPECT_EQ(text.find("lost.png"), std::string::npos);
   EXPECT_NE(mapFreeSubmission({succeeded("q.jpg", pose)}).find(" 321\n"), std::string::npos);
+}
+
+// A name with a space or a newline was written as it was, and read back as another name and
+// numbers, or as two lines.
+TEST(Exports, PoseListsRefuseNamesTheirReadersWouldSplit) {
+  for (const std::string name : {"with space.png", "two\nlines.png", "tab\t.png", "bell\a.png", "", "latin1 \xE9.png"}) {
+    EXPECT_FALSE(poseListNameProblem(name).empty()) << name;
+    try {
+      hlocPoseList({succeeded(name, Pose())});
+      ADD_FAILURE() << "wrote '" << name << "'";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("poses: frame '" + name + "': ", 0), 0u) << e.what();
+    }
+    EXPECT_THROW(mapFreeSubmission({succeeded(name, Pose())}), InputError) << name;
+  }
+  EXPECT_EQ(poseListNameProblem("seq-01/caf\xC3\xA9-\xE2\x82\xAC.png"), "");
+  EXPECT_EQ(hlocPoseList({succeeded("seq-01/caf\xC3\xA9.png", Pose())}).rfind("seq-01/caf\xC3\xA9.png 1 0 0 0 ", 0), 0u);
 }
 
 TEST(Exports, PlyHeaderCountsMatchTheBody) {

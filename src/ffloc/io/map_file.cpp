@@ -1,5 +1,6 @@
 #include "ffloc/io/map_file.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -10,6 +11,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/hash.h"
 #include "ffloc/io/json_fields.h"
+#include "ffloc/io/mapped_file.h"
 #include "ffloc/io/tensor_archive.h"
 
 namespace ffloc {
@@ -75,7 +77,24 @@ bool allFinite(const TensorView& view) {
   return true;
 }
 
+// FNV-1a of a tensor's bytes read through the file mapping a stretch at a time, each stretch
+// released from the process's memory once hashed.
+uint64_t mappedChecksum(const TensorView& view) {
+  constexpr size_t kStretch = size_t{4} << 20;
+  uint64_t hash = fnv1a64(nullptr, 0);  // the offset basis
+  for (size_t offset = 0; offset < view.nbytes; offset += kStretch) {
+    const size_t size = std::min(kStretch, view.nbytes - offset);
+    hash = fnv1a64(view.data + offset, size, hash);
+    releaseMappedPages(view.data + offset, size);
+  }
+  return hash;
+}
+
 }  // namespace
+
+bool StoredTokens::operator==(const StoredTokens& other) const {
+  return size() == other.size() && std::equal(data(), data() + size(), other.data());
+}
 
 void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
   if (map.token_dim <= 0) throw InputError(path.string() + ": map: token dimension must be positive");
@@ -212,7 +231,8 @@ MapHeader readMapHeader(const std::filesystem::path& path) {
 }
 
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {
-  const auto archive = openSafetensors(path);
+  // Shared: each image's tokens keep the mapping alive.
+  const std::shared_ptr<const TensorArchive> archive = openSafetensors(path);
   const std::string file = path.string();
   const nlohmann::json metadata = readMapMetadata(*archive, file);
   const MapHeader header = mapHeader(metadata, file);
@@ -239,7 +259,7 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     const auto expected = checksums.find(name);
     if (expected == checksums.end() || !expected->is_string())
       throwInputError(file, 0, "tensor '" + name + "': no checksum recorded");
-    if (hex64(fnv1a64(view.data, view.nbytes)) != expected->get<std::string>())
+    if (hex64(mappedChecksum(view)) != expected->get<std::string>())
       throwInputError(file, 0, "tensor '" + name + "': checksum mismatch (the file is corrupted)");
     return view;
   };
@@ -299,8 +319,15 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
       throwInputError(file, 0, "tensor '" + tokens.name + "' of image '" + image.name + "' has shape " +
                                    tokens.shapeString() + " " + toString(tokens.dtype) + ", expected (" +
                                    std::to_string(expected_shape[0]) + ", " + std::to_string(expected_shape[1]) + ") F16");
-    image.tokens.resize(tokens.nbytes / sizeof(uint16_t));
-    std::memcpy(image.tokens.data(), tokens.data, tokens.nbytes);
+    const size_t values = tokens.nbytes / sizeof(uint16_t);
+    if (reinterpret_cast<uintptr_t>(tokens.data) % alignof(uint16_t) == 0) {
+      image.tokens = StoredTokens(archive, reinterpret_cast<const uint16_t*>(tokens.data), values);
+    } else {
+      // Our writer aligns every tensor; a file from elsewhere may not, and is copied.
+      std::vector<uint16_t> copy(values);
+      std::memcpy(copy.data(), tokens.data, tokens.nbytes);
+      image.tokens = StoredTokens(std::move(copy));
+    }
     image.descriptor.resize(descriptor_dim);
     std::memcpy(image.descriptor.data(), descriptors.data + i * descriptor_dim * sizeof(float),
                 descriptor_dim * sizeof(float));

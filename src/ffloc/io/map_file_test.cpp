@@ -32,7 +32,9 @@ MapFile smallMap(int images = 3) {
     image.geometry = preprocessGeometry(640, 480);
     image.grid_rows = 3;
     image.grid_cols = 4;
-    for (size_t t = 0; t < image.tokenCount() * map.token_dim; ++t) image.tokens.push_back(floatToHalf(n(rng)));
+    std::vector<uint16_t> tokens;
+    for (size_t t = 0; t < image.tokenCount() * map.token_dim; ++t) tokens.push_back(floatToHalf(n(rng)));
+    image.tokens = StoredTokens(std::move(tokens));
     for (int d = 0; d < 16; ++d) image.descriptor.push_back(n(rng));
     map.images.push_back(image);
   }
@@ -62,6 +64,29 @@ TEST(MapFile, RoundTripIsExact) {
   size_t files = 0;
   for (const auto& entry : std::filesystem::directory_iterator(dir)) files += entry.is_regular_file();
   EXPECT_EQ(files, 1u);
+}
+
+// Tokens are read through the file's memory map, not copied (a 150-image large-configuration
+// map held 236 MB of copies). The mapping keeps the file read alive: a map replaced on disk by
+// atomic rename, as `ffloc map` writes, or deleted, leaves the map read before it intact.
+TEST(MapFile, TokensAreViewsOfTheMappedFileWhichOutliveItsReplacement) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  const MapFile written = smallMap();
+  writeMapFile(written, dir / "scene.ffmap");
+  const MapFile read = readMapFile(dir / "scene.ffmap");
+  ASSERT_EQ(read.images.size(), written.images.size());
+  for (const MapImage& image : read.images) EXPECT_TRUE(image.tokens.mapped()) << image.name;
+
+  MapFile other = smallMap(2);
+  other.images[0].tokens = StoredTokens(std::vector<uint16_t>(other.images[0].tokens.size(), 0x3c00));
+  writeMapFile(other, dir / "scene.ffmap");
+  for (size_t i = 0; i < written.images.size(); ++i) EXPECT_EQ(read.images[i].tokens, written.images[i].tokens) << i;
+  EXPECT_EQ(readMapFile(dir / "scene.ffmap").images[0].tokens, other.images[0].tokens);
+  std::filesystem::remove(dir / "scene.ffmap");
+  for (size_t i = 0; i < written.images.size(); ++i) EXPECT_EQ(read.images[i].tokens, written.images[i].tokens) << i;
+  // Copies of a read map share the mapping; the last one to go unmaps it.
+  MapFile copy = read;
+  EXPECT_EQ(copy.images[1].tokens, written.images[1].tokens);
 }
 
 TEST(MapFile, RefusesAMapBuiltWithAnotherModel) {
@@ -108,7 +133,7 @@ TEST(MapFile, DetectsCorruptionAndTruncation) {
 TEST(MapFile, RejectsInconsistentImages) {
   const auto dir = testing::makeTempDir("ffloc-map");
   MapFile map = smallMap();
-  map.images[1].tokens.pop_back();
+  map.images[1].tokens = StoredTokens(std::vector<uint16_t>(map.images[1].tokens.size() - 1));
   try {
     writeMapFile(map, dir / "bad.ffmap");
     FAIL();

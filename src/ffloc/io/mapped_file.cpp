@@ -39,4 +39,13 @@ MappedFile::~MappedFile() {
   if (data_ != nullptr) ::munmap(const_cast<uint8_t*>(data_), size_);
 }
 
+void releaseMappedPages(const uint8_t* begin, std::size_t size) {
+  if (size == 0) return;
+  const auto page = static_cast<uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const uintptr_t first = reinterpret_cast<uintptr_t>(begin) / page * page;
+  const uintptr_t end = (reinterpret_cast<uintptr_t>(begin) + size + page - 1) / page * page;
+  // Advice only: on failure the pages merely stay resident.
+  ::madvise(reinterpret_cast<void*>(first), end - first, MADV_DONTNEED);
+}
+
 }  // namespace ffloc

@@ -28,4 +28,11 @@ class MappedFile {
   std::size_t size_ = 0;
 };
 
+// Drops the pages of [begin, begin + size), a range of a read-only file mapping, from the
+// process's resident memory: they stay in the kernel's page cache and come back, without a disk
+// read while they are cached, on the next access. For passes over a whole mapping (a checksum)
+// that would otherwise leave all of it counted in the process's RSS. The range is widened to
+// whole pages, which a read-only file mapping always spans.
+void releaseMappedPages(const uint8_t* begin, std::size_t size);
+
 }  // namespace ffloc

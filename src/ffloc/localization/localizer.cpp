@@ -97,6 +97,10 @@ void checkQueryIntrinsics(const Intrinsics& k, int width, int height) {
     if (!std::isfinite(c)) throw InputError("distortion: coefficients must be finite");
 }
 
+void stopIfRequested(const LocalizeOptions& options, const std::string& stage) {
+  if (options.stop_requested && options.stop_requested()) throw QueryStopped("stopped " + stage);
+}
+
 LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                                        const LocalizeOptions& options) const {
   options.check();
@@ -109,6 +113,7 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
   LocalizationResult result;
   std::optional<PnpResult> second;
   predict(rgb, sized, name, options, result, second);
+  stopIfRequested(options, "before PnP");
   const bool independent = second.has_value();
   result.pnp = estimatePose(result.correspondences, result.camera, options.pnp);
   result.timings.pnp = result.pnp.seconds;

@@ -1,7 +1,9 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -44,6 +46,10 @@ struct LocalizeOptions {
   // FastForward: predict a second time with the second-ranked image as the reference frame and
   // compare the poses (the verdict's agreement test). Doubles the network time.
   bool verify_with_second_reference = true;
+  // Asked between the stages of a query (after the query's features, after a network pass,
+  // before PnP); when it answers true, localize() stops there with QueryStopped. The server asks
+  // whether the query's client is still connected. Empty: a query always runs to its end.
+  std::function<bool()> stop_requested;
 
   // The paper's settings: "indoor" K = 10, N = 1500; "outdoor" K = 20, N = 3000. InputError
   // naming "preset" for other names.
@@ -67,6 +73,16 @@ struct QuerySettings {
 };
 // The checked options. InputError naming the field (preset, top_k, selection, retrieval, ...).
 LocalizeOptions localizeOptions(const QuerySettings& settings);
+
+// Thrown by Localizer::localize when LocalizeOptions::stop_requested answered true; what()
+// names the stage the query stopped at.
+class QueryStopped : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+// Throws QueryStopped ("stopped <stage>") when `options` ask for it; for localizers between
+// their stages.
+void stopIfRequested(const LocalizeOptions& options, const std::string& stage);
 
 // Wall-clock seconds of each stage of one query.
 struct QueryTimings {

@@ -6,6 +6,8 @@
 #include <ATen/ops/equal.h>
 
 #include <algorithm>
+#include <cstring>
+#include <limits>
 #include <fstream>
 #include <iterator>
 #include <memory>
@@ -162,6 +164,20 @@ TEST_F(Dust3rWeights, RejectsIntegerWeights) {
   archive_->put("decoder_embed.bias", DType::kI64, {48}, std::vector<uint8_t>(48 * 8));
   const std::string error = loadError(*archive_);
   EXPECT_TRUE(contains(error, "'decoder_embed.bias'") && contains(error, "I64")) << error;
+}
+
+// All-NaN weights once built a map and localized against it without a word.
+TEST_F(Dust3rWeights, NamesNonFiniteWeights) {
+  const std::vector<int64_t> shape = archive_->at("decoder_embed.bias").shape;
+  std::vector<float> values(static_cast<size_t>(archive_->at("decoder_embed.bias").numel()),
+                            std::numeric_limits<float>::quiet_NaN());
+  values[1] = std::numeric_limits<float>::infinity();
+  std::vector<uint8_t> bytes(values.size() * sizeof(float));
+  std::memcpy(bytes.data(), values.data(), bytes.size());
+  archive_->put("decoder_embed.bias", DType::kF32, shape, bytes);
+  const std::string error = loadError(*archive_);
+  EXPECT_TRUE(contains(error, "tiny_model.safetensors")) << error;
+  EXPECT_TRUE(contains(error, "'decoder_embed.bias': 48 of its 48 values are not finite")) << error;
 }
 
 // 64 little-endian 16-bit values alternating between two bit patterns.

@@ -2,6 +2,7 @@
 
 #include <ATen/ops/empty.h>
 #include <ATen/ops/equal.h>
+#include <ATen/ops/isfinite.h>
 
 #include <map>
 #include <set>
@@ -84,6 +85,13 @@ void loadParameters(const ParameterTable& table, const TensorArchive& archive,
                        shapeString(entry.shape));
       }
       at::Tensor converted = toTorch(view).to(options.dtype);
+      // A network with NaN weights answers NaN everywhere: all-NaN weights built a map, and
+      // localized against it, without a word.
+      const int64_t non_finite = converted.numel() - at::isfinite(converted).sum().item<int64_t>();
+      if (non_finite > 0) {
+        fail(name, std::to_string(non_finite) + " of its " + std::to_string(converted.numel()) +
+                       " values are not finite (NaN or infinite)");
+      }
       if (value.defined()) {
         if (!at::equal(value, converted)) {
           fail(name, "differs from '" + value_name + "', which names the same tensor");

@@ -167,6 +167,7 @@ QueryPrediction FastForwardLocalizer::firstPrediction(const cv::Mat& rgb, const 
                                                       EncodedQuery& query) const {
   QueryPrediction out;
   query = encode(rgb, intrinsics, name, options, out.timings);
+  stopIfRequested(options, "after the encoder");
   const auto start = Clock::now();
   decode(query, query.ranked, options.seed, options, out);
   out.timings.matching = secondsSince(start);
@@ -193,6 +194,7 @@ void FastForwardLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrins
   result.timings = prediction.timings;
 
   if (options.verify_with_second_reference && query.ranked.size() >= 2) {
+    stopIfRequested(options, "after the first network pass");
     const auto start = Clock::now();
     std::vector<size_t> swapped = query.ranked;
     std::swap(swapped[0], swapped[1]);

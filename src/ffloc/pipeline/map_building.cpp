@@ -1,6 +1,7 @@
 #include "ffloc/pipeline/map_building.h"
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
 
@@ -24,6 +25,14 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output,
   const std::vector<size_t> frames = scene.mappingIndices();
   if (frames.empty())
     throwInputError(scene.root.string(), 0, "dataset has no mapping frames (split_mapping.txt or its native split)");
+  // Map files store image names as JSON text, which must be UTF-8: refused here, not when the
+  // map is written after all the work.
+  for (const size_t index : frames) {
+    const Frame& frame = scene.frames[index];
+    if (!isUtf8(frame.name))
+      throwInputError(frame.image_path.string(), 0,
+                      "image name '" + frame.name + "' is not UTF-8, which a map file (JSON) cannot hold; rename the file");
+  }
   MapBuildReport report;
   if (options.method == LocalizationMethod::kClassical) {
     options.classical.check();

@@ -35,8 +35,9 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
 
   const at::Tensor tokens = encoding.tokens[0].to(at::kFloat).contiguous();  // (T, D)
   const at::Tensor half = tokens.to(at::kHalf).contiguous();
-  image.tokens.resize(static_cast<size_t>(half.numel()));
-  std::memcpy(image.tokens.data(), half.data_ptr(), image.tokens.size() * sizeof(uint16_t));
+  std::vector<uint16_t> bits(static_cast<size_t>(half.numel()));
+  std::memcpy(bits.data(), half.data_ptr(), bits.size() * sizeof(uint16_t));
+  image.tokens = StoredTokens(std::move(bits));
   image.descriptor = encodingDescriptor(encoding, options.descriptor);
   const FastForwardConfig& config = model.config();
   if (frame.depth && (config.points.enabled() || config.query_head == QueryHeadKind::kMatching)) {

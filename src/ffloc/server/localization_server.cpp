@@ -14,13 +14,15 @@
 #include "ffloc/server/localize_request.h"
 #include "ffloc/server/viewer_assets.h"
 
-// Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
-#include <httplib.h>
+// Last: it brings <httplib.h> and so <resolv.h>, whose _res macro breaks Eigen headers included
+// after it.
+#include "ffloc/server/deadline_server.h"
 
 namespace ffloc {
 
 struct LocalizationServer::Http {
-  httplib::Server server;
+  explicit Http(const ServerOptions& options) : server(options.header_timeout, options.body_timeout) {}
+  DeadlineServer server;
   std::mutex log_mutex;
   // The last answers of each map, oldest first, each with the query's intrinsics (the viewer
   // draws the query camera with them).
@@ -31,6 +33,8 @@ struct LocalizationServer::Http {
 namespace {
 
 constexpr const char* kJson = "application/json";
+// What nginx logs for a request whose client closed the connection first; never sent, only logged.
+constexpr int kClientClosedRequest = 499;
 
 // Request text (a name, an unknown field) reaches answers and may not be UTF-8: replace rather
 // than throw.
@@ -174,7 +178,7 @@ nlohmann::json sceneJson(const std::string& name, const Localizer& localizer, si
 }  // namespace
 
 LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions options)
-    : maps_(maps), options_(std::move(options)), http_(std::make_unique<Http>()) {
+    : maps_(maps), options_(std::move(options)), http_(std::make_unique<Http>(options_)) {
   httplib::Server& server = http_->server;
   server.set_payload_max_length(options_.max_body_bytes);
   const size_t connections = std::max<size_t>(options_.max_connections, options_.max_waiting_queries + 2);
@@ -321,6 +325,10 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
                      " are waiting; retry later");
       return;
     }
+    if (DeadlineServer::clientDisconnected()) {
+      replyError(response, kClientClosedRequest, "client closed the connection before its query started; not run");
+      return;
+    }
     LocalizeRequest query;
     try {
       if (isUrlEncodedForm(request)) throw InputError(kUrlEncodedFormError);
@@ -329,13 +337,26 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       replyError(response, 400, e.what());
       return;
     }
+    // Asked on this thread, the connection's, between the query's stages.
+    query.options.stop_requested = [] { return DeadlineServer::clientDisconnected(); };
     nlohmann::json body;
     try {
       std::lock_guard<std::mutex> lock(localize_mutex_);
+      // A client that left while its query waited (a timeout, a user giving up) would never
+      // read the answer: the query is dropped rather than holding the model for nothing. One
+      // that leaves while its query runs is stopped at the next stage (stop_requested).
+      if (DeadlineServer::clientDisconnected()) {
+        replyError(response, kClientClosedRequest, "client closed the connection while its query waited; not run");
+        return;
+      }
       const LocalizationResult result = map->localizer->localize(query.rgb, query.intrinsics, query.name, query.options);
       body = localizationJson(query.name, result, *map->localizer);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
+      return;
+    } catch (const QueryStopped& e) {
+      replyError(response, kClientClosedRequest,
+                 std::string("client closed the connection while its query ran; ") + e.what());
       return;
     }
     response.set_content(jsonText(body), kJson);
@@ -355,6 +376,8 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
 
   // Every status >= 400, ours and the library's (404, 413, ...), answers JSON and is logged.
   server.set_error_handler([this, log](const httplib::Request& request, httplib::Response& response) {
+    // The library reports a request cut at its deadline as malformed (400).
+    if (const std::string timeout = DeadlineServer::timeoutMessage(); !timeout.empty()) replyError(response, 408, timeout);
     if (response.body.empty())
       replyError(response, response.status, libraryErrorMessage(request, response.status, options_.max_body_bytes));
     const nlohmann::json body = nlohmann::json::parse(response.body, nullptr, false);

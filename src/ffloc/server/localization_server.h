@@ -1,6 +1,7 @@
 #pragma once
 
 #include <atomic>
+#include <chrono>
 #include <cstddef>
 #include <memory>
 #include <mutex>
@@ -30,7 +31,9 @@ namespace ffloc {
 //                               into the server; open to every client, as it holds no map data
 // Bad requests get status 400 and {"error": "<field>: <what>"}; without a valid key (when the
 // server has keys) 401, a map the key may not use 403, an unknown map 404, a body over
-// max_body_bytes 413, a POST without Content-Length 411, a query beyond max_waiting_queries 503.
+// max_body_bytes 413, a POST without Content-Length 411, a query beyond max_waiting_queries 503,
+// a request whose headers or body arrive slower than their deadline 408 (and the connection is
+// closed). A query whose client has disconnected while it waited is dropped unrun.
 struct ServerOptions {
   std::string host = "127.0.0.1";  // loopback: serving other machines is a choice (0.0.0.0)
   int port = 8080;                 // 0: any free port, see LocalizationServer::bind()
@@ -42,6 +45,11 @@ struct ServerOptions {
   // default (8 on small machines) let 32 keep-alive clients hold every thread, so queries were
   // never refused as busy and /health waited seconds behind them (scripts/load_test.sh).
   size_t max_connections = 64;
+  // How long each request may take to arrive, in total: its headers from its first byte, then
+  // its body. The HTTP library bounds each read (5 s), not the request, so clients trickling one
+  // header line every 2 s held connection threads for as long as they liked.
+  std::chrono::milliseconds header_timeout{10000};
+  std::chrono::milliseconds body_timeout{60000};
   RequestLimits limits;
   LocalizeOptions localize;  // per-request defaults; requests may override K, N, seed, selection
   std::ostream* log = nullptr;  // one line per request when set (never a key)

@@ -3,6 +3,8 @@
 #include <functional>
 #include <map>
 
+#include <torch/cuda.h>
+
 #include "ffloc/core/error.h"
 #include "ffloc/io/json_fields.h"
 
@@ -72,16 +74,20 @@ void TrainingConfig::validate(const std::string& origin) const {
   const auto fail = [&](const std::string& field, const std::string& what) {
     throwInputError(origin, 0, "field '" + field + "': " + what);
   };
-  if (mapping_frames < 1) fail("mapping_frames", "must be at least 1");
+  // Upper bounds keep a sample's memory bounded before any is prepared: long_side 100000 once
+  // grew to 24 GB before the kernel killed the run. Attention over an image's tokens grows as
+  // the fourth power of the long side; 2048 is four times DUSt3R's 512.
+  if (mapping_frames < 1 || mapping_frames > 64) fail("mapping_frames", "must be in [1, 64]");
   if (min_map_tokens < 1 || max_map_tokens < min_map_tokens) {
     fail("max_map_tokens", "need 1 <= min_map_tokens <= max_map_tokens");
   }
+  if (max_map_tokens > 100000) fail("max_map_tokens", "must be at most 100000");
   if (!(min_overlap >= 0 && min_overlap <= max_overlap && max_overlap <= 1)) {
     fail("max_overlap", "need 0 <= min_overlap <= max_overlap <= 1");
   }
   if (overlap_candidates < mapping_frames) fail("overlap_candidates", "must be at least mapping_frames");
   if (overlap_stride < 1) fail("overlap_stride", "must be positive");
-  if (long_side < 16) fail("long_side", "must be at least 16");
+  if (long_side < 16 || long_side > 2048) fail("long_side", "must be in [16, 2048] pixels, got " + std::to_string(long_side));
   if (!(colour_jitter >= 0 && colour_jitter < 1)) fail("colour_jitter", "must be in [0, 1)");
   if (!(alpha > 0)) fail("alpha", "must be positive");
   if (!(match_weight >= 0 && match_weight <= 1e3)) fail("match_weight", "must be in [0, 1000]");
@@ -97,12 +103,16 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (!(beta2 >= 0 && beta2 < 1)) fail("beta2", "must be in [0, 1)");
   if (!(adam_epsilon > 0)) fail("adam_epsilon", "must be positive");
   if (!(clip_grad_norm >= 0)) fail("clip_grad_norm", "must be non-negative (0: off)");
-  if (batch_size < 1) fail("batch_size", "must be at least 1");
+  if (batch_size < 1 || batch_size > 1024) fail("batch_size", "must be in [1, 1024]");
   if (accumulate < 1) fail("accumulate", "must be at least 1");
-  if (loader_threads < 1) fail("loader_threads", "must be at least 1");
-  if (prefetch_samples < 1) fail("prefetch_samples", "must be at least 1");
+  if (loader_threads < 1 || loader_threads > 256) fail("loader_threads", "must be in [1, 256]");
+  if (prefetch_samples < 1 || prefetch_samples > 1024) fail("prefetch_samples", "must be in [1, 1024]");
   if (threads < 0) fail("threads", "must be non-negative");
   if (device != "cpu" && device != "cuda") fail("device", "must be cpu or cuda");
+  // Here, before any tensor: libtorch's own refusal is a stack trace from deep inside the run.
+  if (device == "cuda" && !torch::cuda::is_available()) {
+    fail("device", "cuda, but this libtorch was built without CUDA or sees no GPU; use cpu");
+  }
   if (precision != "fp32" && precision != "bf16") fail("precision", "must be fp32 or bf16");
   if (log_every < 1) fail("log_every", "must be positive");
   if (checkpoint_every < 1) fail("checkpoint_every", "must be positive");

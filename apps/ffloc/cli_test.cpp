@@ -1,0 +1,191 @@
+// The CLI's refusals as a user meets them: `ffloc` itself is run, and each bad input must end
+// with exit status 2 and a message naming the file or the field, before any long computation.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+#include <vector>
+
+#include <torch/cuda.h>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/train/training_config.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CliRun {
+  int exit_code = -1;
+  std::string output;  // stdout and stderr together
+};
+
+CliRun runCli(const std::vector<std::string>& arguments) {
+  std::vector<std::string> all = {FFLOC_CLI_PATH};
+  all.insert(all.end(), arguments.begin(), arguments.end());
+  std::vector<char*> argv;
+  for (std::string& argument : all) argv.push_back(argument.data());
+  argv.push_back(nullptr);
+  int pipe_fds[2];
+  if (pipe(pipe_fds) != 0) return {};
+  const pid_t pid = fork();
+  if (pid == 0) {
+    dup2(pipe_fds[1], 1);
+    dup2(pipe_fds[1], 2);
+    close(pipe_fds[0]);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  close(pipe_fds[1]);
+  CliRun run;
+  char buffer[4096];
+  for (ssize_t got; (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;) run.output.append(buffer, got);
+  close(pipe_fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  return run;
+}
+
+bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
+
+void writeText(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream(path, std::ios::binary) << text;
+}
+
+void writeImage(const fs::path& path, int width = 64, int height = 48) {
+  fs::create_directories(path.parent_path());
+  cv::imwrite(path.string(), cv::Mat(height, width, CV_8UC3, cv::Scalar(40, 80, 120)));
+}
+
+// A native manifest of one mapping frame (a.png) and one query frame, images written.
+fs::path manifestDataset(const fs::path& dir, const std::string& query_image) {
+  const std::string pose = R"("camera_to_world": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]])";
+  writeText(dir / "manifest.json",
+            R"({"format": "ffloc-manifest", "version": 1,
+                "cameras": {"0": {"width": 64, "height": 48, "fx": 50, "fy": 50, "cx": 31.5, "cy": 23.5}},
+                "frames": [{"image": "a.png", "camera": "0", "split": "mapping", )" + pose + R"(},
+                           {"image": ")" + query_image + R"(", "camera": "0", "split": "query", )" + pose + "}]}");
+  writeImage(dir / "a.png");
+  writeImage(dir / query_image);
+  return dir;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = testing::makeTempDir("ffloc_cli"); }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+// A libtorch stack trace from deep inside the run, exit 3, before.
+TEST_F(Cli, CudaOnACpuOnlyBuildIsRefusedNamingTheField) {
+  if (torch::cuda::is_available()) GTEST_SKIP() << "this libtorch has CUDA and sees a GPU";
+  fs::create_directories(dir_ / "data");
+  const CliRun run = runCli({"train", "--device", "cuda", "--data", (dir_ / "data").string(), "--out",
+                             (dir_ / "run").string()});
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_TRUE(contains(run.output, "command line: field 'device': cuda, but this libtorch was built without CUDA"))
+      << run.output;
+  EXPECT_FALSE(contains(run.output, "Exception raised from")) << run.output;
+  EXPECT_FALSE(fs::exists(dir_ / "run"));
+}
+
+// long_side 100000 grew to 24 GB before the kernel killed the run: refused at the config check,
+// before any data is read. The other bounds through the same check, without a process each.
+TEST_F(Cli, AbsurdTrainingSizesAreRefusedAtTheConfigCheck) {
+  fs::create_directories(dir_ / "data");
+  writeText(dir_ / "cfg.json", R"({"long_side": 100000})");
+  const CliRun run = runCli({"train", "--config", (dir_ / "cfg.json").string(), "--data", (dir_ / "data").string(),
+                             "--out", (dir_ / "run").string()});
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_TRUE(contains(run.output, "cfg.json: field 'long_side': must be in [16, 2048] pixels, got 100000"))
+      << run.output;
+  for (const auto& [field, value] : std::vector<std::pair<std::string, int>>{
+           {"batch_size", 1000000}, {"mapping_frames", 100000}, {"max_map_tokens", 1000000000},
+           {"loader_threads", 100000}, {"prefetch_samples", 100000000}}) {
+    try {
+      trainingConfigFromJson({{field, value}}, "cfg.json");
+      ADD_FAILURE() << field << " = " << value << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_TRUE(contains(e.what(), "cfg.json: field '" + field + "'")) << e.what();
+    }
+  }
+}
+
+// --data a,a pooled one dataset twice, weighing its frames double without a word.
+TEST_F(Cli, OneDatasetGivenTwiceIsRefused) {
+  const std::string data = (dir_ / "data").string();
+  fs::create_directories(data);
+  // One dataset's two splits are distinct frames and pass; the same folder spelled twice does not.
+  const CliRun train = runCli({"train", "--data", data + "@mapping," + data + "@query", "--val-data",
+                               data + "," + data + "/", "--out", (dir_ / "run").string()});
+  EXPECT_EQ(train.exit_code, 2) << train.output;
+  EXPECT_TRUE(contains(train.output, "--val-data: '" + data + "' and '" + data + "/' are the same frames"))
+      << train.output;
+  EXPECT_FALSE(contains(train.output, "--data: ")) << train.output;
+  const CliRun eval = runCli({"eval", "--dataset", data + "," + data + "/../data"});
+  EXPECT_EQ(eval.exit_code, 2) << eval.output;
+  EXPECT_TRUE(contains(eval.output, "--dataset: '" + data + "/../data' is given twice")) << eval.output;
+}
+
+// Names were written unescaped: a space made the name two fields, a newline two lines.
+TEST_F(Cli, PoseListsRefuseNamesTheirReadersWouldSplitBeforeEvaluating) {
+  const fs::path data = manifestDataset(dir_ / "data", "with space.png");
+  const CliRun eval = runCli({"eval", "--dataset", data.string(), "--poses", (dir_ / "poses.txt").string()});
+  EXPECT_EQ(eval.exit_code, 2) << eval.output;
+  EXPECT_TRUE(contains(eval.output, "--poses: frame 'with space.png': the name holds whitespace")) << eval.output;
+  EXPECT_FALSE(contains(eval.output, "median")) << "evaluated first: " << eval.output;
+  EXPECT_FALSE(fs::exists(dir_ / "poses.txt"));
+
+  const CliRun localize = runCli({"localize", "--map", (dir_ / "no.ffmap").string(), "--image",
+                                  (data / "with space.png").string(), "--intrinsics", "50,50,31.5,23.5", "--poses",
+                                  (dir_ / "poses.txt").string()});
+  EXPECT_EQ(localize.exit_code, 2) << localize.output;
+  EXPECT_TRUE(contains(localize.output, "the name holds whitespace")) << localize.output;
+}
+
+// The manifest's images were never looked at, and oracle-depth, which never reads a query
+// image, scored a missing one 100 %.
+TEST_F(Cli, EvalRefusesAManifestWhoseQueryImageIsMissingOrNotAnImage) {
+  const fs::path data = manifestDataset(dir_ / "data", "q.png");
+  fs::remove(data / "q.png");
+  const CliRun missing = runCli({"eval", "--dataset", data.string(), "--methods", "oracle-depth"});
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_TRUE(contains(missing.output, "manifest.json: field 'frames[1].image'")) << missing.output;
+  EXPECT_TRUE(contains(missing.output, "q.png")) << missing.output;
+  // Not an image, or of the wrong size: Manifest.MissingBrokenOrMissizedImagesAreRefusedNamingTheFrame.
+}
+
+// Found after the whole computation before: an internal error, or a replacement character.
+TEST_F(Cli, LocalizeJsonRefusesANameThatIsNotUtf8BeforeLoadingTheMap) {
+  const fs::path image = dir_ / "caf\xE9.png";
+  writeImage(image);
+  const CliRun run = runCli({"localize", "--map", (dir_ / "no.ffmap").string(), "--image", image.string(),
+                             "--intrinsics", "50,50,31.5,23.5", "--json"});
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_TRUE(contains(run.output, "--json: the query name is not UTF-8")) << run.output;
+}
+
+TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {
+  for (const std::string stem : {"caf\xE9", "plain"}) {
+    const fs::path root = dir_ / "data" / "train";
+    writeImage(root / "rgb" / (stem + ".color.png"));
+    writeText(root / "poses" / (stem + ".pose.txt"), "1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n");
+    writeText(root / "calibration" / (stem + ".calibration.txt"), "50\n");
+  }
+  const CliRun run = runCli({"map", "--dataset", (dir_ / "data").string(), "-o", (dir_ / "out.ffmap").string()});
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_TRUE(contains(run.output, "caf\xE9.color.png: image name 'train/rgb/caf\xE9.color.png' is not UTF-8")) << run.output;
+  EXPECT_FALSE(fs::exists(dir_ / "out.ffmap"));
+}
+
+}  // namespace
+}  // namespace ffloc

@@ -1,0 +1,12 @@
+#pragma once
+
+#include <string_view>
+
+namespace ffloc {
+
+// Whether `text` is well-formed UTF-8 (RFC 3629: no overlong forms, no surrogates, nothing past
+// U+10FFFF). JSON text must be, so names that reach map files and --json answers are checked up
+// front rather than failing, or being replaced, after the work is done.
+bool isUtf8(std::string_view text);
+
+}  // namespace ffloc

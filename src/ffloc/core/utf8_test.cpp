@@ -1,0 +1,31 @@
+#include "ffloc/core/utf8.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+namespace ffloc {
+namespace {
+
+TEST(Utf8, AcceptsWellFormedText) {
+  EXPECT_TRUE(isUtf8(""));
+  EXPECT_TRUE(isUtf8("seq-01/frame-000000.color.png"));
+  EXPECT_TRUE(isUtf8("caf\xC3\xA9 \xE2\x82\xAC \xF0\x9F\x93\xB7"));  // é € and a camera emoji
+  EXPECT_TRUE(isUtf8(std::string("a\0b", 3)));
+  EXPECT_TRUE(isUtf8("\xF4\x8F\xBF\xBF"));  // U+10FFFF, the last code point
+}
+
+TEST(Utf8, RefusesMalformedText) {
+  EXPECT_FALSE(isUtf8("\xFF\xFE"));              // never in UTF-8
+  EXPECT_FALSE(isUtf8("latin1 caf\xE9.png"));    // a Latin-1 é
+  EXPECT_FALSE(isUtf8("\xC3"));                  // cut short
+  EXPECT_FALSE(isUtf8("\xE2\x82"));              // cut short
+  EXPECT_FALSE(isUtf8("\x80"));                  // a continuation byte alone
+  EXPECT_FALSE(isUtf8("\xC0\xAF"));              // overlong '/'
+  EXPECT_FALSE(isUtf8("\xE0\x80\xAF"));          // overlong '/'
+  EXPECT_FALSE(isUtf8("\xED\xA0\x80"));          // a UTF-16 surrogate
+  EXPECT_FALSE(isUtf8("\xF4\x90\x80\x80"));      // past U+10FFFF
+}
+
+}  // namespace
+}  // namespace ffloc

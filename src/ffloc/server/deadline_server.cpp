@@ -1,0 +1,213 @@
+#include "ffloc/server/deadline_server.h"
+
+#include <netdb.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <string>
+
+namespace ffloc {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
+
+// Waits until `socket` is ready for `events` or `wait` passes. Interrupted waits resume with
+// what is left.
+int pollFor(int socket, short events, Clock::duration wait) {
+  const Clock::time_point until = Clock::now() + wait;
+  for (;;) {
+    const auto left = std::chrono::ceil<milliseconds>(until - Clock::now()).count();
+    pollfd entry = {socket, events, 0};
+    const int ready = poll(&entry, 1, static_cast<int>(std::max<int64_t>(left, 0)));
+    if (ready < 0 && errno == EINTR) continue;
+    return ready > 0 ? entry.revents : ready;
+  }
+}
+
+void numericAddress(const sockaddr_storage& address, socklen_t length, std::string& ip, int& port) {
+  char host[NI_MAXHOST];
+  char service[NI_MAXSERV];
+  if (getnameinfo(reinterpret_cast<const sockaddr*>(&address), length, host, sizeof(host), service, sizeof(service),
+                  NI_NUMERICHOST | NI_NUMERICSERV) == 0) {
+    ip = host;
+    port = std::atoi(service);
+  }
+}
+
+// One connection's socket, read through a buffer (the library reads headers a byte at a time)
+// and held to the deadline of the request part being read. Each read also keeps the library's
+// own per-read timeout.
+class DeadlineStream : public httplib::Stream {
+ public:
+  DeadlineStream(socket_t socket, Clock::duration read_timeout, Clock::duration write_timeout)
+      : socket_(socket), read_timeout_(read_timeout), write_timeout_(write_timeout) {}
+
+  // The part of the request read from now on, and how long it may take.
+  void startPart(const char* part, milliseconds limit) {
+    part_ = part;
+    limit_ = limit;
+    deadline_ = Clock::now() + limit;
+  }
+  void startRequest(milliseconds header_limit) {
+    startPart("headers", header_limit);
+    timed_out_ = false;
+    written_ = 0;
+  }
+  bool timedOut() const { return timed_out_; }
+  std::string timeoutMessage() const {
+    const auto seconds = std::chrono::duration<double>(limit_).count();
+    char text[160];
+    std::snprintf(text, sizeof(text), "request timeout: the request's %s did not arrive within %g s", part_, seconds);
+    return text;
+  }
+  bool answered() const { return written_ > 0; }
+
+  // Waits for the next request of a kept-alive connection: true when bytes (or the end of the
+  // stream, which the library then reads as such) arrive within `idle`, false when the server
+  // stops first.
+  bool awaitRequest(Clock::duration idle, const std::atomic<socket_t>& server_socket) {
+    if (begin_ < end_) return true;
+    const Clock::time_point until = Clock::now() + idle;
+    // In slices, so that a stopping server does not wait out every idle connection.
+    while (server_socket != INVALID_SOCKET) {
+      const Clock::duration left = until - Clock::now();
+      if (left <= Clock::duration::zero()) return false;
+      const int ready = pollFor(socket_, POLLIN, std::min<Clock::duration>(left, milliseconds(100)));
+      if (ready != 0) return ready > 0;
+    }
+    return false;
+  }
+
+  // The client closed its side (or reset the connection): nothing it sent is still to be read,
+  // and the end of the stream, or an error, is.
+  bool peerClosed() const {
+    if (begin_ < end_) return false;
+    const int ready = pollFor(socket_, POLLIN | POLLRDHUP, Clock::duration::zero());
+    if (ready <= 0) return ready < 0;
+    if (ready & (POLLHUP | POLLERR | POLLRDHUP)) return true;
+    char byte;
+    return recv(socket_, &byte, 1, MSG_PEEK | MSG_DONTWAIT) == 0;
+  }
+
+  bool is_readable() const override {
+    if (begin_ < end_) return true;
+    const Clock::duration left = deadline_ - Clock::now();
+    if (left > Clock::duration::zero() && pollFor(socket_, POLLIN, std::min(left, read_timeout_)) > 0) return true;
+    if (Clock::now() >= deadline_) timed_out_ = true;
+    return false;
+  }
+
+  bool is_writable() const override { return pollFor(socket_, POLLOUT, write_timeout_) > 0; }
+
+  ssize_t read(char* ptr, size_t size) override {
+    if (begin_ == end_) {
+      if (!is_readable()) return -1;
+      ssize_t got;
+      do {
+        got = recv(socket_, buffer_, sizeof(buffer_), 0);
+      } while (got < 0 && errno == EINTR);
+      if (got <= 0) return got;
+      begin_ = 0;
+      end_ = static_cast<size_t>(got);
+    }
+    const size_t taken = std::min(size, end_ - begin_);
+    std::memcpy(ptr, buffer_ + begin_, taken);
+    begin_ += taken;
+    return static_cast<ssize_t>(taken);
+  }
+
+  ssize_t write(const char* ptr, size_t size) override {
+    if (!is_writable()) return -1;
+    ssize_t sent;
+    do {
+      sent = send(socket_, ptr, size, MSG_NOSIGNAL);
+    } while (sent < 0 && errno == EINTR);
+    if (sent > 0) written_ += static_cast<size_t>(sent);
+    return sent;
+  }
+
+  void get_remote_ip_and_port(std::string& ip, int& port) const override {
+    sockaddr_storage address = {};
+    socklen_t length = sizeof(address);
+    if (getpeername(socket_, reinterpret_cast<sockaddr*>(&address), &length) == 0)
+      numericAddress(address, length, ip, port);
+  }
+
+  void get_local_ip_and_port(std::string& ip, int& port) const override {
+    sockaddr_storage address = {};
+    socklen_t length = sizeof(address);
+    if (getsockname(socket_, reinterpret_cast<sockaddr*>(&address), &length) == 0)
+      numericAddress(address, length, ip, port);
+  }
+
+  socket_t socket() const override { return socket_; }
+
+ private:
+  socket_t socket_;
+  Clock::duration read_timeout_;
+  Clock::duration write_timeout_;
+  const char* part_ = "headers";
+  milliseconds limit_{0};
+  Clock::time_point deadline_ = Clock::time_point::max();
+  mutable bool timed_out_ = false;
+  size_t written_ = 0;
+  char buffer_[16384];
+  size_t begin_ = 0;
+  size_t end_ = 0;
+};
+
+// The connection the calling thread serves: the library runs each connection, its parsing and
+// its handlers on one thread of its pool, and gives handlers no way to reach the socket.
+thread_local DeadlineStream* current_connection = nullptr;
+
+void writeTimeoutAnswer(DeadlineStream& stream) {
+  const std::string body = "{\"error\":\"" + stream.timeoutMessage() + "\"}";
+  const std::string answer = "HTTP/1.1 408 Request Timeout\r\nContent-Type: application/json\r\nContent-Length: " +
+                             std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+  stream.write(answer.data(), answer.size());
+}
+
+}  // namespace
+
+std::string DeadlineServer::timeoutMessage() {
+  return current_connection && current_connection->timedOut() ? current_connection->timeoutMessage() : std::string();
+}
+
+bool DeadlineServer::clientDisconnected() { return current_connection && current_connection->peerClosed(); }
+
+bool DeadlineServer::process_and_close_socket(socket_t sock) {
+  const auto timeout = [](time_t seconds, time_t microseconds) {
+    return std::chrono::seconds(seconds) + std::chrono::microseconds(microseconds);
+  };
+  DeadlineStream stream(sock, timeout(read_timeout_sec_, read_timeout_usec_),
+                        timeout(write_timeout_sec_, write_timeout_usec_));
+  current_connection = &stream;
+  bool ok = false;
+  for (size_t left = keep_alive_max_count_; left > 0; --left) {
+    if (!stream.awaitRequest(std::chrono::seconds(keep_alive_timeout_sec_), svr_sock_)) break;
+    stream.startRequest(header_deadline_);
+    bool closed = false;
+    // Called once the headers are parsed, before the body is read.
+    ok = process_request(stream, left == 1, closed,
+                         [&](httplib::Request&) { stream.startPart("body", body_deadline_); });
+    if (stream.timedOut()) {
+      // Cut in the request line, the library answers nothing; later, the error handler has.
+      if (!stream.answered()) writeTimeoutAnswer(stream);
+      ok = false;
+      break;
+    }
+    if (!ok || closed) break;
+  }
+  current_connection = nullptr;
+  shutdown(sock, SHUT_RDWR);
+  close(sock);
+  return ok;
+}
+
+}  // namespace ffloc

@@ -1,0 +1,39 @@
+#pragma once
+
+#include <chrono>
+#include <string>
+
+// Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
+#include <httplib.h>
+
+namespace ffloc {
+
+// cpp-httplib 0.11 bounds each read of a request (5 s) but not the request: a client sending
+// one header line every 2 s held a connection thread for as long as it liked, and eight such
+// clients stopped every answer, /health included. This is an httplib::Server whose connections are read through our own stream, which holds each
+// request to its deadlines: past the headers' deadline the client gets 408 and the connection is
+// closed; past the body's, reading stops, the error handler sees requestTimedOut() and the
+// connection is closed after its answer. The keep-alive loop, request parsing and routing are
+// the library's (Server::process_request); only the socket reads and writes are ours.
+class DeadlineServer : public httplib::Server {
+ public:
+  // `headers`: from a request's first byte to its blank line; `body`: from there to the body's
+  // last byte.
+  DeadlineServer(std::chrono::milliseconds headers, std::chrono::milliseconds body)
+      : header_deadline_(headers), body_deadline_(body) {}
+
+  // For handlers, on the thread that serves the request. Why the current request ran out of
+  // time, empty when it did not (the error handler turns the library's 400 into 408 with it).
+  static std::string timeoutMessage();
+  // Whether the current request's client has closed its side of the connection (a query whose
+  // client left need not run). A client that half-closes after sending counts as gone.
+  static bool clientDisconnected();
+
+ private:
+  bool process_and_close_socket(socket_t sock) override;
+
+  std::chrono::milliseconds header_deadline_;
+  std::chrono::milliseconds body_deadline_;
+};
+
+}  // namespace ffloc
