@@ -3,6 +3,7 @@
 #include <ATen/TensorOperators.h>
 #include <ATen/ops/relu.h>
 
+#include "ffloc/model/op_profile.h"
 #include "ffloc/model/torch_compat.h"
 
 namespace ffloc {
@@ -18,18 +19,29 @@ void registerUnit(DptHead::ResidualUnit& unit, ParameterTable& table, const std:
   unit.conv2.registerIn(table, prefix + ".conv2");
 }
 
+at::Tensor profiledRelu(const at::Tensor& x) {
+  const OpScope scope(OpKind::kElementwise);
+  return at::relu(x);
+}
+
+at::Tensor profiledAdd(const at::Tensor& a, const at::Tensor& b) {
+  const OpScope scope(OpKind::kElementwise);
+  return a + b;
+}
+
 at::Tensor applyUnit(const DptHead::ResidualUnit& unit, const at::Tensor& x) {
-  return unit.conv2.forward(at::relu(unit.conv1.forward(at::relu(x)))) + x;
+  return profiledAdd(unit.conv2.forward(profiledRelu(unit.conv1.forward(profiledRelu(x)))), x);
 }
 
 at::Tensor upsampleTwice(const at::Tensor& x) {
+  const OpScope scope(OpKind::kElementwise);
   return torch_compat::resizeBilinearAlignCorners(x, x.size(2) * 2, x.size(3) * 2);
 }
 
 at::Tensor applyFusion(const DptHead::FusionBlock& block, const at::Tensor& first,
                        const at::Tensor* second) {
   at::Tensor out = first;
-  if (second) out = out + applyUnit(block.unit1, *second);
+  if (second) out = profiledAdd(out, applyUnit(block.unit1, *second));
   out = applyUnit(block.unit2, out);
   return block.out_conv.forward(upsampleTwice(out));
 }
@@ -112,7 +124,7 @@ at::Tensor DptHead::forward(const std::array<at::Tensor, 4>& tokens, int64_t hei
   at::Tensor out = upsampleTwice(head0.forward(path1));
   // The output projection keeps its own precision (float32), so depth and confidence, which go
   // through exp, are not rounded to bfloat16.
-  out = head4.forward(at::relu(head2.forward(out)).to(head4.weight.scalar_type()));
+  out = head4.forward(profiledRelu(head2.forward(out)).to(head4.weight.scalar_type()));
   record(trace, trace_prefix, "raw", out);
   return out;
 }

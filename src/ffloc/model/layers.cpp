@@ -8,6 +8,7 @@
 #include <ATen/ops/linear.h>
 #include <ATen/ops/matmul.h>
 
+#include "ffloc/model/op_profile.h"
 #include "ffloc/model/torch_compat.h"
 
 namespace ffloc::nn {
@@ -17,7 +18,10 @@ void Linear::registerIn(ParameterTable& table, const std::string& prefix) {
   table.add(prefix + ".bias", {out}, &bias);
 }
 
-at::Tensor Linear::forward(const at::Tensor& x) const { return at::linear(x, weight, bias); }
+at::Tensor Linear::forward(const at::Tensor& x) const {
+  const OpScope scope(OpKind::kGemm, 2.0 * static_cast<double>(x.numel()) * static_cast<double>(out));
+  return at::linear(x, weight, bias);
+}
 
 void LayerNorm::registerIn(ParameterTable& table, const std::string& prefix) {
   table.add(prefix + ".weight", {dim}, &weight);
@@ -25,6 +29,7 @@ void LayerNorm::registerIn(ParameterTable& table, const std::string& prefix) {
 }
 
 at::Tensor LayerNorm::forward(const at::Tensor& x) const {
+  const OpScope scope(OpKind::kLayerNorm);
   if (x.scalar_type() == at::kFloat) return at::layer_norm(x, {dim}, weight, bias, eps);
   // libtorch 1.13's bf16 layer_norm on the CPU is ~7x slower than fp32 (38 ms against 5 ms for
   // 768x1024, measured); normalising in fp32 and casting back is faster and more accurate.
@@ -60,9 +65,17 @@ at::Tensor blockTransposedConv(const at::Tensor& x, const at::Tensor& weight, co
   return image;
 }
 
+// Multiply-adds x 2 of one call on x: per output pixel (input pixel when transposed) in x out x k^2.
+double convolutionFlops(const at::Tensor& x, const Conv2d& conv) {
+  const int64_t rows = conv.transposed ? x.size(2) : (x.size(2) + 2 * conv.padding - conv.kernel) / conv.stride + 1;
+  const int64_t cols = conv.transposed ? x.size(3) : (x.size(3) + 2 * conv.padding - conv.kernel) / conv.stride + 1;
+  return 2.0 * static_cast<double>(x.size(0) * rows * cols * conv.in * conv.out * conv.kernel * conv.kernel);
+}
+
 }  // namespace
 
 at::Tensor Conv2d::forward(const at::Tensor& x) const {
+  const OpScope scope(OpKind::kConvolution, convolutionFlops(x, *this));
   if (transposed && stride == kernel && padding == 0) return blockTransposedConv(x, weight, bias, kernel);
   if (transposed) return at::conv_transpose2d(x, weight, bias, {stride, stride}, {padding, padding});
   return at::conv2d(x, weight, bias, {stride, stride}, {padding, padding});
@@ -73,7 +86,14 @@ void Mlp::registerIn(ParameterTable& table, const std::string& prefix) {
   fc2.registerIn(table, prefix + ".fc2");
 }
 
-at::Tensor Mlp::forward(const at::Tensor& x) const { return fc2.forward(at::gelu(fc1.forward(x))); }
+at::Tensor Mlp::forward(const at::Tensor& x) const {
+  at::Tensor hidden = fc1.forward(x);
+  {
+    const OpScope scope(OpKind::kGelu);
+    hidden = at::gelu(hidden);
+  }
+  return fc2.forward(hidden);
+}
 
 namespace {
 
@@ -84,6 +104,7 @@ at::Tensor splitHeads(const at::Tensor& x, int64_t num_heads) {
 
 // (B, heads, N, hd) -> (B, N, heads * hd).
 at::Tensor mergeHeads(const at::Tensor& x) {
+  const OpScope scope(OpKind::kLayout);
   return x.transpose(1, 2).reshape({x.size(0), x.size(2), x.size(1) * x.size(3)});
 }
 
@@ -126,9 +147,18 @@ void EncoderBlock::registerIn(ParameterTable& table, const std::string& prefix) 
   mlp.registerIn(table, prefix + ".mlp");
 }
 
+namespace {
+
+at::Tensor residualAdd(const at::Tensor& x, const at::Tensor& update) {
+  const OpScope scope(OpKind::kElementwise);
+  return x + update;
+}
+
+}  // namespace
+
 at::Tensor EncoderBlock::forward(const at::Tensor& x, const RopeFactors& rope) const {
-  const at::Tensor h = x + attn.forward(norm1.forward(x), rope);
-  return h + mlp.forward(norm2.forward(h));
+  const at::Tensor h = residualAdd(x, attn.forward(norm1.forward(x), rope));
+  return residualAdd(h, mlp.forward(norm2.forward(h)));
 }
 
 void DecoderBlock::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -144,10 +174,10 @@ void DecoderBlock::registerIn(ParameterTable& table, const std::string& prefix) 
 
 at::Tensor DecoderBlock::forward(const at::Tensor& x, const at::Tensor& y, const RopeFactors& x_rope,
                                  const RopeFactors& y_rope) const {
-  const at::Tensor h1 = x + attn.forward(norm1.forward(x), x_rope);
+  const at::Tensor h1 = residualAdd(x, attn.forward(norm1.forward(x), x_rope));
   const at::Tensor y_normed = norm_y.forward(y);
-  const at::Tensor h2 = h1 + cross_attn.forward(norm2.forward(h1), y_normed, x_rope, y_rope);
-  return h2 + mlp.forward(norm3.forward(h2));
+  const at::Tensor h2 = residualAdd(h1, cross_attn.forward(norm2.forward(h1), y_normed, x_rope, y_rope));
+  return residualAdd(h2, mlp.forward(norm3.forward(h2)));
 }
 
 }  // namespace ffloc::nn

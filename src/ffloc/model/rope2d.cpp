@@ -13,6 +13,8 @@
 
 #include <stdexcept>
 
+#include "ffloc/model/op_profile.h"
+
 namespace ffloc {
 
 RopeTables ropeTables(int64_t half_dim, int64_t num_positions, double base) {
@@ -30,6 +32,7 @@ RopeTables ropeTables(int64_t half_dim, int64_t num_positions, double base) {
 
 RopeFactors ropeFactors(const at::Tensor& positions, int64_t head_dim, at::ScalarType dtype,
                         double base) {
+  const OpScope scope(OpKind::kRope);
   if (positions.dim() != 3 || positions.size(2) != 2) {
     throw std::invalid_argument("ropeFactors: positions must be (B, N, 2)");
   }
@@ -52,6 +55,7 @@ RopeFactors ropeFactors(const at::Tensor& positions, int64_t head_dim, at::Scala
 }
 
 at::Tensor applyRope(const at::Tensor& tokens, const RopeFactors& factors) {
+  const OpScope scope(OpKind::kRope);
   const int64_t head_dim = tokens.size(-1);
   const int64_t quarter = head_dim / 4;
   // Swap the two quarters inside each half: (t1, t2, t3, t4) -> (t2, t1, t4, t3).

@@ -8,6 +8,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "ffloc/model/op_profile.h"
+
 #if defined(__x86_64__) && defined(__GNUC__)
 // GCC 12 flags the intrinsics' own internal "undefined" vectors as maybe-uninitialised.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
@@ -111,6 +113,7 @@ bool vectorizedSoftmaxAvailable() {
 }
 
 void softmaxLastDimInPlace(at::Tensor& scores) {
+  const OpScope scope(OpKind::kSoftmax);
 #if FFLOC_SOFTMAX_AVX512
   const bool supported_dtype = scores.scalar_type() == at::kFloat || scores.scalar_type() == at::kBFloat16;
   if (vectorizedSoftmaxAvailable() && scores.is_cpu() && scores.is_contiguous() && supported_dtype &&
