@@ -1,6 +1,7 @@
 #include "ffloc/model/layers.h"
 
 #include <ATen/TensorOperators.h>
+#include <ATen/core/grad_mode.h>
 #include <ATen/ops/conv2d.h>
 #include <ATen/ops/conv_transpose2d.h>
 #include <ATen/ops/gelu.h>
@@ -8,6 +9,8 @@
 #include <ATen/ops/linear.h>
 #include <ATen/ops/matmul.h>
 
+#include "ffloc/model/cpu_attention.h"
+#include "ffloc/model/cpu_gemm.h"
 #include "ffloc/model/op_profile.h"
 #include "ffloc/model/torch_compat.h"
 
@@ -18,9 +21,11 @@ void Linear::registerIn(ParameterTable& table, const std::string& prefix) {
   table.add(prefix + ".bias", {out}, &bias);
 }
 
-at::Tensor Linear::forward(const at::Tensor& x) const {
+at::Tensor Linear::forward(const at::Tensor& x, const at::Tensor& residual) const {
   const OpScope scope(OpKind::kGemm, 2.0 * static_cast<double>(x.numel()) * static_cast<double>(out));
-  return at::linear(x, weight, bias);
+  if (cpuGemmApplies(x, weight)) return cpuLinear(x, weight, bias, residual);
+  at::Tensor y = at::linear(x, weight, bias);
+  return residual.defined() ? residual + y : y;
 }
 
 void LayerNorm::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -86,13 +91,18 @@ void Mlp::registerIn(ParameterTable& table, const std::string& prefix) {
   fc2.registerIn(table, prefix + ".fc2");
 }
 
-at::Tensor Mlp::forward(const at::Tensor& x) const {
+at::Tensor Mlp::forward(const at::Tensor& x, const at::Tensor& residual) const {
   at::Tensor hidden = fc1.forward(x);
   {
     const OpScope scope(OpKind::kGelu);
-    hidden = at::gelu(hidden);
+    // fc1's output is ours alone: without autograd GELU overwrites it (no 4C-wide allocation).
+    if (at::GradMode::is_enabled() && hidden.requires_grad()) {
+      hidden = at::gelu(hidden);
+    } else {
+      at::gelu_(hidden);
+    }
   }
-  return fc2.forward(hidden);
+  return fc2.forward(hidden, residual);
 }
 
 namespace {
@@ -115,14 +125,27 @@ void Attention::registerIn(ParameterTable& table, const std::string& prefix) {
   proj.registerIn(table, prefix + ".proj");
 }
 
-at::Tensor Attention::forward(const at::Tensor& x, const RopeFactors& rope) const {
+at::Tensor Attention::forward(const at::Tensor& x, const RopeFactors& rope, const at::Tensor& residual) const {
   const int64_t batch = x.size(0), tokens = x.size(1), dim = x.size(2);
+  const at::Tensor fused = qkv.forward(x);  // (B, N, 3C): [q | k | v]
+  const at::Tensor q_rows = fused.narrow(2, 0, dim), k_rows = fused.narrow(2, dim, dim);
+  const at::Tensor v_rows = fused.narrow(2, 2 * dim, dim);
+  if (ropeInPlaceApplies(q_rows, rope) && cpuAttentionApplies(q_rows, k_rows, v_rows)) {
+    // q and k are rotated where the product wrote them and read from there by stride.
+    applyRopeInPlace(q_rows, rope);
+    applyRopeInPlace(k_rows, rope);
+    at::Tensor merged;
+    {
+      const OpScope scope(OpKind::kAttention, 4.0 * static_cast<double>(batch * tokens * tokens * dim));
+      merged = cpuAttention(q_rows, k_rows, v_rows, num_heads);
+    }
+    return proj.forward(merged, residual);
+  }
   // (B, N, 3 * C) -> (3, B, heads, N, hd): the output channels are [q | k | v].
-  const at::Tensor parts =
-      qkv.forward(x).reshape({batch, tokens, 3, num_heads, dim / num_heads}).permute({2, 0, 3, 1, 4});
+  const at::Tensor parts = fused.reshape({batch, tokens, 3, num_heads, dim / num_heads}).permute({2, 0, 3, 1, 4});
   const at::Tensor q = applyRope(parts[0], rope);
   const at::Tensor k = applyRope(parts[1], rope);
-  return proj.forward(mergeHeads(torch_compat::attention(q, k, parts[2])));
+  return proj.forward(mergeHeads(torch_compat::attention(q, k, parts[2])), residual);
 }
 
 void CrossAttention::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -133,11 +156,27 @@ void CrossAttention::registerIn(ParameterTable& table, const std::string& prefix
 }
 
 at::Tensor CrossAttention::forward(const at::Tensor& query, const at::Tensor& key_value,
-                                   const RopeFactors& query_rope, const RopeFactors& key_rope) const {
-  const at::Tensor q = applyRope(splitHeads(projq.forward(query), num_heads), query_rope);
-  const at::Tensor k = applyRope(splitHeads(projk.forward(key_value), num_heads), key_rope);
-  const at::Tensor v = splitHeads(projv.forward(key_value), num_heads);
-  return proj.forward(mergeHeads(torch_compat::attention(q, k, v)));
+                                   const RopeFactors& query_rope, const RopeFactors& key_rope,
+                                   const at::Tensor& residual) const {
+  const at::Tensor q_rows = projq.forward(query);
+  const at::Tensor k_rows = projk.forward(key_value);
+  const at::Tensor v_rows = projv.forward(key_value);
+  if (ropeInPlaceApplies(q_rows, query_rope) && ropeInPlaceApplies(k_rows, key_rope) &&
+      cpuAttentionApplies(q_rows, k_rows, v_rows)) {
+    applyRopeInPlace(q_rows, query_rope);
+    applyRopeInPlace(k_rows, key_rope);
+    at::Tensor merged;
+    {
+      const OpScope scope(OpKind::kAttention,
+                          4.0 * static_cast<double>(q_rows.size(0) * q_rows.size(1) * k_rows.size(1) * q_rows.size(2)));
+      merged = cpuAttention(q_rows, k_rows, v_rows, num_heads);
+    }
+    return proj.forward(merged, residual);
+  }
+  const at::Tensor q = applyRope(splitHeads(q_rows, num_heads), query_rope);
+  const at::Tensor k = applyRope(splitHeads(k_rows, num_heads), key_rope);
+  const at::Tensor v = splitHeads(v_rows, num_heads);
+  return proj.forward(mergeHeads(torch_compat::attention(q, k, v)), residual);
 }
 
 void EncoderBlock::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -147,18 +186,9 @@ void EncoderBlock::registerIn(ParameterTable& table, const std::string& prefix) 
   mlp.registerIn(table, prefix + ".mlp");
 }
 
-namespace {
-
-at::Tensor residualAdd(const at::Tensor& x, const at::Tensor& update) {
-  const OpScope scope(OpKind::kElementwise);
-  return x + update;
-}
-
-}  // namespace
-
 at::Tensor EncoderBlock::forward(const at::Tensor& x, const RopeFactors& rope) const {
-  const at::Tensor h = residualAdd(x, attn.forward(norm1.forward(x), rope));
-  return residualAdd(h, mlp.forward(norm2.forward(h)));
+  const at::Tensor h = attn.forward(norm1.forward(x), rope, x);
+  return mlp.forward(norm2.forward(h), h);
 }
 
 void DecoderBlock::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -174,10 +204,10 @@ void DecoderBlock::registerIn(ParameterTable& table, const std::string& prefix) 
 
 at::Tensor DecoderBlock::forward(const at::Tensor& x, const at::Tensor& y, const RopeFactors& x_rope,
                                  const RopeFactors& y_rope) const {
-  const at::Tensor h1 = residualAdd(x, attn.forward(norm1.forward(x), x_rope));
+  const at::Tensor h1 = attn.forward(norm1.forward(x), x_rope, x);
   const at::Tensor y_normed = norm_y.forward(y);
-  const at::Tensor h2 = residualAdd(h1, cross_attn.forward(norm2.forward(h1), y_normed, x_rope, y_rope));
-  return residualAdd(h2, mlp.forward(norm3.forward(h2)));
+  const at::Tensor h2 = cross_attn.forward(norm2.forward(h1), y_normed, x_rope, y_rope, h1);
+  return mlp.forward(norm3.forward(h2), h2);
 }
 
 }  // namespace ffloc::nn
