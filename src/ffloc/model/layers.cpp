@@ -10,6 +10,7 @@
 #include <ATen/ops/matmul.h>
 
 #include "ffloc/model/cpu_attention.h"
+#include "ffloc/model/cpu_conv.h"
 #include "ffloc/model/cpu_gemm.h"
 #include "ffloc/model/op_profile.h"
 #include "ffloc/model/torch_compat.h"
@@ -63,7 +64,11 @@ at::Tensor blockTransposedConv(const at::Tensor& x, const at::Tensor& weight, co
   const int64_t batch = x.size(0), in = x.size(1), rows = x.size(2), cols = x.size(3);
   const int64_t out = weight.size(1);
   // (B, C, H, W) x (C, O*k*k) -> (B, H, W, O, k, k) -> (B, H, k, W, k, O), a channels-last image.
-  at::Tensor blocks = at::matmul(x.permute({0, 2, 3, 1}), weight.reshape({in, out * kernel * kernel}));
+  const at::Tensor pixels = x.permute({0, 2, 3, 1});
+  const at::Tensor matrix = weight.reshape({in, out * kernel * kernel});
+  // The threaded product wants the (out*k*k, in) layout: a copy of a small weight per call.
+  at::Tensor blocks = cpuGemmApplies(pixels, matrix) ? cpuLinear(pixels, matrix.t().contiguous(), {}, {})
+                                                     : at::matmul(pixels, matrix);
   blocks = blocks.reshape({batch, rows, cols, out, kernel, kernel}).permute({0, 1, 4, 2, 5, 3});
   at::Tensor image = blocks.reshape({batch, rows * kernel, cols * kernel, out}).permute({0, 3, 1, 2});
   if (bias.defined()) image = image + bias.reshape({1, out, 1, 1});
@@ -83,6 +88,7 @@ at::Tensor Conv2d::forward(const at::Tensor& x) const {
   const OpScope scope(OpKind::kConvolution, convolutionFlops(x, *this));
   if (transposed && stride == kernel && padding == 0) return blockTransposedConv(x, weight, bias, kernel);
   if (transposed) return at::conv_transpose2d(x, weight, bias, {stride, stride}, {padding, padding});
+  if (cpuConvolutionApplies(x, weight, stride, padding)) return cpuConvolution(x, weight, bias);
   return at::conv2d(x, weight, bias, {stride, stride}, {padding, padding});
 }
 

@@ -1,6 +1,7 @@
 #include "ffloc/model/layers.h"
 
 #include "ffloc/model/cpu_attention.h"
+#include "ffloc/model/cpu_conv.h"
 #include "ffloc/model/cpu_gemm.h"
 #include "ffloc/model/softmax_kernel.h"
 
@@ -113,6 +114,29 @@ TEST(CpuAttention, MatchesComposedReference) {
       at::matmul(at::softmax(scores, -1), split(v)).permute({0, 2, 1, 3}).reshape({batch, queries, width});
   ASSERT_EQ(out.sizes(), expected.sizes());
   EXPECT_LT((out.to(at::kDouble) - expected).abs().max().item<double>(), 1e-5);
+}
+
+// The DPT heads' 3x3 (padding 1) and 1x1 convolutions as products, against libtorch's own, on
+// images down to one pixel wide (where every horizontal tap but the centre one falls off the
+// row), batch 2, channels-last and contiguous inputs.
+TEST(CpuConvolution, MatchesLibtorchConvolution) {
+  at::manual_seed(9);
+  for (const int64_t kernel : {3, 1}) {
+    for (const auto& [rows, cols] : {std::pair<int64_t, int64_t>{5, 7}, {3, 1}, {1, 2}}) {
+      const at::Tensor weight = at::randn({6, 5, kernel, kernel}), bias = at::randn({6});
+      const int64_t padding = kernel / 2;
+      for (const bool channels_last : {true, false}) {
+        at::Tensor x = at::randn({2, 5, rows, cols});
+        if (channels_last) x = x.contiguous(at::MemoryFormat::ChannelsLast);
+        ASSERT_TRUE(cpuConvolutionApplies(x, weight, 1, padding));
+        const at::Tensor expected = at::conv2d(x, weight, bias, 1, padding);
+        EXPECT_LT((cpuConvolution(x, weight, bias) - expected).abs().max().item<double>(), 1e-5)
+            << kernel << "x" << kernel << " on " << rows << "x" << cols;
+        EXPECT_LT((cpuConvolution(x, weight, {}) - at::conv2d(x, weight, {}, 1, padding)).abs().max().item<double>(), 1e-5);
+      }
+    }
+  }
+  EXPECT_FALSE(cpuConvolutionApplies(at::randn({1, 5, 4, 4}), at::randn({6, 5, 3, 3}), 2, 1));
 }
 
 // The threaded Linear with its bias and residual folded in, for both ways of splitting the
