@@ -1,6 +1,7 @@
 #include "ffloc/model/dpt_head.h"
 
 #include <ATen/TensorOperators.h>
+#include <ATen/core/grad_mode.h>
 #include <ATen/ops/relu.h>
 
 #include "ffloc/model/op_profile.h"
@@ -24,13 +25,24 @@ at::Tensor profiledRelu(const at::Tensor& x) {
   return at::relu(x);
 }
 
-at::Tensor profiledAdd(const at::Tensor& a, const at::Tensor& b) {
+bool withoutAutograd(const at::Tensor& x) { return !(at::GradMode::is_enabled() && x.requires_grad()); }
+
+// For maps the head has just computed and nobody else holds: in place without autograd, which
+// saves a map-sized allocation (the output head's maps are 100 MB at 512x384).
+at::Tensor reluOwned(at::Tensor x) {
   const OpScope scope(OpKind::kElementwise);
-  return a + b;
+  if (withoutAutograd(x)) return x.relu_();
+  return at::relu(x);
+}
+
+at::Tensor addOwned(at::Tensor owned, const at::Tensor& other) {
+  const OpScope scope(OpKind::kElementwise);
+  if (withoutAutograd(owned) && withoutAutograd(other)) return owned.add_(other);
+  return owned + other;
 }
 
 at::Tensor applyUnit(const DptHead::ResidualUnit& unit, const at::Tensor& x) {
-  return profiledAdd(unit.conv2.forward(profiledRelu(unit.conv1.forward(profiledRelu(x)))), x);
+  return addOwned(unit.conv2.forward(reluOwned(unit.conv1.forward(profiledRelu(x)))), x);
 }
 
 at::Tensor upsampleTwice(const at::Tensor& x) {
@@ -41,7 +53,7 @@ at::Tensor upsampleTwice(const at::Tensor& x) {
 at::Tensor applyFusion(const DptHead::FusionBlock& block, const at::Tensor& first,
                        const at::Tensor* second) {
   at::Tensor out = first;
-  if (second) out = profiledAdd(out, applyUnit(block.unit1, *second));
+  if (second) out = addOwned(applyUnit(block.unit1, *second), out);
   out = applyUnit(block.unit2, out);
   return block.out_conv.forward(upsampleTwice(out));
 }
@@ -122,9 +134,10 @@ at::Tensor DptHead::forward(const std::array<at::Tensor, 4>& tokens, int64_t hei
   const at::Tensor path1 = applyFusion(refinenet[0], path2, &layers[0]);
   record(trace, trace_prefix, "path1", path1);
   at::Tensor out = upsampleTwice(head0.forward(path1));
+  out = reluOwned(head2.forward(out));  // one full-resolution map alive besides head2's input, not two
   // The output projection keeps its own precision (float32), so depth and confidence, which go
   // through exp, are not rounded to bfloat16.
-  out = head4.forward(profiledRelu(head2.forward(out)).to(head4.weight.scalar_type()));
+  out = head4.forward(out.to(head4.weight.scalar_type()));
   record(trace, trace_prefix, "raw", out);
   return out;
 }
