@@ -54,6 +54,8 @@ def main(folder):
         rounds = sorted(r for t, r in ours if t == threads)
         for name in names:
             mine = [ours[(threads, r)][name] for r in rounds if name in ours[(threads, r)]]
+            if not mine:  # a run that did not get this far
+                continue
             theirs = [eager[(threads, r)][name]["median_s"] for r in rounds
                       if (threads, r) in eager and name in eager[(threads, r)]]
             ratios = [eager[(threads, r)][name]["median_s"] / ours[(threads, r)][name]["median_s"] for r in rounds
