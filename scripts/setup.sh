@@ -14,6 +14,7 @@ optional_packages=(
   libcpp-httplib-dev  # the HTTP server, ffloc serve
   pybind11-dev python3-dev python3-numpy python3-pytest  # the Python module (docs/python.md) and its tests
   chromium  # the browser tests of the eval report and the server's viewer (web/)
+  python3-torch  # the PyTorch eager comparator of make bench and its fixture test (bench/dust3r_eager.py)
 )
 
 not_installed() {

@@ -9,6 +9,7 @@
 #include <ATen/ops/stack.h>
 
 #include "ffloc/core/error.h"
+#include "ffloc/model/op_profile.h"
 #include "ffloc/model/rope2d.h"
 
 namespace ffloc {
@@ -36,6 +37,7 @@ void checkImages(const at::Tensor& images, int64_t patch, const std::string& wha
 Dust3rPointMap pointMapFromRaw(const at::Tensor& raw) { return pointsFromRaw(raw.permute({0, 2, 3, 1})); }
 
 Dust3rPointMap pointsFromRaw(const at::Tensor& raw) {
+  const OpScope scope(OpKind::kElementwise);
   // float32 whatever produced `raw` (under mixed precision a bf16 layer may have): exp would
   // otherwise carry bf16's 8-bit mantissa into depth and confidence.
   const at::Tensor fmap = raw.to(at::kFloat);

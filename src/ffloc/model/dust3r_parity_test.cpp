@@ -164,10 +164,19 @@ TEST_F(Dust3rParity, RopeUnit) {
     trace[prefix + "sin_table"] = tables.sin;
     trace[prefix + "pos"] = positions;
     trace[prefix + "tokens"] = tokens;
-    trace[prefix + "out"] = applyRope(tokens, ropeFactors(positions, head_dim, at::kFloat));
+    const RopeFactors factors = ropeFactors(positions, head_dim, at::kFloat);
+    trace[prefix + "out"] = applyRope(tokens, factors);
     double worst = 0;
     EXPECT_EQ(firstMismatch(*fixture, trace, kRelativeTolerance, &worst, prefix), "");
     std::printf("rope hd%lld: worst relative error %.3g\n", static_cast<long long>(head_dim), worst);
+    // The in-place kernel on token rows (B, N, heads * hd), as the attention layers call it,
+    // computes the same products and sums: bit for bit applyRope's result.
+    const int64_t batch = tokens.size(0), heads = tokens.size(1), count = tokens.size(2);
+    const at::Tensor rows = tokens.permute({0, 2, 1, 3}).reshape({batch, count, heads * head_dim}).contiguous();
+    ASSERT_TRUE(ropeInPlaceApplies(rows, factors));
+    applyRopeInPlace(rows, factors);
+    EXPECT_TRUE(at::equal(rows.reshape({batch, count, heads, head_dim}).permute({0, 2, 1, 3}), trace[prefix + "out"]))
+        << prefix;
   }
 }
 

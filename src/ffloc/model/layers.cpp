@@ -1,6 +1,7 @@
 #include "ffloc/model/layers.h"
 
 #include <ATen/TensorOperators.h>
+#include <ATen/core/grad_mode.h>
 #include <ATen/ops/conv2d.h>
 #include <ATen/ops/conv_transpose2d.h>
 #include <ATen/ops/gelu.h>
@@ -8,6 +9,10 @@
 #include <ATen/ops/linear.h>
 #include <ATen/ops/matmul.h>
 
+#include "ffloc/model/cpu_attention.h"
+#include "ffloc/model/cpu_conv.h"
+#include "ffloc/model/cpu_gemm.h"
+#include "ffloc/model/op_profile.h"
 #include "ffloc/model/torch_compat.h"
 
 namespace ffloc::nn {
@@ -17,7 +22,12 @@ void Linear::registerIn(ParameterTable& table, const std::string& prefix) {
   table.add(prefix + ".bias", {out}, &bias);
 }
 
-at::Tensor Linear::forward(const at::Tensor& x) const { return at::linear(x, weight, bias); }
+at::Tensor Linear::forward(const at::Tensor& x, const at::Tensor& residual) const {
+  const OpScope scope(OpKind::kGemm, 2.0 * static_cast<double>(x.numel()) * static_cast<double>(out));
+  if (cpuGemmApplies(x, weight)) return cpuLinear(x, weight, bias, residual);
+  at::Tensor y = at::linear(x, weight, bias);
+  return residual.defined() ? residual + y : y;
+}
 
 void LayerNorm::registerIn(ParameterTable& table, const std::string& prefix) {
   table.add(prefix + ".weight", {dim}, &weight);
@@ -25,6 +35,7 @@ void LayerNorm::registerIn(ParameterTable& table, const std::string& prefix) {
 }
 
 at::Tensor LayerNorm::forward(const at::Tensor& x) const {
+  const OpScope scope(OpKind::kLayerNorm);
   if (x.scalar_type() == at::kFloat) return at::layer_norm(x, {dim}, weight, bias, eps);
   // libtorch 1.13's bf16 layer_norm on the CPU is ~7x slower than fp32 (38 ms against 5 ms for
   // 768x1024, measured); normalising in fp32 and casting back is faster and more accurate.
@@ -53,18 +64,31 @@ at::Tensor blockTransposedConv(const at::Tensor& x, const at::Tensor& weight, co
   const int64_t batch = x.size(0), in = x.size(1), rows = x.size(2), cols = x.size(3);
   const int64_t out = weight.size(1);
   // (B, C, H, W) x (C, O*k*k) -> (B, H, W, O, k, k) -> (B, H, k, W, k, O), a channels-last image.
-  at::Tensor blocks = at::matmul(x.permute({0, 2, 3, 1}), weight.reshape({in, out * kernel * kernel}));
+  const at::Tensor pixels = x.permute({0, 2, 3, 1});
+  const at::Tensor matrix = weight.reshape({in, out * kernel * kernel});
+  // The threaded product wants the (out*k*k, in) layout: a copy of a small weight per call.
+  at::Tensor blocks = cpuGemmApplies(pixels, matrix) ? cpuLinear(pixels, matrix.t().contiguous(), {}, {})
+                                                     : at::matmul(pixels, matrix);
   blocks = blocks.reshape({batch, rows, cols, out, kernel, kernel}).permute({0, 1, 4, 2, 5, 3});
   at::Tensor image = blocks.reshape({batch, rows * kernel, cols * kernel, out}).permute({0, 3, 1, 2});
   if (bias.defined()) image = image + bias.reshape({1, out, 1, 1});
   return image;
 }
 
+// Multiply-adds x 2 of one call on x: per output pixel (input pixel when transposed) in x out x k^2.
+double convolutionFlops(const at::Tensor& x, const Conv2d& conv) {
+  const int64_t rows = conv.transposed ? x.size(2) : (x.size(2) + 2 * conv.padding - conv.kernel) / conv.stride + 1;
+  const int64_t cols = conv.transposed ? x.size(3) : (x.size(3) + 2 * conv.padding - conv.kernel) / conv.stride + 1;
+  return 2.0 * static_cast<double>(x.size(0) * rows * cols * conv.in * conv.out * conv.kernel * conv.kernel);
+}
+
 }  // namespace
 
 at::Tensor Conv2d::forward(const at::Tensor& x) const {
+  const OpScope scope(OpKind::kConvolution, convolutionFlops(x, *this));
   if (transposed && stride == kernel && padding == 0) return blockTransposedConv(x, weight, bias, kernel);
   if (transposed) return at::conv_transpose2d(x, weight, bias, {stride, stride}, {padding, padding});
+  if (cpuConvolutionApplies(x, weight, stride, padding)) return cpuConvolution(x, weight, bias);
   return at::conv2d(x, weight, bias, {stride, stride}, {padding, padding});
 }
 
@@ -73,7 +97,19 @@ void Mlp::registerIn(ParameterTable& table, const std::string& prefix) {
   fc2.registerIn(table, prefix + ".fc2");
 }
 
-at::Tensor Mlp::forward(const at::Tensor& x) const { return fc2.forward(at::gelu(fc1.forward(x))); }
+at::Tensor Mlp::forward(const at::Tensor& x, const at::Tensor& residual) const {
+  at::Tensor hidden = fc1.forward(x);
+  {
+    const OpScope scope(OpKind::kGelu);
+    // fc1's output is ours alone: without autograd GELU overwrites it (no 4C-wide allocation).
+    if (at::GradMode::is_enabled() && hidden.requires_grad()) {
+      hidden = at::gelu(hidden);
+    } else {
+      at::gelu_(hidden);
+    }
+  }
+  return fc2.forward(hidden, residual);
+}
 
 namespace {
 
@@ -84,6 +120,7 @@ at::Tensor splitHeads(const at::Tensor& x, int64_t num_heads) {
 
 // (B, heads, N, hd) -> (B, N, heads * hd).
 at::Tensor mergeHeads(const at::Tensor& x) {
+  const OpScope scope(OpKind::kLayout);
   return x.transpose(1, 2).reshape({x.size(0), x.size(2), x.size(1) * x.size(3)});
 }
 
@@ -94,14 +131,27 @@ void Attention::registerIn(ParameterTable& table, const std::string& prefix) {
   proj.registerIn(table, prefix + ".proj");
 }
 
-at::Tensor Attention::forward(const at::Tensor& x, const RopeFactors& rope) const {
+at::Tensor Attention::forward(const at::Tensor& x, const RopeFactors& rope, const at::Tensor& residual) const {
   const int64_t batch = x.size(0), tokens = x.size(1), dim = x.size(2);
+  const at::Tensor fused = qkv.forward(x);  // (B, N, 3C): [q | k | v]
+  const at::Tensor q_rows = fused.narrow(2, 0, dim), k_rows = fused.narrow(2, dim, dim);
+  const at::Tensor v_rows = fused.narrow(2, 2 * dim, dim);
+  if (ropeInPlaceApplies(q_rows, rope) && cpuAttentionApplies(q_rows, k_rows, v_rows)) {
+    // q and k are rotated where the product wrote them and read from there by stride.
+    applyRopeInPlace(q_rows, rope);
+    applyRopeInPlace(k_rows, rope);
+    at::Tensor merged;
+    {
+      const OpScope scope(OpKind::kAttention, 4.0 * static_cast<double>(batch * tokens * tokens * dim));
+      merged = cpuAttention(q_rows, k_rows, v_rows, num_heads);
+    }
+    return proj.forward(merged, residual);
+  }
   // (B, N, 3 * C) -> (3, B, heads, N, hd): the output channels are [q | k | v].
-  const at::Tensor parts =
-      qkv.forward(x).reshape({batch, tokens, 3, num_heads, dim / num_heads}).permute({2, 0, 3, 1, 4});
+  const at::Tensor parts = fused.reshape({batch, tokens, 3, num_heads, dim / num_heads}).permute({2, 0, 3, 1, 4});
   const at::Tensor q = applyRope(parts[0], rope);
   const at::Tensor k = applyRope(parts[1], rope);
-  return proj.forward(mergeHeads(torch_compat::attention(q, k, parts[2])));
+  return proj.forward(mergeHeads(torch_compat::attention(q, k, parts[2])), residual);
 }
 
 void CrossAttention::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -112,11 +162,27 @@ void CrossAttention::registerIn(ParameterTable& table, const std::string& prefix
 }
 
 at::Tensor CrossAttention::forward(const at::Tensor& query, const at::Tensor& key_value,
-                                   const RopeFactors& query_rope, const RopeFactors& key_rope) const {
-  const at::Tensor q = applyRope(splitHeads(projq.forward(query), num_heads), query_rope);
-  const at::Tensor k = applyRope(splitHeads(projk.forward(key_value), num_heads), key_rope);
-  const at::Tensor v = splitHeads(projv.forward(key_value), num_heads);
-  return proj.forward(mergeHeads(torch_compat::attention(q, k, v)));
+                                   const RopeFactors& query_rope, const RopeFactors& key_rope,
+                                   const at::Tensor& residual) const {
+  const at::Tensor q_rows = projq.forward(query);
+  const at::Tensor k_rows = projk.forward(key_value);
+  const at::Tensor v_rows = projv.forward(key_value);
+  if (ropeInPlaceApplies(q_rows, query_rope) && ropeInPlaceApplies(k_rows, key_rope) &&
+      cpuAttentionApplies(q_rows, k_rows, v_rows)) {
+    applyRopeInPlace(q_rows, query_rope);
+    applyRopeInPlace(k_rows, key_rope);
+    at::Tensor merged;
+    {
+      const OpScope scope(OpKind::kAttention,
+                          4.0 * static_cast<double>(q_rows.size(0) * q_rows.size(1) * k_rows.size(1) * q_rows.size(2)));
+      merged = cpuAttention(q_rows, k_rows, v_rows, num_heads);
+    }
+    return proj.forward(merged, residual);
+  }
+  const at::Tensor q = applyRope(splitHeads(q_rows, num_heads), query_rope);
+  const at::Tensor k = applyRope(splitHeads(k_rows, num_heads), key_rope);
+  const at::Tensor v = splitHeads(v_rows, num_heads);
+  return proj.forward(mergeHeads(torch_compat::attention(q, k, v)), residual);
 }
 
 void EncoderBlock::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -127,8 +193,8 @@ void EncoderBlock::registerIn(ParameterTable& table, const std::string& prefix) 
 }
 
 at::Tensor EncoderBlock::forward(const at::Tensor& x, const RopeFactors& rope) const {
-  const at::Tensor h = x + attn.forward(norm1.forward(x), rope);
-  return h + mlp.forward(norm2.forward(h));
+  const at::Tensor h = attn.forward(norm1.forward(x), rope, x);
+  return mlp.forward(norm2.forward(h), h);
 }
 
 void DecoderBlock::registerIn(ParameterTable& table, const std::string& prefix) {
@@ -144,10 +210,10 @@ void DecoderBlock::registerIn(ParameterTable& table, const std::string& prefix) 
 
 at::Tensor DecoderBlock::forward(const at::Tensor& x, const at::Tensor& y, const RopeFactors& x_rope,
                                  const RopeFactors& y_rope) const {
-  const at::Tensor h1 = x + attn.forward(norm1.forward(x), x_rope);
+  const at::Tensor h1 = attn.forward(norm1.forward(x), x_rope, x);
   const at::Tensor y_normed = norm_y.forward(y);
-  const at::Tensor h2 = h1 + cross_attn.forward(norm2.forward(h1), y_normed, x_rope, y_rope);
-  return h2 + mlp.forward(norm3.forward(h2));
+  const at::Tensor h2 = cross_attn.forward(norm2.forward(h1), y_normed, x_rope, y_rope, h1);
+  return mlp.forward(norm3.forward(h2), h2);
 }
 
 }  // namespace ffloc::nn

@@ -1,7 +1,10 @@
 #pragma once
 
 // Functional building blocks of the DUSt3R/CroCo transformer: each holds its parameter tensors
-// under their PyTorch names and applies the same ATen ops as the reference modules.
+// under their PyTorch names and computes what the reference modules compute. float32 on the CPU
+// without autograd takes the fused kernels (cpu_gemm.h, cpu_attention.h, in-place RoPE);
+// everything else applies the reference's ATen ops. `residual` arguments add the block's skip
+// connection to the layer's output in the same pass.
 
 #include <ATen/core/Tensor.h>
 
@@ -19,7 +22,8 @@ struct Linear {
   Linear() = default;
   Linear(int64_t in, int64_t out) : in(in), out(out) {}
   void registerIn(ParameterTable& table, const std::string& prefix);
-  at::Tensor forward(const at::Tensor& x) const;
+  // x weight^T + bias, plus `residual` when it is defined (a residual connection in one pass).
+  at::Tensor forward(const at::Tensor& x, const at::Tensor& residual = {}) const;
 };
 
 struct LayerNorm {
@@ -56,7 +60,7 @@ struct Mlp {
   Mlp() = default;
   Mlp(int64_t dim, int64_t hidden) : fc1(dim, hidden), fc2(hidden, dim) {}
   void registerIn(ParameterTable& table, const std::string& prefix);
-  at::Tensor forward(const at::Tensor& x) const;
+  at::Tensor forward(const at::Tensor& x, const at::Tensor& residual = {}) const;
 };
 
 // Self-attention with one qkv projection laid out [q | k | v], heads contiguous inside each.
@@ -67,7 +71,7 @@ struct Attention {
   Attention() = default;
   Attention(int64_t dim, int64_t num_heads) : num_heads(num_heads), qkv(dim, 3 * dim), proj(dim, dim) {}
   void registerIn(ParameterTable& table, const std::string& prefix);
-  at::Tensor forward(const at::Tensor& x, const RopeFactors& rope) const;
+  at::Tensor forward(const at::Tensor& x, const RopeFactors& rope, const at::Tensor& residual = {}) const;
 };
 
 // Cross-attention: queries from one stream, keys and values from the other (token counts may
@@ -81,7 +85,7 @@ struct CrossAttention {
       : num_heads(num_heads), projq(dim, dim), projk(dim, dim), projv(dim, dim), proj(dim, dim) {}
   void registerIn(ParameterTable& table, const std::string& prefix);
   at::Tensor forward(const at::Tensor& query, const at::Tensor& key_value, const RopeFactors& query_rope,
-                     const RopeFactors& key_rope) const;
+                     const RopeFactors& key_rope, const at::Tensor& residual = {}) const;
 };
 
 // Pre-norm ViT block: x += attn(norm1(x)); x += mlp(norm2(x)).

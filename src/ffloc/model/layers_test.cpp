@@ -1,4 +1,8 @@
 #include "ffloc/model/layers.h"
+
+#include "ffloc/model/cpu_attention.h"
+#include "ffloc/model/cpu_conv.h"
+#include "ffloc/model/cpu_gemm.h"
 #include "ffloc/model/softmax_kernel.h"
 
 #include <ATen/ATen.h>
@@ -73,6 +77,82 @@ TEST(Softmax, InPlaceKernelMatchesReference) {
     // Both round float32 values to bfloat16 (8 significant bits): at most one step apart.
     EXPECT_LE((bf16.to(at::kDouble) - aten.to(at::kDouble)).abs().max().item<double>(), 4e-3) << "length " << length;
     EXPECT_NEAR(bf16.to(at::kDouble).sum(-1).mean().item<double>(), 1.0, 1e-2);
+  }
+}
+
+// The single-thread row kernel of the fused attention (AVX-512, AVX2 or plain C++, whichever this
+// CPU runs), on lengths around the vector widths.
+TEST(Softmax, RowsOnThisThreadMatchReference) {
+  at::manual_seed(6);
+  for (const int64_t length : {1, 7, 8, 9, 17, 100, 768}) {
+    const at::Tensor input = at::randn({4, length}) * 20;
+    const at::Tensor expected = at::softmax(input.to(at::kDouble), -1);
+    at::Tensor rows = input.clone();
+    softmaxRowsOnThisThread(rows.data_ptr<float>(), rows.size(0), length);
+    EXPECT_LT((rows.to(at::kDouble) - expected).abs().max().item<double>(), 1e-6) << "length " << length;
+  }
+}
+
+// Fused attention against the composition of ATen ops in double: q, k and v as column ranges of
+// one wider product (as the qkv Linear gives them), key and query counts that differ, several
+// query blocks with a short last one, batch 2.
+TEST(CpuAttention, MatchesComposedReference) {
+  at::manual_seed(7);
+  const int64_t batch = 2, queries = 300, keys = 700, heads = 3, head_dim = 12, width = heads * head_dim;
+  const at::Tensor q_source = at::randn({batch, queries, 3 * width});
+  const at::Tensor kv_source = at::randn({batch, keys, 2 * width});
+  const at::Tensor q = q_source.narrow(2, width, width);
+  const at::Tensor k = kv_source.narrow(2, 0, width), v = kv_source.narrow(2, width, width);
+  ASSERT_TRUE(cpuAttentionApplies(q, k, v));
+  const at::Tensor out = cpuAttention(q, k, v, heads);
+
+  const auto split = [&](const at::Tensor& t) {
+    return t.to(at::kDouble).reshape({batch, t.size(1), heads, head_dim}).permute({0, 2, 1, 3});
+  };
+  const at::Tensor scores = at::matmul(split(q), split(k).transpose(-2, -1)) / std::sqrt(static_cast<double>(head_dim));
+  const at::Tensor expected =
+      at::matmul(at::softmax(scores, -1), split(v)).permute({0, 2, 1, 3}).reshape({batch, queries, width});
+  ASSERT_EQ(out.sizes(), expected.sizes());
+  EXPECT_LT((out.to(at::kDouble) - expected).abs().max().item<double>(), 1e-5);
+}
+
+// The DPT heads' 3x3 (padding 1) and 1x1 convolutions as products, against libtorch's own, on
+// images down to one pixel wide (where every horizontal tap but the centre one falls off the
+// row), batch 2, channels-last and contiguous inputs.
+TEST(CpuConvolution, MatchesLibtorchConvolution) {
+  at::manual_seed(9);
+  for (const int64_t kernel : {3, 1}) {
+    for (const auto& [rows, cols] : {std::pair<int64_t, int64_t>{5, 7}, {3, 1}, {1, 2}}) {
+      const at::Tensor weight = at::randn({6, 5, kernel, kernel}), bias = at::randn({6});
+      const int64_t padding = kernel / 2;
+      for (const bool channels_last : {true, false}) {
+        at::Tensor x = at::randn({2, 5, rows, cols});
+        if (channels_last) x = x.contiguous(at::MemoryFormat::ChannelsLast);
+        ASSERT_TRUE(cpuConvolutionApplies(x, weight, 1, padding));
+        const at::Tensor expected = at::conv2d(x, weight, bias, 1, padding);
+        EXPECT_LT((cpuConvolution(x, weight, bias) - expected).abs().max().item<double>(), 1e-5)
+            << kernel << "x" << kernel << " on " << rows << "x" << cols;
+        EXPECT_LT((cpuConvolution(x, weight, {}) - at::conv2d(x, weight, {}, 1, padding)).abs().max().item<double>(), 1e-5);
+      }
+    }
+  }
+  EXPECT_FALSE(cpuConvolutionApplies(at::randn({1, 5, 4, 4}), at::randn({6, 5, 3, 3}), 2, 1));
+}
+
+// The threaded Linear with its bias and residual folded in, for both ways of splitting the
+// work (more output columns than rows, and the reverse).
+TEST(CpuLinear, MatchesLinearPlusResidual) {
+  at::manual_seed(8);
+  for (const auto& [rows, out] : {std::pair<int64_t, int64_t>{10, 70}, {150, 40}}) {
+    const at::Tensor x = at::randn({1, rows, 33});
+    const at::Tensor weight = at::randn({out, 33}), bias = at::randn({out});
+    const at::Tensor residual = at::randn({1, rows, out});
+    ASSERT_TRUE(cpuGemmApplies(x, weight));
+    const at::Tensor expected = at::linear(x.to(at::kDouble), weight.to(at::kDouble), bias.to(at::kDouble));
+    EXPECT_LT((cpuLinear(x, weight, bias, residual).to(at::kDouble) - expected - residual.to(at::kDouble))
+                  .abs().max().item<double>(), 1e-4);
+    EXPECT_LT((cpuLinear(x, weight, {}, {}).to(at::kDouble) - (expected - bias.to(at::kDouble))).abs().max().item<double>(),
+              1e-4);
   }
 }
 

@@ -34,4 +34,12 @@ RopeFactors ropeFactors(const at::Tensor& positions, int64_t head_dim, at::Scala
 // tokens: (B, heads, N, head_dim).
 at::Tensor applyRope(const at::Tensor& tokens, const RopeFactors& factors);
 
+// The same rotation in place on float32 CPU token rows (B, N, heads * head_dim) with unit
+// channel stride, e.g. the q or k column range of a qkv product: no head split, no copies. The
+// arithmetic is applyRope's, element for element. Float32 factors only.
+void applyRopeInPlace(const at::Tensor& token_rows, const RopeFactors& factors);
+
+// Whether applyRopeInPlace serves these token rows.
+bool ropeInPlaceApplies(const at::Tensor& token_rows, const RopeFactors& factors);
+
 }  // namespace ffloc

@@ -8,18 +8,20 @@
 #include <cstdint>
 #include <vector>
 
+#include "ffloc/model/op_profile.h"
+
 #if defined(__x86_64__) && defined(__GNUC__)
 // GCC 12 flags the intrinsics' own internal "undefined" vectors as maybe-uninitialised.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #include <immintrin.h>
-#define FFLOC_SOFTMAX_AVX512 1
+#define FFLOC_SOFTMAX_X86 1
 #else
-#define FFLOC_SOFTMAX_AVX512 0
+#define FFLOC_SOFTMAX_X86 0
 #endif
 
 namespace ffloc {
 
-#if FFLOC_SOFTMAX_AVX512
+#if FFLOC_SOFTMAX_X86
 namespace {
 
 #define FFLOC_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl")))
@@ -98,10 +100,85 @@ void softmaxRows(T* data, int64_t rows, int64_t length) {
 }
 
 }  // namespace
+
+namespace {
+
+#define FFLOC_AVX2 __attribute__((target("avx2,fma")))
+
+// The AVX-512 kernel's exp for CPUs with AVX2 only (AMD Zen 3): the same reduction and
+// polynomial; 2^n is built in the exponent bits, exact for the n >= -126 the clamp allows.
+FFLOC_AVX2 inline __m256 expNonPositive8(__m256 x) {
+  x = _mm256_max_ps(x, _mm256_set1_ps(-87.0f));
+  const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(1.44269504088896341f)),
+                                   _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693359375f), x);
+  r = _mm256_fnmadd_ps(n, _mm256_set1_ps(-2.12194440e-4f), r);
+  __m256 p = _mm256_set1_ps(1.0f / 720.0f);
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.0f / 120.0f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.0f / 24.0f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.0f / 6.0f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(0.5f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.0f));
+  p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(1.0f));
+  const __m256i bits = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
+  return _mm256_mul_ps(p, _mm256_castsi256_ps(bits));
+}
+
+FFLOC_AVX2 inline float horizontalMax(__m256 v) {
+  __m128 m = _mm_max_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  m = _mm_max_ps(m, _mm_movehl_ps(m, m));
+  m = _mm_max_ss(m, _mm_shuffle_ps(m, m, 1));
+  return _mm_cvtss_f32(m);
+}
+
+FFLOC_AVX2 inline float horizontalSum(__m256 v) {
+  __m128 s = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  s = _mm_add_ps(s, _mm_movehl_ps(s, s));
+  s = _mm_add_ss(s, _mm_shuffle_ps(s, s, 1));
+  return _mm_cvtss_f32(s);
+}
+
+// One float32 row in place: max, then exp(x - max) written back while summing, then the scale.
+// The tail (length % 8) goes through a zero-padded 8-lane buffer so that every lane of every
+// vector is a real score or excluded.
+FFLOC_AVX2 void softmaxRowAvx2(float* row, int64_t length) {
+  const int64_t body = length / 8 * 8;
+  __m256 max = _mm256_set1_ps(-INFINITY);
+  for (int64_t i = 0; i < body; i += 8) max = _mm256_max_ps(max, _mm256_loadu_ps(row + i));
+  float row_max = horizontalMax(max);
+  for (int64_t i = body; i < length; ++i) row_max = std::max(row_max, row[i]);
+  const __m256 vmax = _mm256_set1_ps(row_max);
+  __m256 sum = _mm256_setzero_ps();
+  for (int64_t i = 0; i < body; i += 8) {
+    const __m256 e = expNonPositive8(_mm256_sub_ps(_mm256_loadu_ps(row + i), vmax));
+    sum = _mm256_add_ps(sum, e);
+    _mm256_storeu_ps(row + i, e);
+  }
+  float total = horizontalSum(sum);
+  if (body < length) {
+    alignas(32) float tail[8];
+    for (int64_t i = 0; i < 8; ++i) tail[i] = body + i < length ? row[body + i] - row_max : -INFINITY;
+    _mm256_store_ps(tail, expNonPositive8(_mm256_load_ps(tail)));
+    for (int64_t i = body; i < length; ++i) {
+      row[i] = tail[i - body];
+      total += row[i];
+    }
+  }
+  const __m256 inverse = _mm256_set1_ps(1.0f / total);
+  for (int64_t i = 0; i < body; i += 8) _mm256_storeu_ps(row + i, _mm256_mul_ps(_mm256_loadu_ps(row + i), inverse));
+  for (int64_t i = body; i < length; ++i) row[i] *= 1.0f / total;
+}
+
+bool avx2Available() {
+  static const bool available = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  return available;
+}
+
+}  // namespace
 #endif
 
 bool vectorizedSoftmaxAvailable() {
-#if FFLOC_SOFTMAX_AVX512
+#if FFLOC_SOFTMAX_X86
   static const bool available = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
                                 __builtin_cpu_supports("avx512vl");
   return available;
@@ -110,8 +187,30 @@ bool vectorizedSoftmaxAvailable() {
 #endif
 }
 
+void softmaxRowsOnThisThread(float* data, int64_t rows, int64_t length) {
+#if FFLOC_SOFTMAX_X86
+  if (vectorizedSoftmaxAvailable()) {
+    std::vector<float> scratch(static_cast<size_t>(length));
+    for (int64_t r = 0; r < rows; ++r) softmaxRow(data + r * length, length, scratch.data());
+    return;
+  }
+  if (avx2Available()) {
+    for (int64_t r = 0; r < rows; ++r) softmaxRowAvx2(data + r * length, length);
+    return;
+  }
+#endif
+  for (int64_t r = 0; r < rows; ++r) {
+    float* row = data + r * length;
+    const float row_max = *std::max_element(row, row + length);
+    float total = 0.0f;
+    for (int64_t i = 0; i < length; ++i) total += row[i] = std::exp(row[i] - row_max);
+    for (int64_t i = 0; i < length; ++i) row[i] /= total;
+  }
+}
+
 void softmaxLastDimInPlace(at::Tensor& scores) {
-#if FFLOC_SOFTMAX_AVX512
+  const OpScope scope(OpKind::kSoftmax);
+#if FFLOC_SOFTMAX_X86
   const bool supported_dtype = scores.scalar_type() == at::kFloat || scores.scalar_type() == at::kBFloat16;
   if (vectorizedSoftmaxAvailable() && scores.is_cpu() && scores.is_contiguous() && supported_dtype &&
       scores.dim() > 0 && scores.numel() > 0 && !scores.requires_grad()) {
@@ -122,6 +221,15 @@ void softmaxLastDimInPlace(at::Tensor& scores) {
     } else {
       softmaxRows(scores.data_ptr<c10::BFloat16>(), rows, length);
     }
+    return;
+  }
+  if (avx2Available() && scores.is_cpu() && scores.is_contiguous() && scores.scalar_type() == at::kFloat &&
+      scores.dim() > 0 && scores.numel() > 0 && !scores.requires_grad()) {
+    const int64_t length = scores.size(-1);
+    float* data = scores.data_ptr<float>();
+    at::parallel_for(0, scores.numel() / length, std::max<int64_t>(1, 65536 / length), [&](int64_t begin, int64_t end) {
+      softmaxRowsOnThisThread(data + begin * length, end - begin, length);
+    });
     return;
   }
 #endif

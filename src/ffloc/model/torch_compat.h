@@ -11,6 +11,7 @@
 #include <ATen/ops/upsample_bilinear2d.h>
 #include <torch/version.h>
 
+#include "ffloc/model/op_profile.h"
 #include "ffloc/model/softmax_kernel.h"
 
 #include <cmath>
@@ -43,6 +44,7 @@ inline at::Tensor resizeBilinearAlignCorners(const at::Tensor& input, int64_t he
 // docs/benchmarks.md). (One head at a time, to keep the scores in L2, was 30 % slower overall.)
 inline at::Tensor attention(const at::Tensor& q, const at::Tensor& k, const at::Tensor& v) {
   const double scale = std::pow(static_cast<double>(q.size(-1)), -0.5);
+  const OpScope scope(OpKind::kAttention, 4.0 * static_cast<double>(q.numel()) * static_cast<double>(k.size(-2)));
 #if FFLOC_TORCH_HAS_SDPA
   if (q.is_cuda()) {
     return at::scaled_dot_product_attention(q, k, v, /*attn_mask=*/{}, /*dropout_p=*/0.0,
