@@ -2,7 +2,9 @@
 #include <memory>
 
 #include "commands.h"
+#include "ffloc/core/error.h"
 #include "ffloc/io/convert_weights.h"
+#include "ffloc/model/model_loader.h"
 
 namespace ffloc::cli {
 namespace {
@@ -15,6 +17,15 @@ struct ConvertArguments {
 };
 
 void runConvert(const ConvertArguments& args) {
+  // A fresh model of a preset, written as a checkpoint: the matching family's untrained state is
+  // a working model (nearest-neighbour matching, docs/model.md), worth shipping as a file.
+  if (args.input.rfind("random:", 0) == 0) {
+    if (!args.dtype.empty() && args.dtype != "f32") throw InputError("--dtype: a fresh model is written as f32");
+    LoadedModel model = loadModel(args.input);
+    saveModel(*model.model, args.output, {{"source", args.input}});
+    std::cout << "wrote " << args.output << ": " << model.description << "\n";
+    return;
+  }
   ConvertWeightsOptions options;
   if (!args.dtype.empty()) options.float_dtype = parseFloatDType(args.dtype, "--dtype");
   options.quiet = args.quiet;
@@ -34,7 +45,8 @@ void registerConvertCommand(CLI::App& app, CommandRun& run) {
       "Convert network weights (a zip-format torch.save() checkpoint such as DUSt3R's .pth, or a "
       "safetensors file) to safetensors in the Hugging Face hub layout: names in order, aliases "
       "stored once, metadata format=pt and source=<input file>.");
-  cmd->add_option("--input", args->input, "Checkpoint (.pth) or safetensors file to read")
+  cmd->add_option("--input", args->input,
+                  "Checkpoint (.pth) or safetensors file to read, or random:<preset>[:<seed>] to write a fresh model")
       ->required();
   cmd->add_option("--output", args->output, "safetensors file to write (atomically)")->required();
   cmd->add_option("--dtype", args->dtype,

@@ -56,6 +56,8 @@ class FastForwardModel {
   explicit FastForwardModel(const FastForwardConfig& config);
 
   const FastForwardConfig& config() const { return config_; }
+  // The image size mapping and localisation preprocess to (config().input_long_side).
+  void setInputLongSide(int64_t long_side) { config_.input_long_side = long_side; }
   const Dust3rModel& dust3r() const { return dust3r_; }
 
   // DUSt3R's keys without downstream_head2, plus ray_embed.fc{1,2}.{weight,bias} and

@@ -16,6 +16,7 @@
 #include "ffloc/core/random.h"
 #include "ffloc/io/input_file.h"
 #include "ffloc/model/parameter_table.h"
+#include "ffloc/model/tensor_conversion.h"
 
 namespace ffloc {
 namespace {
@@ -158,6 +159,16 @@ uint64_t parameterFingerprint(FastForwardModel& model) {
     hash = fnv1a64(bytes + 8 * words, size - 8 * words, hash);
   }
   return hash;
+}
+
+void saveModel(FastForwardModel& model, const std::filesystem::path& path, std::map<std::string, std::string> metadata) {
+  metadata["format"] = "ffloc-fastforward";
+  metadata["input_long_side"] = std::to_string(model.config().input_long_side);
+  metadata["architecture"] = toJson(model.config()).dump();
+  std::vector<std::pair<std::string, at::Tensor>> weights;
+  const ParameterTable table = model.parameterTable();
+  for (const auto& entry : table.entries()) weights.emplace_back(entry.name, *entry.tensor);
+  writeFloatTensors(path, weights, metadata);
 }
 
 std::string defaultModelPath() {

@@ -3,6 +3,8 @@
 #include <c10/core/ScalarType.h>
 
 #include <cstdint>
+#include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 
@@ -40,6 +42,12 @@ std::string defaultModelPath();
 
 // InputError naming the file (or the spec) when it cannot be read or is neither kind of checkpoint.
 LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options = {});
+
+// Writes every parameter as float32 safetensors (atomically) with the model's architecture and
+// input size in the metadata, so that loadModel reads it back as the same model; `metadata` adds
+// entries (a training checkpoint's step and settings).
+void saveModel(FastForwardModel& model, const std::filesystem::path& path,
+               std::map<std::string, std::string> metadata = {});
 
 // Fills every parameter of `model` from `seed`: LayerNorm weights near 1, biases near 0, other
 // weights uniform with variance 1/fan_in, so activations stay O(1) through the network.

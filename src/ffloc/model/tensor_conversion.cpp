@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/tensor_archive.h"
 
 namespace ffloc {
 
@@ -36,6 +37,26 @@ at::Tensor toTorch(const TensorView& view) {
   // A copy rather than from_blob: archive data may be unaligned and must not be kept alive.
   if (view.nbytes > 0) std::memcpy(tensor.data_ptr(), view.data, view.nbytes);
   return tensor;
+}
+
+// Float32 CPU copies kept alive while the views into them are written.
+void writeFloatTensors(const std::filesystem::path& path, const std::vector<std::pair<std::string, at::Tensor>>& tensors,
+                  const std::map<std::string, std::string>& metadata) {
+  std::vector<at::Tensor> keep;
+  std::vector<TensorView> views;
+  keep.reserve(tensors.size());
+  for (const auto& [name, tensor] : tensors) {
+    keep.push_back(tensor.detach().to(at::kCPU, at::kFloat).contiguous());
+    const at::Tensor& t = keep.back();
+    TensorView view;
+    view.name = name;
+    view.dtype = DType::kF32;
+    view.shape = t.sizes().vec();
+    view.data = static_cast<const uint8_t*>(t.data_ptr());
+    view.nbytes = static_cast<size_t>(t.numel()) * sizeof(float);
+    views.push_back(view);
+  }
+  writeSafetensors(path, views, metadata);
 }
 
 }  // namespace ffloc

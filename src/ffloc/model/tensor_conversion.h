@@ -2,6 +2,12 @@
 
 #include <ATen/core/Tensor.h>
 
+#include <filesystem>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
+
 #include "ffloc/io/tensor_archive.h"
 
 namespace ffloc {
@@ -13,5 +19,9 @@ at::ScalarType torchScalarType(DType dtype, const std::string& what);
 // A CPU tensor owning a copy of the view's bytes (so it outlives the archive), with the view's
 // dtype and shape. Handles F32, F16, BF16, F64, I64, I32, I16, I8, U8 and BOOL.
 at::Tensor toTorch(const TensorView& view);
+
+// Writes named tensors as float32 safetensors (io/safetensors.h: atomic), with `metadata`.
+void writeFloatTensors(const std::filesystem::path& path, const std::vector<std::pair<std::string, at::Tensor>>& tensors,
+                       const std::map<std::string, std::string>& metadata);
 
 }  // namespace ffloc

@@ -243,7 +243,7 @@ TrainingConfig overfitConfig(int64_t steps) {
 // The acceptance test of the training loop: a tiny randomly initialised network fits one
 // sample of a synthetic scene, its regression error falling more than tenfold.
 TEST(Trainer, OverfitsOneSample) {
-  TrainingConfig config = overfitConfig(200);
+  TrainingConfig config = overfitConfig(300);
   config.validation_samples = 1;
   const fs::path run = testing::makeTempDir("ffloc-train-overfit");
   Trainer trainer(config, {smallScene()}, run);
@@ -266,8 +266,8 @@ TEST(Trainer, OverfitsOneSample) {
   const double early_error = mean_of(25, 30, error);
   std::printf("overfit: error %.4f -> %.4f -> %.4f m, loss %.4f -> %.4f over %zu steps\n", first_error, early_error,
               last_error, first_loss, last_loss, n);
-  EXPECT_LT(last_loss, first_loss / 10);
-  EXPECT_GT(last_loss, 0);  // so that the ratio above is a real drop, not a sign flip
+  // Eq. 2 goes negative once confidences exceed 1 (its -alpha log C term): an absolute drop.
+  EXPECT_LT(last_loss, first_loss - 4.0);
   EXPECT_LT(last_error, first_error / 10);
   EXPECT_LT(last_error, early_error / 2);
 
@@ -278,8 +278,10 @@ TEST(Trainer, OverfitsOneSample) {
               before.median_rotation_error_deg, after.median_translation_error, after.median_rotation_error_deg);
   EXPECT_EQ(after.samples, 1);
   EXPECT_NEAR(after.query_error, history.back().query_error, 0.5 * history.back().query_error + 1e-3);
-  // A fit to ~20 cm mean 3D error on a 128 x 96 image gives poses within 0.2-0.5 m and 5-16 deg
-  // (validation seeds 0-3 measured); the random network's are 70-180 deg off.
+  // A fit to 9 cm mean 3D error on a 128 x 96 image gives a pose within 1 cm and 0.2 deg; after 200
+  // steps (17 cm) the pose was 0.46 m / 14 deg or 1.26 m / 41 deg depending on the kernels' float
+  // rounding (the fused CPU kernels changed the trajectory), so the fit runs 300 steps. The random
+  // network's poses are 70-180 deg off.
   EXPECT_LT(after.median_translation_error, 0.5);
   EXPECT_LT(after.median_rotation_error_deg, 20.0);
   EXPECT_FALSE(before.median_translation_error < 0.5 && before.median_rotation_error_deg < 20.0);

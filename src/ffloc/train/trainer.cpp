@@ -147,6 +147,8 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   LoadedModel loaded = loadModel(checkpoint ? (checkpoint->folder / "model.safetensors").string() : config_.model, load);
   model_ = std::move(loaded.model);
   model_description_ = loaded.description;
+  // The model learns at the training images' size; its checkpoints record that size.
+  model_->setInputLongSide(config_.long_side);
   if (!checkpoint && config_.model.rfind("random:", 0) == 0) shrinkOutputLayers(*model_);
   model_->to(device_, at::kFloat);
 

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "ffloc/core/error.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/model/tensor_conversion.h"
 
 namespace ffloc {
@@ -18,26 +19,6 @@ std::string folderName(int64_t step) {
   char name[32];
   std::snprintf(name, sizeof(name), "step_%08lld", static_cast<long long>(step));
   return name;
-}
-
-// Float32 CPU copies kept alive while the views into them are written.
-void writeTensors(const fs::path& path, const std::vector<std::pair<std::string, at::Tensor>>& tensors,
-                  const std::map<std::string, std::string>& metadata) {
-  std::vector<at::Tensor> keep;
-  std::vector<TensorView> views;
-  keep.reserve(tensors.size());
-  for (const auto& [name, tensor] : tensors) {
-    keep.push_back(tensor.detach().to(at::kCPU, at::kFloat).contiguous());
-    const at::Tensor& t = keep.back();
-    TensorView view;
-    view.name = name;
-    view.dtype = DType::kF32;
-    view.shape = t.sizes().vec();
-    view.data = static_cast<const uint8_t*>(t.data_ptr());
-    view.nbytes = static_cast<size_t>(t.numel()) * sizeof(float);
-    views.push_back(view);
-  }
-  writeSafetensors(path, views, metadata);
 }
 
 void writeTextAtomically(const fs::path& path, const std::string& text) {
@@ -110,20 +91,9 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   fs::remove_all(partial);
   fs::create_directories(partial);
   const std::string config_json = toJson(config).dump();
-  nlohmann::json architecture = toJson(model.config());
-  architecture["input_long_side"] = config.long_side;
-
-  std::vector<std::pair<std::string, at::Tensor>> weights;
-  const ParameterTable table = model.parameterTable();
-  for (const auto& entry : table.entries()) weights.emplace_back(entry.name, *entry.tensor);
-  writeTensors(partial / "model.safetensors", weights,
-               {{"format", "ffloc-fastforward"},
-                {"step", std::to_string(step)},
-                {"input_long_side", std::to_string(config.long_side)},
-                {"architecture", architecture.dump()},
-                {"world_size", std::to_string(world_size)},
-                {"training_config", config_json}});
-  writeTensors(partial / "optimizer.safetensors", optimizer.state(),
+  saveModel(model, partial / "model.safetensors",
+            {{"step", std::to_string(step)}, {"world_size", std::to_string(world_size)}, {"training_config", config_json}});
+  writeFloatTensors(partial / "optimizer.safetensors", optimizer.state(),
                {{"format", "ffloc-train-state"}, {"step", std::to_string(step)}, {"training_config", config_json}});
   // A folder of this step that `latest` does not name (left by a run that stopped before updating
   // `latest`) is replaced; `latest` names another folder meanwhile, so a crash here loses nothing.
