@@ -2,6 +2,7 @@
 
 #include <ATen/core/Tensor.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <map>
@@ -73,6 +74,15 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
                      ") differ from the map's (" + (map.metric ? "metric" : "non-metric") + ")");
   if (map.images.empty()) map.metric = scene.metric;
 
+  const FastForwardConfig& config = model.model->config();
+  if (config.points.enabled() || config.query_head == QueryHeadKind::kMatching) {
+    const bool any_depth =
+        std::any_of(frames.begin(), frames.end(), [&](size_t f) { return f < scene.frames.size() && scene.frames[f].depth; });
+    if (!any_depth)
+      throw InputError(scene.root.string() + ": the model (" + model.description +
+                       ") places queries on its map tokens' 3D points, which come from the mapping frames' depth, and "
+                       "no mapping frame of this dataset has depth: map it with the classical method");
+  }
   std::set<std::string> names;
   for (const MapImage& image : map.images) names.insert(image.name);
   MappingReport report;

@@ -24,6 +24,7 @@
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/prepared_image.h"
+#include "ffloc/synthetic/synthetic.h"
 
 namespace ffloc {
 namespace {
@@ -331,6 +332,50 @@ TEST(Pipeline, ShippedDefaultModelLoadsAndPredicts) {
   EXPECT_EQ(prediction.query.pts3d.sizes(), (std::vector<int64_t>{1, 12, 16, 3}));
   EXPECT_TRUE(at::isfinite(prediction.query.pts3d).all().item<bool>());
   EXPECT_TRUE((prediction.query.conf >= 1).all().item<bool>());
+}
+
+}  // namespace
+}  // namespace ffloc
+
+namespace ffloc {
+namespace {
+
+// The matching family maps with the points of its tokens, which come from depth: they survive the
+// map file, and a dataset without depth is refused before any image is encoded.
+TEST(Pipeline, MatchingModelMapsCarryTokenPointsAndNeedDepth) {
+  SyntheticOptions options;
+  options.seed = 3;
+  options.width = 128;
+  options.height = 96;
+  options.mapping_frames = 3;
+  options.query_frames = 1;
+  const fs::path dir = testing::makeTempDir("ffloc_pipeline_points");
+  Scene scene = generateSyntheticScene(options, dir);
+  const LoadedModel model = loadModel("random:sift-tiny");
+  MappingOptions quiet;
+  quiet.quiet = true;
+  MapFile map = emptyMap(model, scene.metric);
+  addToMap(map, model, scene, range(0, 2), quiet);
+  ASSERT_EQ(map.images[0].token_points.size(), 3 * map.images[0].tokenCount());
+  size_t finite = 0;
+  for (float value : map.images[0].token_points) finite += std::isfinite(value) ? 1 : 0;
+  EXPECT_GT(finite, map.images[0].token_points.size() / 2);
+  writeMapFile(map, dir / "points.ffmap");
+  const MapFile read = readMapFile(dir / "points.ffmap", model.id);
+  for (size_t i = 0; i < map.images[0].token_points.size(); ++i) {
+    const float a = map.images[0].token_points[i], b = read.images[0].token_points[i];
+    EXPECT_TRUE(a == b || (std::isnan(a) && std::isnan(b))) << i;
+  }
+
+  for (Frame& frame : scene.frames) frame.depth.reset();
+  MapFile without = emptyMap(model, scene.metric);
+  try {
+    addToMap(without, model, scene, range(0, 2), quiet);
+    FAIL() << "a dataset without depth was mapped";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no mapping frame of this dataset has depth"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(without.images.empty());
 }
 
 }  // namespace
