@@ -39,6 +39,9 @@ struct FastForwardConfig {
   // the patch size for the matching head (cell (r, c) is the pixel ((c + 0.5) s - 0.5,
   // (r + 0.5) s - 0.5)).
   int64_t queryGridStride() const { return query_head == QueryHeadKind::kMatching ? dust3r.patch_size : 1; }
+  // Whether the model reads its map tokens' 3D points (a point encoder or the matching head), so
+  // that maps must carry them.
+  bool usesTokenPoints() const { return points.enabled() || query_head == QueryHeadKind::kMatching; }
   // InputError naming the field.
   void validate(const std::string& origin = "model config") const;
 

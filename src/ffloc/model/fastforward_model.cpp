@@ -202,10 +202,8 @@ FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, con
   }
   const at::Tensor ray_features = ray_embed_.forward(map.rays.to(map.features.device()));
   if (trace) (*trace)["map.rays_embed"] = ray_features;
-  const bool matching = config_.query_head == QueryHeadKind::kMatching;
-  const bool with_points = config_.points.enabled() || matching;
   at::Tensor points = map.points, point_valid = map.point_valid;
-  if (with_points && !points.defined()) {
+  if (config_.usesTokenPoints() && !points.defined()) {
     points = at::zeros({map.features.size(0), map.features.size(1), 3}, map.features.options().dtype(at::kFloat));
     point_valid = at::zeros({map.features.size(0), map.features.size(1)}, map.features.options().dtype(at::kBool));
   }
@@ -219,7 +217,7 @@ FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, con
   map_encoding.positions = map.positions;
   const auto decoded = dust3r_.decode(query, map_encoding, trace);
   FastForwardPrediction out;
-  if (matching) {
+  if (config_.query_head == QueryHeadKind::kMatching) {
     const int64_t patch = config_.dust3r.patch_size;
     MatchingPrediction prediction = match_head_.forward(query.tokens, map.features, decoded[0].back(), decoded[1].back(),
                                                         points, point_valid, query.height / patch, query.width / patch);

@@ -7,7 +7,6 @@
 #include <ATen/ops/full.h>
 #include <c10/core/InferenceMode.h>
 
-#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -106,10 +105,10 @@ EncodedQuery FastForwardLocalizer::encode(const cv::Mat& rgb, const Intrinsics& 
 namespace {
 
 // A map image's token points in the query's normalised frame, (1, T, 3) with NaN where a token has
-// none; undefined when the image has no points.
+// none (all NaN for an image mapped without depth).
 at::Tensor normalizedTokenPoints(const MapImage& image, const SceneNormalization& normalization) {
-  if (image.token_points.empty()) return {};
   const int64_t count = static_cast<int64_t>(image.tokenCount());
+  if (image.token_points.empty()) return at::full({1, count, 3}, NAN, at::kFloat);
   at::Tensor out = at::empty({1, count, 3}, at::kFloat);
   float* data = out.data_ptr<float>();
   for (int64_t i = 0; i < count; ++i) {
@@ -138,7 +137,8 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
 
   const at::ScalarType dtype = model_.dust3r().backboneDtype();
   std::vector<Dust3rEncoding> images;
-  std::vector<at::Tensor> points;  // per image, normalised; none unless every image has them
+  const bool uses_points = model_.config().usesTokenPoints();
+  std::vector<at::Tensor> points;  // per image, normalised, for a model that reads them
   for (size_t index : selected) {
     const MapImage& image = map_.images[index];
     const int64_t count = static_cast<int64_t>(image.tokenCount());
@@ -150,14 +150,9 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
     encoded.height = static_cast<int64_t>(image.grid_rows) * patch;
     encoded.width = static_cast<int64_t>(image.grid_cols) * patch;
     images.push_back(std::move(encoded));
-    points.push_back(normalizedTokenPoints(image, layout.normalization));
+    if (uses_points) points.push_back(normalizedTokenPoints(image, layout.normalization));
   }
-  const bool has_points = std::any_of(points.begin(), points.end(), [](const at::Tensor& p) { return p.defined(); });
-  for (size_t i = 0; i < points.size() && has_points; ++i) {
-    if (!points[i].defined()) points[i] = at::full({1, images[i].tokens.size(1), 3}, NAN, at::kFloat);
-  }
-  const FastForwardPrediction prediction =
-      model_.forward(query.encoding, assembleMapTokens(layout, images, has_points ? points : std::vector<at::Tensor>{}));
+  const FastForwardPrediction prediction = model_.forward(query.encoding, assembleMapTokens(layout, images, points));
   out.correspondences = queryCorrespondences(prediction.query, 0, out.normalization, model_.config().queryGridStride(),
                                              &query.image.preprocessed.geometry);
 }

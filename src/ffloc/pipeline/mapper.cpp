@@ -41,7 +41,7 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
   image.tokens = StoredTokens(std::move(bits));
   image.descriptor = encodingDescriptor(encoding, options.descriptor);
   const FastForwardConfig& config = model.config();
-  if (frame.depth && (config.points.enabled() || config.query_head == QueryHeadKind::kMatching)) {
+  if (frame.depth && config.usesTokenPoints()) {
     const cv::Mat1f depth = preprocessDepthNearest(readDepthMetres(frame), prepared.preprocessed.geometry);
     const std::vector<Eigen::Vector3d> points =
         patchCentrePoints(depth, image.intrinsics, frame.camera_to_world, static_cast<int>(patch));
@@ -74,8 +74,7 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
                      ") differ from the map's (" + (map.metric ? "metric" : "non-metric") + ")");
   if (map.images.empty()) map.metric = scene.metric;
 
-  const FastForwardConfig& config = model.model->config();
-  if (config.points.enabled() || config.query_head == QueryHeadKind::kMatching) {
+  if (model.model->config().usesTokenPoints()) {
     const bool any_depth =
         std::any_of(frames.begin(), frames.end(), [&](size_t f) { return f < scene.frames.size() && scene.frames[f].depth; });
     if (!any_depth)
