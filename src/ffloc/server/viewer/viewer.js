@@ -195,15 +195,25 @@ function showAnswer(answer) {
 
 let currentMap = "";
 
-async function loadScene() {
-  if (!currentMap) return;
-  const sceneJson = await request(`/maps/${encodeURIComponent(currentMap)}/scene`);
-  drawMap(sceneJson);
-  drawQueries(sceneJson.recent);
-  showRecent(sceneJson.recent);
-  $("summary").textContent = `${sceneJson.method}, ${sceneJson.cameras.length} images, ${sceneJson.points.length / 3} points shown`;
-  render();
-  document.body.dataset.scene = "loaded";
+// Scene answers can arrive out of order (the key changed twice, a query answered meanwhile): an
+// older answer would draw a stale list of queries over a newer one. Only the latest request
+// draws, and a superseded call resolves when the latest has drawn.
+let sceneTicket = 0;
+let latestScene = Promise.resolve();
+
+function loadScene() {
+  if (!currentMap) return Promise.resolve();
+  const ticket = ++sceneTicket;
+  latestScene = request(`/maps/${encodeURIComponent(currentMap)}/scene`).then((sceneJson) => {
+    if (ticket !== sceneTicket) return latestScene;
+    drawMap(sceneJson);
+    drawQueries(sceneJson.recent);
+    showRecent(sceneJson.recent);
+    $("summary").textContent = `${sceneJson.method}, ${sceneJson.cameras.length} images, ${sceneJson.points.length / 3} points shown`;
+    render();
+    document.body.dataset.scene = "loaded";
+  });
+  return latestScene;
 }
 
 async function loadMaps() {
