@@ -11,6 +11,7 @@
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/data/scene_test_util.h"
+#include "ffloc/io/pickle.h"
 
 namespace ffloc {
 namespace {
@@ -177,40 +178,165 @@ TEST(Rio10, TrainingValidationAndHiddenSequences) {
   expectInputError([&] { loadDataset(dir); }, {"camera.yaml:4:", "says the image is 48x64"});
 }
 
-fs::path indoor6Sample() {
+TEST(Rio10, TheAuthorsIntrinsicsTxtBesideTheSceneFoldersWinsOverCameraYaml) {
+  const fs::path dir = rio10Sample();
+  // As in their repository's data/: one line per sequence, fx fy cx cy; the size is the images'.
+  fs::remove(dir / "seq02_02/camera.yaml");
+  writeTextFile(dir.parent_path() / "intrinsics.txt", "seq02_01 90 90 23.5 31.5\nseq02_02 120 110 23.5 31.5\n");
+  ASSERT_EQ(detectDatasetFormat(dir), "rio10");
+  Scene scene = loadDataset(dir);
+  const Frame& validation = frameNamed(scene, "seq02_02/frame-000000.color.jpg");
+  EXPECT_EQ(validation.intrinsics.width, 48);
+  EXPECT_EQ(validation.intrinsics.height, 64);
+  expectRotatedCamera(validation);
+  EXPECT_LT((pixelOf(validation, kWorldPoint) - Eigen::Vector2d(23.5 - 0.2 * 120, 31.5)).norm(), 1e-9);
+  EXPECT_EQ(frameNamed(scene, "seq02_01/frame-000000.color.jpg").intrinsics.fx, 90);
+
+  // A sequence the file does not list keeps its camera.yaml; one in the scene folder comes first.
+  writeTextFile(dir.parent_path() / "intrinsics.txt", "seq02_02 120 110 23.5 31.5\n");
+  scene = loadDataset(dir);
+  EXPECT_EQ(frameNamed(scene, "seq02_01/frame-000000.color.jpg").intrinsics.fx, 100);
+  writeTextFile(dir / "intrinsics.txt", "seq02_02 80 80 23.5 31.5\n");
+  EXPECT_EQ(frameNamed(loadDataset(dir), "seq02_02/frame-000000.color.jpg").intrinsics.fx, 80);
+}
+
+TEST(Rio10, BadIntrinsicsTxtAndDepthOfAnotherSizeNameTheirFiles) {
+  const fs::path dir = rio10Sample();
+  fs::remove(dir / "seq02_02/camera.yaml");
+  writeTextFile(dir / "intrinsics.txt", "seq02_01 100 110 23.5 31.5\nseq02_02 120 110 23.5\n");
+  expectInputError([&] { loadDataset(dir); }, {"intrinsics.txt:2:", "expected 'seqXX_YY fx fy cx cy', found 4 values"});
+  writeTextFile(dir / "intrinsics.txt", "seq02_01 100 110 23.5 31.5\n");
+  expectInputError([&] { loadDataset(dir); }, {"seq02_02: no camera: no camera.yaml in it", "intrinsics.txt has no line for it"});
+  // The authors' evaluator scales the intrinsics to a smaller depth map; ffloc needs depth in the
+  // image's pixel grid and says so rather than misreading it.
+  writeTextFile(dir / "intrinsics.txt", "seq02_01 100 110 23.5 31.5\nseq02_02 120 110 23.5 31.5\n");
+  writeDepthPng(dir / "seq02_02/frame-000000.rendered.depth.png", 24, 32, 3000);
+  const Scene scene = loadDataset(dir);
+  expectInputError([&] { readDepthMetres(frameNamed(scene, "seq02_02/frame-000000.color.jpg")); },
+                   {"frame-000000.rendered.depth.png", "depth image is 24x32 but the frame's image is 48x64"});
+}
+
+// The authors' split file as Python 3.11 writes it: pickle.dumps({'train': [...], 'val': [...],
+// 'test': [...], 'train_idx': [0], 'val_idx': [2], 'test_idx': [1]}, protocol=2).
+constexpr char kIndoor6SplitsProtocol2[] =
+    "\x80\x02}q\x00(X\x05\x00\x00\x00trainq\x01]q\x02X\x16\x00\x00\x00image-000000.color.jpgq\x03"
+    "aX\x03\x00\x00\x00valq\x04]q\x05X\x14\x00\x00\x00other-0002.color.jpgq\x06" "aX\x04\x00\x00"
+    "\x00testq\x07]q\x08X\x16\x00\x00\x00image-000001.color.jpgq\x09" "aX\x09\x00\x00\x00train_"
+    "idxq\x0a]q\x0bK\x00" "aX\x07\x00\x00\x00val_idxq\x0c]q\x0dK\x02" "aX\x08\x00\x00\x00test_i"
+    "dxq\x0e]q\x0fK\x01" "au.";
+
+// The same lists with protocol 4 (FRAME, SHORT_BINUNICODE, MEMOIZE), each *_idx a numpy int64
+// array as numpy pickles one (numpy.core.multiarray._reconstruct, BUILD with dtype and raw bytes).
+constexpr char kIndoor6SplitsProtocol4[] =
+    "\x80\x04\x95z\x01\x00\x00\x00\x00\x00\x00}\x94(\x8c\x05train\x94]\x94\x8c\x16image-000000."
+    "color.jpg\x94" "a\x8c\x03val\x94]\x94\x8c\x14other-0002.color.jpg\x94" "a\x8c\x04test\x94]"
+    "\x94\x8c\x16image-000001.color.jpg\x94" "a\x8c\x09train_idx\x94\x8c\x15numpy.core.multiarr"
+    "ay\x94\x8c\x0c_reconstruct\x94\x93\x94\x8c\x05numpy\x94\x8c\x07ndarray\x94\x93\x94K\x00\x85"
+    "\x94" "C\x01" "b\x94\x87\x94R\x94(K\x01K\x01\x85\x94h\x0e\x8c\x05" "dtype\x94\x93\x94\x8c\x02"
+    "i8\x94\x89\x88\x87\x94R\x94(K\x03\x8c\x01<\x94NNNJ\xff\xff\xff\xffJ\xff\xff\xff\xffK\x00t\x94"
+    "b\x89" "C\x08\x00\x00\x00\x00\x00\x00\x00\x00\x94t\x94" "b\x8c\x07val_idx\x94h\x0dh\x10h\x11"
+    "h\x12\x87\x94R\x94(K\x01K\x01\x85\x94h\x17h\x18\x89\x88\x87\x94R\x94h\x1c" "b\x89" "C\x08\x02"
+    "\x00\x00\x00\x00\x00\x00\x00\x94t\x94" "b\x8c\x08test_idx\x94h\x0dh\x10h\x11h\x12\x87\x94R"
+    "\x94(K\x01K\x01\x85\x94h\x17h\x18\x89\x88\x87\x94R\x94h\x1c" "b\x89" "C\x08\x01\x00\x00\x00"
+    "\x00\x00\x00\x00\x94t\x94" "bu.";
+
+template <size_t N>
+std::string bytesOf(const char (&literal)[N]) {
+  return std::string(literal, N - 1);
+}
+
+// Three images, the third without the image-NNNNNN prefix (the authors' loader globs *.color.jpg).
+fs::path indoor6Sample(const std::string& split_pickle) {
   const fs::path dir = testing::makeTempDir("ffloc-indoor6") / "scene3";
-  writeImage(dir / "images/image-000000.color.jpg", 64, 48);
-  writeImage(dir / "images/image-000001.color.jpg", 64, 48);
-  writeImage(dir / "images/image-000002.color.jpg", 64, 48);
-  // COLMAP-derived cameras: the principal point (32, 24) is the image centre in COLMAP pixels.
-  for (const std::string stem : {"image-000000", "image-000001", "image-000002"})
-    writeTextFile(dir / "images" / (stem + ".intrinsics.txt"), "64 48 100 32 24\n");
+  const std::string stems[] = {"image-000000", "image-000001", "other-0002"};
+  for (const std::string& stem : stems) {
+    writeImage(dir / "images" / (stem + ".color.jpg"), 64, 48);
+    // COLMAP-derived cameras: the principal point (32, 24) is the image centre in COLMAP pixels.
+    // Token 5 is a number no loader of the authors reads, token 6 the original image's name.
+    writeTextFile(dir / "images" / (stem + ".intrinsics.txt"), "64 48 100 32 24 0.013 IMG_2042.JPG\n");
+  }
   writeTextFile(dir / "images/image-000000.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n");
   writeTextFile(dir / "images/image-000001.pose.txt", kWorldToCameraMatrix3x4);
-  writeTextFile(dir / "images/image-000002.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n");
-  writeTextFile(dir / "scene3_train.txt", "image-000000.color.jpg\n");
-  writeTextFile(dir / "scene3_test.txt", "image-000001.color.jpg\n");
-  writeTextFile(dir / "scene3_val.txt", "image-000002.color.jpg\n");
+  writeTextFile(dir / "images/other-0002.pose.txt", "1 0 0 0\n0 1 0 0\n0 0 1 0\n");
+  writeTextFile(dir / "train_test_val.pkl", split_pickle);
   return dir;
 }
 
-TEST(Indoor6, WorldToCameraPosesAndColmapPixelCentres) {
-  const fs::path dir = indoor6Sample();
+void expectIndoor6Splits(const Scene& scene) {
+  ASSERT_EQ(scene.frames.size(), 3u);
+  EXPECT_EQ(frameNamed(scene, "images/image-000000.color.jpg").split, Split::kMapping);
+  EXPECT_EQ(frameNamed(scene, "images/image-000001.color.jpg").split, Split::kQuery);
+  EXPECT_EQ(frameNamed(scene, "images/other-0002.color.jpg").split, Split::kUnassigned);
+}
+
+TEST(Indoor6, WorldToCameraPosesColmapPixelCentresAndTheAuthorsSplitPickle) {
+  const fs::path dir = indoor6Sample(bytesOf(kIndoor6SplitsProtocol2));
   ASSERT_EQ(detectDatasetFormat(dir), "indoor6");
   const Scene scene = loadDataset(dir);
-  ASSERT_EQ(scene.frames.size(), 3u);
+  expectIndoor6Splits(scene);
   const Frame& test = frameNamed(scene, "images/image-000001.color.jpg");
-  EXPECT_EQ(frameNamed(scene, "images/image-000000.color.jpg").split, Split::kMapping);
-  EXPECT_EQ(test.split, Split::kQuery);
-  EXPECT_EQ(frameNamed(scene, "images/image-000002.color.jpg").split, Split::kUnassigned);
   EXPECT_EQ(test.intrinsics.cx, 31.5);
   EXPECT_EQ(test.intrinsics.cy, 23.5);
   expectRotatedCamera(test);
-  EXPECT_LT((pixelOf(test, kWorldPoint) - Eigen::Vector2d(31.5 - 0.2 * 100, 23.5)).norm(), 1e-9);
+  const Eigen::Vector2d seen(31.5 - 0.2 * 100, 23.5);
+  EXPECT_LT((pixelOf(test, kWorldPoint) - seen).norm(), 1e-9);
+  // Where the point is seen needs no undistorting: token 5 read as a radial k would move it 0.01 px.
+  EXPECT_LT((undistortPixels(test.intrinsics, {seen})[0] - seen).norm(), 1e-9);
+}
 
+TEST(Indoor6, Protocol4SplitPickleWithNumpyIndices) {
+  expectIndoor6Splits(loadDataset(indoor6Sample(bytesOf(kIndoor6SplitsProtocol4))));
+}
+
+TEST(Indoor6, ThirdPartySplitListsServeOnlyWithoutThePickle) {
+  const fs::path dir = indoor6Sample(bytesOf(kIndoor6SplitsProtocol2));
+  writeTextFile(dir / "scene3_train.txt", "image-000001.color.jpg\n");  // ignored beside the pickle
+  expectIndoor6Splits(loadDataset(dir));
+  fs::remove(dir / "train_test_val.pkl");
+  writeTextFile(dir / "scene3_train.txt", "image-000000.color.jpg\n");
+  writeTextFile(dir / "scene3_test.txt", "image-000001.color.jpg\n");
+  writeTextFile(dir / "scene3_val.txt", "other-0002.color.jpg\n");
+  expectIndoor6Splits(loadDataset(dir));
   writeTextFile(dir / "scene3_test.txt", "image-000009.color.jpg\n");
   expectInputError([&] { loadDataset(dir); }, {"scene3_test.txt:1:", "'image-000009.color.jpg' is not an image"});
-  writeTextFile(dir / "scene3_test.txt", "image-000001.color.jpg\n");
+}
+
+TEST(Indoor6, BadInputNamesFileAndKeyOrLine) {
+  const fs::path dir = indoor6Sample(bytesOf(kIndoor6SplitsProtocol2));
+  const auto writeSplits = [&](const std::vector<std::string>& train, const std::vector<std::string>& test) {
+    pickle::Writer splits;
+    splits.op('}');
+    splits.op('(');
+    if (!train.empty()) {
+      splits.text("train");
+      splits.stringList(train);
+    }
+    splits.text("test");
+    splits.stringList(test);
+    splits.op('u');
+    writeTextFile(dir / "train_test_val.pkl", splits.finish());
+  };
+  writeSplits({}, {"image-000001.color.jpg"});
+  expectInputError([&] { loadDataset(dir); }, {"train_test_val.pkl: key 'train' is missing"});
+  writeSplits({"image-000000.color.jpg"}, {"image-000009.color.jpg"});
+  expectInputError([&] { loadDataset(dir); },
+                   {"train_test_val.pkl: key 'test': 'image-000009.color.jpg' is not an image in", "images"});
+  writeSplits({"image-000000.color.jpg"}, {"image-000000.color.jpg"});
+  expectInputError([&] { loadDataset(dir); },
+                   {"train_test_val.pkl: key 'test': 'image-000000.color.jpg' is in both the train and the test split"});
+  pickle::Writer numbers;
+  numbers.op('}');
+  numbers.text("train");
+  numbers.integerList({0});
+  numbers.op('s');  // SETITEM
+  writeTextFile(dir / "train_test_val.pkl", numbers.finish());
+  expectInputError([&] { loadDataset(dir); }, {"train_test_val.pkl: key 'train' is not a list of strings"});
+  writeTextFile(dir / "train_test_val.pkl", bytesOf(kIndoor6SplitsProtocol2).substr(0, 60));
+  expectInputError([&] { loadDataset(dir); }, {"train_test_val.pkl: pickle offset", "truncated"});
+
+  writeTextFile(dir / "train_test_val.pkl", bytesOf(kIndoor6SplitsProtocol2));
+  writeTextFile(dir / "images/image-000001.intrinsics.txt", "64 48 100 32\n");
+  expectInputError([&] { loadDataset(dir); }, {"image-000001.intrinsics.txt:1:", "expected 'W H f cx cy ...', found 4 values"});
   writeTextFile(dir / "images/image-000001.intrinsics.txt", "640 480 100 320 240\n");
   expectInputError([&] { loadDataset(dir); }, {"image-000001.intrinsics.txt:1:", "says the image is 640x480"});
   fs::remove(dir / "images/image-000001.pose.txt");

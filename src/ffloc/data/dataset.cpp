@@ -34,7 +34,7 @@ const std::vector<DatasetFormat>& formats() {
       {"kapture", "sensors/sensors.txt in the folder or in mapping/, query/", looksLikeKapture, readKapture},
       {"mapfree", "intrinsics.txt and seq0/", looksLikeMapFree, readMapFree},
       {"ace", "train/ or test/ with rgb/ and poses/", looksLikeAceLayout, readAceLayout},
-      {"rio10", "seqXX_YY/camera.yaml", looksLikeRio10, readRio10},
+      {"rio10", "seqXX_YY/ with camera.yaml, or seqXX_YY/ and intrinsics.txt in the folder or above it", looksLikeRio10, readRio10},
       {"indoor6", "images/*.intrinsics.txt", looksLikeIndoor6, readIndoor6},
   };
   return kFormats;

@@ -42,12 +42,14 @@ Scene readMapFree(const std::filesystem::path& dir);
 bool looksLikeAceLayout(const std::filesystem::path& dir);
 Scene readAceLayout(const std::filesystem::path& dir);
 
-// RIO10: seqXX_YY/ sequences with camera.yaml and frame-NNNNNN.{color.jpg,pose.txt,
-// rendered.depth.png}; _01 is mapping, _02 (validation) query, sequences without poses skipped.
+// RIO10: seqXX_YY/ sequences of frame-NNNNNN.{color.jpg,pose.txt,rendered.depth.png}, cameras
+// from the authors' intrinsics.txt ("seqXX_YY fx fy cx cy", in the folder or the one above) or
+// each sequence's camera.yaml; _01 is mapping, _02 (validation) query, sequences without poses skipped.
 bool looksLikeRio10(const std::filesystem::path& dir);
 Scene readRio10(const std::filesystem::path& dir);
 
-// Indoor6: images/image-NNNNNN.{color.jpg,pose.txt,intrinsics.txt} and <scene>_{train,val,test}.txt.
+// Indoor6: images/*.{color.jpg,pose.txt,intrinsics.txt} and the splits in train_test_val.pkl
+// (or, without it, a third-party converter's <scene>_{train,val,test}.txt).
 bool looksLikeIndoor6(const std::filesystem::path& dir);
 Scene readIndoor6(const std::filesystem::path& dir);
 

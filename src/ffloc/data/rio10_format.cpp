@@ -1,9 +1,13 @@
-// RIO10 (Wald et al., ECCV 2020): a scene folder seqXX/ holding sequences seqXX_YY/, each with
-// camera.yaml and frame-NNNNNN.{color.jpg, pose.txt, rendered.depth.png}. seqXX_01 is the
+// RIO10 (Wald et al., ECCV 2020; WaldJohannaU/RIO10): a scene folder seqXX/ holding sequences
+// seqXX_YY/ of frame-NNNNNN.{color.jpg, pose.txt, rendered.depth.png}. seqXX_01 is the
 // training sequence, seqXX_02 the validation one (the paper's queries), the others the hidden
-// test sequences, which ship without poses.
+// test sequences, which ship without poses. Intrinsics come from the authors' intrinsics.txt
+// (data/intrinsics.txt in their repository, beside the scene folders) or from a camera.yaml in
+// the sequence, which the authors do not describe.
 #include <algorithm>
 #include <cstdio>
+#include <map>
+#include <optional>
 #include <regex>
 
 #include "ffloc/core/error.h"
@@ -20,6 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr const char* kCameraFile = "camera.yaml";
+constexpr const char* kIntrinsicsFile = "intrinsics.txt";
 constexpr const char* kColourSuffix = ".color.jpg";
 constexpr const char* kPoseSuffix = ".pose.txt";
 constexpr const char* kDepthSuffix = ".rendered.depth.png";
@@ -33,11 +38,19 @@ std::vector<fs::path> sequenceFolders(const fs::path& dir) {
   std::vector<fs::path> folders;
   if (!fs::is_directory(dir)) return folders;
   for (const auto& entry : fs::directory_iterator(dir))
-    if (entry.is_directory() && isSequenceName(entry.path().filename().string()) &&
-        fs::is_regular_file(entry.path() / kCameraFile))
-      folders.push_back(entry.path());
+    if (entry.is_directory() && isSequenceName(entry.path().filename().string())) folders.push_back(entry.path());
   std::sort(folders.begin(), folders.end());
   return folders;
+}
+
+// The authors keep intrinsics.txt beside the scene folders (their evaluator reads
+// <data>/intrinsics.txt and <data>/seqXX/seqXX_YY/); one in the scene folder itself comes first.
+std::optional<fs::path> intrinsicsFile(const fs::path& dir) {
+  fs::path scene = fs::absolute(dir).lexically_normal();
+  if (scene.filename().empty()) scene = scene.parent_path();  // "dir/" ends in an empty part
+  for (const fs::path& folder : {scene, scene.parent_path()})
+    if (fs::is_regular_file(folder / kIntrinsicsFile)) return folder / kIntrinsicsFile;
+  return std::nullopt;
 }
 
 Split splitOf(const fs::path& sequence) {
@@ -48,15 +61,40 @@ Split splitOf(const fs::path& sequence) {
   return Split::kUnassigned;
 }
 
-// camera.yaml: a camera_intrinsics block with model: [fx, fy, cx, cy] and, optionally, width:
-// and height:. Only that subset of YAML is read.
+// A sequence's pinhole camera (OpenCV pixels, as the authors' evaluator projects with it) and the
+// file and line that give it.
 struct RioCamera {
   Intrinsics K;  // width, height 0 when the file does not give them
+  fs::path file;
   int line = 0;
 };
 
+// The authors' format: one line "seqXX_YY fx fy cx cy" per sequence.
+std::map<std::string, RioCamera> readIntrinsicsFile(const fs::path& file) {
+  std::map<std::string, RioCamera> cameras;
+  for (const auto& line : contentLines(readTextLines(file), true)) {
+    const auto tokens = splitWhitespace(line.text);
+    if (tokens.size() != 5)
+      throwInputError(file.string(), line.number,
+                      "expected 'seqXX_YY fx fy cx cy', found " + std::to_string(tokens.size()) + " values");
+    RioCamera& camera = cameras[tokens[0]];
+    camera.K.fx = parseDouble(tokens[1], file, line.number, "fx");
+    camera.K.fy = parseDouble(tokens[2], file, line.number, "fy");
+    camera.K.cx = parseDouble(tokens[3], file, line.number, "cx");
+    camera.K.cy = parseDouble(tokens[4], file, line.number, "cy");
+    if (!(camera.K.fx > 0 && camera.K.fy > 0))
+      throwInputError(file.string(), line.number, "focal lengths must be positive");
+    camera.file = file;
+    camera.line = line.number;
+  }
+  return cameras;
+}
+
+// camera.yaml: a camera_intrinsics block with model: [fx, fy, cx, cy] and, optionally, width:
+// and height:. Only that subset of YAML is read.
 RioCamera readCamera(const fs::path& file) {
   RioCamera camera;
+  camera.file = file;
   bool has_model = false;
   for (const auto& line : contentLines(readTextLines(file), true)) {
     const size_t colon = line.text.find(':');
@@ -96,10 +134,18 @@ RioCamera readCamera(const fs::path& file) {
 
 }  // namespace
 
-bool looksLikeRio10(const fs::path& dir) { return !sequenceFolders(dir).empty(); }
+bool looksLikeRio10(const fs::path& dir) {
+  const auto sequences = sequenceFolders(dir);
+  if (sequences.empty()) return false;
+  return intrinsicsFile(dir) || std::any_of(sequences.begin(), sequences.end(), [](const fs::path& sequence) {
+           return fs::is_regular_file(sequence / kCameraFile);
+         });
+}
 
 Scene readRio10(const fs::path& dir) {
   Scene scene = emptyScene(dir, "rio10", true);
+  const std::optional<fs::path> intrinsics_file = intrinsicsFile(dir);
+  const auto listed_cameras = intrinsics_file ? readIntrinsicsFile(*intrinsics_file) : std::map<std::string, RioCamera>{};
   for (const fs::path& sequence : sequenceFolders(dir)) {
     std::vector<fs::path> images;
     bool has_poses = false;
@@ -110,8 +156,14 @@ Scene readRio10(const fs::path& dir) {
     }
     if (!has_poses) continue;  // a hidden test sequence: nothing to map or score against
     std::sort(images.begin(), images.end());
+    const auto listed = listed_cameras.find(sequence.filename().string());
     const fs::path camera_file = sequence / kCameraFile;
-    const RioCamera camera = readCamera(camera_file);
+    if (listed == listed_cameras.end() && !fs::exists(camera_file))
+      throwInputError(sequence.string(), 0,
+                      std::string("no camera: no ") + kCameraFile + " in it, and " +
+                          (intrinsics_file ? intrinsics_file->string() + " has no line for it"
+                                           : std::string("no ") + kIntrinsicsFile + " in the scene folder or above it"));
+    const RioCamera camera = listed != listed_cameras.end() ? listed->second : readCamera(camera_file);
     for (const fs::path& image : images) {
       const std::string name = image.filename().string();
       const std::string stem = name.substr(0, name.size() - std::string(kColourSuffix).size());
@@ -120,7 +172,7 @@ Scene readRio10(const fs::path& dir) {
       frame.name = frameName(image, dir);
       frame.intrinsics = camera.K;
       if (camera.K.width > 0 || camera.K.height > 0) {
-        requireImageSize(image, camera.K.width, camera.K.height, camera_file.string(), camera.line);
+        requireImageSize(image, camera.K.width, camera.K.height, camera.file.string(), camera.line);
       } else {
         const cv::Size size = readImageSize(image);
         frame.intrinsics.width = size.width;

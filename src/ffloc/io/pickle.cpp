@@ -411,4 +411,41 @@ bool isGlobal(const Value* value, const std::string& qualified_name) {
   return value && value->kind == Kind::kGlobal && value->text == qualified_name;
 }
 
+namespace {
+
+void appendLittleEndian32(std::string* out, uint32_t value) {
+  for (int i = 0; i < 4; ++i) out->push_back(static_cast<char>((value >> (8 * i)) & 0xff));
+}
+
+// EMPTY_LIST, then the items: one by APPEND, more between MARK and APPENDS, as Python writes
+// them (it splits lists beyond 1,000 items into several MARK ... APPENDS; one reads the same).
+template <typename Item, typename WriteItem>
+void writeList(Writer* writer, const std::vector<Item>& items, WriteItem write_item) {
+  writer->op(']');
+  if (items.size() > 1) writer->op('(');
+  for (const Item& item : items) write_item(item);
+  if (!items.empty()) writer->op(items.size() > 1 ? 'e' : 'a');
+}
+
+}  // namespace
+
+void Writer::text(const std::string& utf8) {
+  op('X');  // BINUNICODE
+  appendLittleEndian32(&bytes, static_cast<uint32_t>(utf8.size()));
+  bytes += utf8;
+}
+
+void Writer::integer(int32_t value) {
+  op('J');  // BININT
+  appendLittleEndian32(&bytes, static_cast<uint32_t>(value));
+}
+
+void Writer::stringList(const std::vector<std::string>& values) {
+  writeList(this, values, [this](const std::string& value) { text(value); });
+}
+
+void Writer::integerList(const std::vector<int32_t>& values) {
+  writeList(this, values, [this](int32_t value) { integer(value); });
+}
+
 }  // namespace ffloc::pickle

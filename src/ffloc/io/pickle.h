@@ -56,4 +56,19 @@ const Value* dictGet(const Value* dict, const std::string& key);
 bool isString(const Value* value, const std::string& text);
 bool isGlobal(const Value* value, const std::string& qualified_name);
 
+// Builds a protocol 2 pickle opcode by opcode, from opcodes Python's own pickler writes, so that
+// Python's pickle.load reads it: the split file of Indoor6, whose tools are Python, and the
+// tests' hand-made torch.save() archives. Unlike Python, it writes no memo entries (they only
+// matter for shared objects) and every int as BININT (Python picks the shortest form).
+struct Writer {
+  std::string bytes = std::string("\x80\x02", 2);  // PROTO 2
+
+  void op(char opcode) { bytes.push_back(opcode); }
+  void text(const std::string& utf8);  // a str
+  void integer(int32_t value);
+  void stringList(const std::vector<std::string>& values);
+  void integerList(const std::vector<int32_t>& values);
+  std::string finish() const { return bytes + "."; }
+};
+
 }  // namespace ffloc::pickle

@@ -6,17 +6,6 @@ void appendLe(std::string* out, uint64_t value, int bytes) {
   for (int i = 0; i < bytes; ++i) out->push_back(static_cast<char>((value >> (8 * i)) & 0xff));
 }
 
-void PickleWriter::text(const std::string& value) {
-  op('X');
-  appendLe(&bytes, value.size(), 4);
-  bytes += value;
-}
-
-void PickleWriter::integer(int32_t value) {
-  op('J');
-  appendLe(&bytes, static_cast<uint32_t>(value), 4);
-}
-
 void PickleWriter::global(const std::string& module, const std::string& name) {
   op('c');
   bytes += module + "\n" + name + "\n";

@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include "ffloc/io/pickle.h"
+
 // Hand-made torch.save() archives: the checkpoint tests build layouts the real fixture lacks
 // (plain state dicts, strided views, other dtypes, damage) with these, and the fuzzers write
 // their seeds and wrap fuzzed pickles with them.
@@ -12,19 +14,13 @@ namespace ffloc::testing {
 // `bytes` little-endian bytes of `value`.
 void appendLe(std::string* out, uint64_t value, int bytes);
 
-// Emits the pickle opcodes torch.save() uses (protocol 2).
-struct PickleWriter {
-  std::string bytes = std::string("\x80\x02", 2);
-
-  void op(char opcode) { bytes.push_back(opcode); }
-  void text(const std::string& value);
-  void integer(int32_t value);
+// pickle::Writer with what else torch.save() pickles: globals, tuples of ints, tensors.
+struct PickleWriter : pickle::Writer {
   void global(const std::string& module, const std::string& name);
   void ints(const std::vector<int>& values);
   // torch._utils._rebuild_tensor_v2 of a view into the storage `key`.
   void tensor(const std::string& storage_type, const std::string& key, int storage_numel, int offset,
               const std::vector<int>& size, const std::vector<int>& stride);
-  std::string finish() const { return bytes + "."; }
 };
 
 struct ZipMember {
