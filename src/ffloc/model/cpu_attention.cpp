@@ -1,6 +1,5 @@
 #include "ffloc/model/cpu_attention.h"
 
-#include <ATen/Parallel.h>
 #include <ATen/core/grad_mode.h>
 #include <ATen/ops/empty.h>
 
@@ -10,6 +9,7 @@
 
 #include "ffloc/model/cpu_gemm.h"
 #include "ffloc/model/softmax_kernel.h"
+#include "ffloc/model/torch_threads.h"
 
 namespace ffloc {
 namespace {
@@ -47,7 +47,7 @@ at::Tensor cpuAttention(const at::Tensor& q, const at::Tensor& k, const at::Tens
   const int64_t q_stride = q.stride(1), k_stride = k.stride(1), v_stride = v.stride(1);
 
   const SingleThreadedBlas single_threaded;
-  at::parallel_for(0, batch * num_heads * blocks, 1, [&](int64_t first, int64_t last) {
+  parallelFor(0, batch * num_heads * blocks, 1, [&](int64_t first, int64_t last) {
     std::vector<float> scores(static_cast<size_t>(std::min(block, queries) * keys));
     for (int64_t task = first; task < last; ++task) {
       const int64_t b = task / (num_heads * blocks);

@@ -1,12 +1,12 @@
 #include "ffloc/model/cpu_conv.h"
 
-#include <ATen/Parallel.h>
 #include <ATen/core/grad_mode.h>
 #include <ATen/ops/empty.h>
 
 #include <algorithm>
 
 #include "ffloc/model/cpu_gemm.h"
+#include "ffloc/model/torch_threads.h"
 
 namespace ffloc {
 
@@ -61,7 +61,7 @@ at::Tensor cpuConvolution(const at::Tensor& x, const at::Tensor& weight, const a
   float* dst = result.data_ptr<float>();
 
   const SingleThreadedBlas single_threaded;
-  at::parallel_for(0, batch * rows, 1, [&](int64_t first, int64_t last) {
+  parallelFor(0, batch * rows, 1, [&](int64_t first, int64_t last) {
     // One image at a time: [first, last) may span the end of one and the start of the next.
     while (first < last) {
       const int64_t image = first / rows;

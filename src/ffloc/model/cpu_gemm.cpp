@@ -10,6 +10,8 @@
 #include <mutex>
 #include <vector>
 
+#include "ffloc/model/torch_threads.h"
+
 // Weak, so that a build against another BLAS links and simply leaves its threads alone.
 extern "C" void openblas_set_num_threads(int threads) __attribute__((weak));
 extern "C" int openblas_get_num_threads(void) __attribute__((weak));
@@ -81,7 +83,7 @@ at::Tensor cpuLinear(const at::Tensor& x, const at::Tensor& weight, const at::Te
   const int64_t pieces = std::max<int64_t>(1, (extent + step - 1) / step);
 
   const SingleThreadedBlas single_threaded;
-  at::parallel_for(0, pieces, 1, [&](int64_t first, int64_t last) {
+  parallelFor(0, pieces, 1, [&](int64_t first, int64_t last) {
     for (int64_t piece = first; piece < last; ++piece) {
       const int64_t begin = piece * step, end = std::min(extent, begin + step);
       const int64_t row0 = split_columns ? 0 : begin, row1 = split_columns ? rows : end;

@@ -2,7 +2,6 @@
 
 #include <ATen/TensorOperators.h>
 #include <ATen/core/grad_mode.h>
-#include <ATen/Parallel.h>
 #include <ATen/ops/empty.h>
 #include <ATen/ops/relu.h>
 
@@ -13,6 +12,7 @@
 #include "ffloc/model/cpu_gemm.h"
 #include "ffloc/model/op_profile.h"
 #include "ffloc/model/torch_compat.h"
+#include "ffloc/model/torch_threads.h"
 
 namespace ffloc {
 
@@ -113,7 +113,7 @@ at::Tensor bandedOutputHead(const at::Tensor& half, const nn::Conv2d& head2, con
   const SingleThreadedBlas single_threaded;
   const OpScope scope(OpKind::kConvolution, 2.0 * static_cast<double>(batch * rows * cols) *
                                                 static_cast<double>(9 * channels * hidden + hidden * outputs));
-  at::parallel_for(0, batch * bands, 1, [&](int64_t first, int64_t last) {
+  parallelFor(0, batch * bands, 1, [&](int64_t first, int64_t last) {
     std::vector<float> upsampled(static_cast<size_t>((kOutputBandRows + 2) * cols * channels));
     std::vector<float> activations(static_cast<size_t>(kOutputBandRows * cols * hidden));
     for (int64_t task = first; task < last; ++task) {

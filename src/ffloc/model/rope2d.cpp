@@ -1,6 +1,5 @@
 #include "ffloc/model/rope2d.h"
 
-#include <ATen/Parallel.h>
 #include <ATen/TensorOperators.h>
 #include <ATen/core/grad_mode.h>
 #include <ATen/ops/arange.h>
@@ -16,6 +15,7 @@
 #include <stdexcept>
 
 #include "ffloc/model/op_profile.h"
+#include "ffloc/model/torch_threads.h"
 
 namespace ffloc {
 
@@ -88,7 +88,7 @@ void applyRopeInPlace(const at::Tensor& token_rows, const RopeFactors& factors) 
   float* data = token_rows.data_ptr<float>();
   const float* cos = factors.cos.data_ptr<float>();
   const float* sin = factors.signed_sin.data_ptr<float>();
-  at::parallel_for(0, batch * tokens, 256, [&](int64_t first, int64_t last) {
+  parallelFor(0, batch * tokens, 256, [&](int64_t first, int64_t last) {
     std::vector<float> original(static_cast<size_t>(head_dim));
     for (int64_t index = first; index < last; ++index) {
       const int64_t b = index / tokens, n = index % tokens;

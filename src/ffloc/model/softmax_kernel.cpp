@@ -1,6 +1,5 @@
 #include "ffloc/model/softmax_kernel.h"
 
-#include <ATen/Parallel.h>
 #include <ATen/ops/_softmax.h>
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include <vector>
 
 #include "ffloc/model/op_profile.h"
+#include "ffloc/model/torch_threads.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 // GCC 12 flags the intrinsics' own internal "undefined" vectors as maybe-uninitialised.
@@ -93,7 +93,7 @@ template <typename T>
 void softmaxRows(T* data, int64_t rows, int64_t length) {
   // ~64k scores per task: large enough to amortise the thread hand-off.
   const int64_t grain = std::max<int64_t>(1, 65536 / std::max<int64_t>(length, 1));
-  at::parallel_for(0, rows, grain, [&](int64_t begin, int64_t end) {
+  parallelFor(0, rows, grain, [&](int64_t begin, int64_t end) {
     std::vector<float> scratch(static_cast<size_t>(length));
     for (int64_t r = begin; r < end; ++r) softmaxRow(data + r * length, length, scratch.data());
   });
@@ -227,7 +227,7 @@ void softmaxLastDimInPlace(at::Tensor& scores) {
       scores.dim() > 0 && scores.numel() > 0 && !scores.requires_grad()) {
     const int64_t length = scores.size(-1);
     float* data = scores.data_ptr<float>();
-    at::parallel_for(0, scores.numel() / length, std::max<int64_t>(1, 65536 / length), [&](int64_t begin, int64_t end) {
+    parallelFor(0, scores.numel() / length, std::max<int64_t>(1, 65536 / length), [&](int64_t begin, int64_t end) {
       softmaxRowsOnThisThread(data + begin * length, end - begin, length);
     });
     return;

@@ -4,6 +4,9 @@
 
 #include "ffloc/core/threads.h"
 
+#ifndef _OPENMP
+#error "torch_threads.cpp must be compiled with OpenMP (see parallelFor in torch_threads.h)"
+#endif
 
 namespace ffloc {
 
@@ -14,6 +17,10 @@ int setTorchThreadCount(int requested) {
   const int threads = setLibraryThreadCount(requested);
   at::set_num_threads(threads);
   return threads;
+}
+
+void parallelFor(int64_t begin, int64_t end, int64_t grain_size, const std::function<void(int64_t, int64_t)>& body) {
+  at::parallel_for(begin, end, grain_size, body);
 }
 
 }  // namespace ffloc
