@@ -1,5 +1,9 @@
 #include "ffloc/eval/protocol.h"
 
+#include <cctype>
+#include <filesystem>
+#include <map>
+
 #include "ffloc/core/error.h"
 
 namespace ffloc {
@@ -30,11 +34,40 @@ const BenchmarkProtocol& benchmarkProtocol(const std::string& name) {
   throw InputError("protocol: unknown protocol '" + name + "' (known: " + known + ")");
 }
 
+namespace {
+
+// The capture number of 7-Scenes' "frame-NNNNNN..." names; -1 for other names.
+long captureNumber(const std::string& name) {
+  const std::string file = std::filesystem::path(name).filename().string();
+  if (file.rfind("frame-", 0) != 0) return -1;
+  const size_t begin = 6;
+  size_t end = begin;
+  while (end < file.size() && std::isdigit(static_cast<unsigned char>(file[end]))) ++end;
+  return end > begin ? std::stol(file.substr(begin, end - begin)) : -1;
+}
+
+}  // namespace
+
 void thinMappingFrames(Scene& scene, int stride) {
   if (stride < 1) throw InputError("mapping stride must be at least 1, got " + std::to_string(stride));
+  // A scan already thinned on disk (every 4th frame, say) keeps one frame per `stride` captures,
+  // not one per `stride` files, when the names carry the capture number.
+  std::map<std::string, long> next_capture;  // per sequence folder
   int seen = 0;
-  for (Frame& frame : scene.frames)
-    if (frame.split == Split::kMapping && seen++ % stride != 0) frame.split = Split::kUnassigned;
+  for (Frame& frame : scene.frames) {
+    if (frame.split != Split::kMapping) continue;
+    const long capture = captureNumber(frame.name);
+    bool keep;
+    if (capture < 0) {
+      keep = seen++ % stride == 0;
+    } else {
+      const std::string sequence = std::filesystem::path(frame.name).parent_path().string();
+      const auto next = next_capture.find(sequence);
+      keep = next == next_capture.end() || capture >= next->second;
+      if (keep) next_capture[sequence] = capture + stride;
+    }
+    if (!keep) frame.split = Split::kUnassigned;
+  }
 }
 
 std::string describeProtocol(const BenchmarkProtocol& p) {

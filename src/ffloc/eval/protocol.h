@@ -33,8 +33,10 @@ const std::vector<BenchmarkProtocol>& benchmarkProtocols();
 // The protocol called `name`; InputError "protocol: unknown protocol ..." listing the known ones.
 const BenchmarkProtocol& benchmarkProtocol(const std::string& name);
 
-// Keeps every `stride`-th mapping frame (in scene order, starting with the first) in the mapping
-// split and makes the others unassigned, as the paper thins 7-Scenes' 30 Hz mapping scans.
+// Keeps one mapping frame in `stride` and makes the others unassigned, as the paper thins
+// 7-Scenes' 30 Hz mapping scans. Frames named "frame-NNNNNN..." are thinned by that capture
+// number within their folder (a kept frame, then the first at least `stride` captures later),
+// so a scan stored already thinned keeps the same rate in time; other names by their order.
 void thinMappingFrames(Scene& scene, int stride);
 
 // One paragraph for the report: the protocol's settings, the columns the paper reports and its

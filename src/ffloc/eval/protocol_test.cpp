@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+
 #include "ffloc/core/error.h"
 #include "ffloc/eval/metrics.h"
 
@@ -47,6 +49,30 @@ TEST(Protocol, ThinningKeepsEveryNthMappingFrameAndAllQueries) {
   EXPECT_EQ(scene.queryIndices().size(), 9u);
   EXPECT_EQ(scene.indices(Split::kUnassigned).size(), 28u);
   EXPECT_THROW(thinMappingFrames(scene, 0), InputError);
+}
+
+// The shared redkitchen sample keeps every 4th capture of its scan: the paper's one frame in 15
+// captures is then one file in 4, not one in 15; each sequence folder counts on its own.
+TEST(Protocol, ThinningFollowsTheCaptureNumberOfSevenScenesNames) {
+  Scene scene;
+  for (const char* sequence : {"seq-01", "seq-02"}) {
+    for (int capture = 0; capture < 64; capture += 4) {
+      Frame frame;
+      char name[64];
+      std::snprintf(name, sizeof(name), "%s/frame-%06d.color.png", sequence, capture);
+      frame.name = name;
+      frame.split = Split::kMapping;
+      scene.frames.push_back(frame);
+    }
+  }
+  thinMappingFrames(scene, 15);
+  std::vector<std::string> kept;
+  for (size_t i : scene.mappingIndices()) kept.push_back(scene.frames[i].name);
+  const std::vector<std::string> expected = {
+      "seq-01/frame-000000.color.png", "seq-01/frame-000016.color.png", "seq-01/frame-000032.color.png",
+      "seq-01/frame-000048.color.png", "seq-02/frame-000000.color.png", "seq-02/frame-000016.color.png",
+      "seq-02/frame-000032.color.png", "seq-02/frame-000048.color.png"};
+  EXPECT_EQ(kept, expected);
 }
 
 }  // namespace
