@@ -53,24 +53,29 @@ Dust3rEncoding denseSiftEncode(const at::Tensor& images, int64_t patch_size, con
     const cv::Mat grey = greyImage(cpu_images[b]);
     cv::Mat token_rows(static_cast<int>(tokens), static_cast<int>(config.tokenDim()), CV_32F,
                        out[b].data_ptr<float>());
-    for (size_t w = 0; w < config.window_sizes.size(); ++w) {
-      std::vector<cv::KeyPoint> keypoints;
-      keypoints.reserve(static_cast<size_t>(tokens));
+    // Every window's keypoints in one call: SIFT builds its scale pyramid once per call.
+    const size_t windows = config.window_sizes.size();
+    std::vector<cv::KeyPoint> keypoints;
+    keypoints.reserve(static_cast<size_t>(tokens) * windows);
+    for (size_t w = 0; w < windows; ++w) {
       for (int64_t r = 0; r < rows; ++r) {
         for (int64_t c = 0; c < cols; ++c) {
           const float x = static_cast<float>((c + 0.5) * patch_size - 0.5), y = static_cast<float>((r + 0.5) * patch_size - 0.5);
           keypoints.emplace_back(x, y, static_cast<float>(config.window_sizes[w] / 6.0), 0.0f);
         }
       }
-      cv::Mat descriptors;
-      sift->compute(grey, keypoints, descriptors);
-      if (descriptors.rows != tokens) {
-        throw std::runtime_error("dense-sift encoder: SIFT returned " + std::to_string(descriptors.rows) +
-                                 " descriptors for " + std::to_string(tokens) + " patches");
-      }
-      toRootSift(descriptors);
-      descriptors *= window_share;
-      descriptors.copyTo(token_rows.colRange(static_cast<int>(128 * w), static_cast<int>(128 * (w + 1))));
+    }
+    cv::Mat descriptors;
+    sift->compute(grey, keypoints, descriptors);
+    if (descriptors.rows != static_cast<int>(tokens * windows)) {
+      throw std::runtime_error("dense-sift encoder: SIFT returned " + std::to_string(descriptors.rows) +
+                               " descriptors for " + std::to_string(tokens * windows) + " patch windows");
+    }
+    toRootSift(descriptors);
+    descriptors *= window_share;
+    for (size_t w = 0; w < windows; ++w) {
+      descriptors.rowRange(static_cast<int>(tokens * w), static_cast<int>(tokens * (w + 1)))
+          .copyTo(token_rows.colRange(static_cast<int>(128 * w), static_cast<int>(128 * (w + 1))));
     }
   }
   Dust3rEncoding encoding;
