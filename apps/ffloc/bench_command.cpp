@@ -20,6 +20,7 @@
 #include "commands.h"
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/threads.h"
 #include "ffloc/model/dust3r_model.h"
 #include "ffloc/model/model_options.h"
 #include "ffloc/model/torch_threads.h"
@@ -88,7 +89,10 @@ void printHeader(const BenchModelArguments& args, const BenchReport& report, con
 void runBenchModel(const BenchModelArguments& args) {
   validate(args);
   const int threads = setTorchThreadCount(args.threads);
-  const std::string blas = setBlasThreads(threads);
+  // setTorchThreadCount set OpenBLAS's pool too (fp32 matmuls go to it): the header says which.
+  const std::string blas = blasThreadCount() > 0
+                               ? blasDescription() + ", " + std::to_string(blasThreadCount()) + " threads"
+                               : "not OpenBLAS (thread count left as is)";
   BenchReport report({args.config, args.width, args.height, threads, args.json}, findReferenceTiming(args.reference));
   if (!args.json) printHeader(args, report, blas);
   const auto start = std::chrono::steady_clock::now();

@@ -1,6 +1,5 @@
 #include "bench_measurement.h"
 
-#include <dlfcn.h>
 #include <sys/resource.h>
 
 #include <chrono>
@@ -70,16 +69,5 @@ std::string loadAverage() {
   std::snprintf(text, sizeof(text), "%.2f %.2f %.2f", load[0], load[1], load[2]);
   return text;
 }
-
-std::string setBlasThreads(int threads) {
-  using SetThreads = void (*)(int);
-  using GetString = char* (*)();
-  const auto set = reinterpret_cast<SetThreads>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-  const auto core = reinterpret_cast<GetString>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
-  if (!set) return "not OpenBLAS (thread count left as is)";
-  set(threads);
-  return std::string("OpenBLAS, core ") + (core ? core() : "unknown") + ", " + std::to_string(threads) + " threads";
-}
-
 
 }  // namespace ffloc::cli

@@ -37,9 +37,4 @@ void closeMemoryWindow(MemoryReport& memory);
 // The 1, 5 and 15 minute load averages, "unknown" where the system does not say.
 std::string loadAverage();
 
-// fp32 matmuls go to the system BLAS, which keeps its own thread pool: on Debian that is
-// OpenBLAS, reached through the symbols libtorch already links. Sets its thread count and
-// returns what it is and the kernel family it picked for this CPU.
-std::string setBlasThreads(int threads);
-
 }  // namespace ffloc::cli

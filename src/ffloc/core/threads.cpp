@@ -4,8 +4,10 @@
 #include <opencv2/core/utility.hpp>
 #include <thread>
 
-// Weak, so builds against another BLAS still link and simply skip the call.
+// Weak, so builds against another BLAS still link and simply skip the calls.
 extern "C" void openblas_set_num_threads(int threads) __attribute__((weak));
+extern "C" int openblas_get_num_threads(void) __attribute__((weak));
+extern "C" char* openblas_get_corename(void) __attribute__((weak));
 
 namespace ffloc {
 
@@ -16,9 +18,20 @@ int resolveThreadCount(int requested) {
 
 int setLibraryThreadCount(int requested) {
   const int threads = resolveThreadCount(requested);
-  if (openblas_set_num_threads != nullptr) openblas_set_num_threads(threads);
+  setBlasThreadCount(threads);
   cv::setNumThreads(threads);
   return threads;
+}
+
+int blasThreadCount() { return openblas_get_num_threads != nullptr ? openblas_get_num_threads() : 0; }
+
+void setBlasThreadCount(int threads) {
+  if (openblas_set_num_threads != nullptr) openblas_set_num_threads(threads);
+}
+
+std::string blasDescription() {
+  if (openblas_set_num_threads == nullptr) return "not OpenBLAS";
+  return std::string("OpenBLAS, core ") + (openblas_get_corename != nullptr ? openblas_get_corename() : "unknown");
 }
 
 }  // namespace ffloc

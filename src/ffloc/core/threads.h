@@ -1,5 +1,7 @@
 #pragma once
 
+#include <string>
+
 namespace ffloc {
 
 // Number of worker threads to use when the user asked for `requested` (0 = all hardware threads).
@@ -9,5 +11,13 @@ int resolveThreadCount(int requested);
 // resampling) to resolveThreadCount(requested) and returns it. Left alone each starts one
 // thread per core, and their pools and libtorch's then fight over the same cores.
 int setLibraryThreadCount(int requested);
+
+// OpenBLAS's own pool, reached through the symbols libblas exports when it is OpenBLAS (Debian's
+// libopenblas0-pthread): its thread count, 0 under another BLAS.
+int blasThreadCount();
+// Sets OpenBLAS's thread count; under another BLAS does nothing.
+void setBlasThreadCount(int threads);
+// "OpenBLAS, core <the kernel family it picked for this CPU>", or "not OpenBLAS".
+std::string blasDescription();
 
 }  // namespace ffloc

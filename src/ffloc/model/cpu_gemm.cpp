@@ -10,11 +10,8 @@
 #include <mutex>
 #include <vector>
 
+#include "ffloc/core/threads.h"
 #include "ffloc/model/torch_threads.h"
-
-// Weak, so that a build against another BLAS links and simply leaves its threads alone.
-extern "C" void openblas_set_num_threads(int threads) __attribute__((weak));
-extern "C" int openblas_get_num_threads(void) __attribute__((weak));
 
 namespace ffloc {
 namespace {
@@ -28,19 +25,18 @@ constexpr int64_t kColumnAlign = 16;
 
 }  // namespace
 
+// Under another BLAS blasThreadCount() is 0 and its threads are left alone.
 SingleThreadedBlas::SingleThreadedBlas() {
-  if (!openblas_set_num_threads || !openblas_get_num_threads) return;
   std::lock_guard<std::mutex> lock(g_blas_mutex);
   if (g_blas_holders++ == 0) {
-    g_blas_saved_threads = openblas_get_num_threads();
-    if (g_blas_saved_threads != 1) openblas_set_num_threads(1);
+    g_blas_saved_threads = blasThreadCount();
+    if (g_blas_saved_threads > 1) setBlasThreadCount(1);
   }
 }
 
 SingleThreadedBlas::~SingleThreadedBlas() {
-  if (!openblas_set_num_threads || !openblas_get_num_threads) return;
   std::lock_guard<std::mutex> lock(g_blas_mutex);
-  if (--g_blas_holders == 0 && g_blas_saved_threads != 1) openblas_set_num_threads(g_blas_saved_threads);
+  if (--g_blas_holders == 0 && g_blas_saved_threads > 1) setBlasThreadCount(g_blas_saved_threads);
 }
 
 bool cpuGemmApplies(const at::Tensor& x, const at::Tensor& weight) {
