@@ -105,6 +105,12 @@ std::optional<cv::Size> encodedFrameSize(const std::string& bytes) {
   return headerSize(in, false);
 }
 
+std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  return headerSize(in, false);
+}
+
 cv::Size readImageSize(const std::filesystem::path& path) {
   requireRegularFile(path, "image file");
   std::ifstream in(path, std::ios::binary);

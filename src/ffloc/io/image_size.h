@@ -23,4 +23,8 @@ std::optional<cv::Size> encodedImageSize(const std::string& bytes);
 // images before decoding; nullopt for other formats and for bytes whose header does not tell.
 std::optional<cv::Size> encodedFrameSize(const std::string& bytes);
 
+// encodedFrameSize for a file: the pixel grid its PNG or JPEG header declares, nullopt when the
+// header does not tell. For explaining why a decoder refused a file.
+std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path);
+
 }  // namespace ffloc

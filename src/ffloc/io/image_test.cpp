@@ -31,6 +31,25 @@ TEST(ReadImage, ErrorsNameTheFile) {
   }
 }
 
+// A PNG whose header (its CRC right, then an empty IDAT, so that libpng reaches OpenCV's size
+// check) claims 100000 x 100000 pixels: OpenCV refuses it by its pixel limit with
+// its own assertion text; the user is told the size instead.
+TEST(ReadImage, OversizedHeaderIsReportedWithItsSize) {
+  const auto dir = testing::makeTempDir("ffloc-image");
+  const auto huge = dir / "huge.png";
+  const unsigned char header[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n', 0, 0, 0, 13, 'I', 'H', 'D', 'R',
+                                  0, 0x01, 0x86, 0xa0, 0, 0x01, 0x86, 0xa0, 8, 2, 0, 0, 0, 0x27, 0x30, 0x9c, 0x9f,
+                                  0, 0, 0, 0, 'I', 'D', 'A', 'T', 0x35, 0xaf, 0x06, 0x1e};
+  std::ofstream(huge, std::ios::binary).write(reinterpret_cast<const char*>(header), sizeof(header));
+  try {
+    readImageRgb(huge);
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("huge.png"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("100000 x 100000 pixels"), std::string::npos) << e.what();
+  }
+}
+
 TEST(ReadImage, ReadsRealImageAsRgb) {
   FFLOC_REQUIRE_SHARED(path, "data/7scenes_redkitchen/frame-000000.color.jpg");
   const cv::Mat rgb = readImageRgb(path);
