@@ -3,6 +3,7 @@
 
 #include "command_options.h"
 #include "commands.h"
+#include "ffloc/core/allocator.h"
 #include "ffloc/core/error.h"
 
 int main(int argc, char** argv) {
@@ -30,6 +31,7 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }
+  ffloc::configureAllocator();
   try {
     return run ? run() : 0;
   } catch (const ffloc::InputError& e) {

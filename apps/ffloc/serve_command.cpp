@@ -1,5 +1,4 @@
 #include <fcntl.h>
-#include <malloc.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -17,6 +16,7 @@
 #include "command_model.h"
 #include "command_options.h"
 #include "commands.h"
+#include "ffloc/core/allocator.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/pipeline/map_localizer.h"
@@ -100,8 +100,10 @@ int runServe(const ServeArguments& args) {
   // what each arena once held: as more of the 64 connection threads served, the server's RSS
   // grew from 248 to 333 MiB between 1,000 and 10,000 requests of the load test, and stayed at
   // 197-200 MiB with two arenas (docs/server.md, "Memory under load"). Queries run one at a
-  // time, so two arenas cost no measurable contention. MALLOC_ARENA_MAX, when set, still rules.
-  if (!std::getenv("MALLOC_ARENA_MAX")) mallopt(M_ARENA_MAX, 2);
+  // time, so two arenas cost no measurable contention.
+  AllocatorOptions allocator;
+  allocator.max_arenas = 2;
+  configureAllocator(allocator);
   setLibraryThreadCount(args.model.threads);
   ServerOptions options;
   options.host = args.host;
