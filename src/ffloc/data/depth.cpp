@@ -1,7 +1,9 @@
 #include "ffloc/data/depth.h"
 
 #include <cmath>
+#include <cstdint>
 #include <fstream>
+#include <vector>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -76,17 +78,29 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
                         (source.camera ? "its depth camera is " : "the frame's image is ") +
                         std::to_string(camera.width) + "x" + std::to_string(camera.height));
 
-  cv::Mat1d values;
-  stored.convertTo(values, CV_64F);
-  cv::Mat1f depth(values.size());
-  for (int y = 0; y < values.rows; ++y) {
-    const double* in = values[y];
-    float* out = depth[y];
-    for (int x = 0; x < values.cols; ++x) {
-      const double v = in[x];
-      bool invalid = !std::isfinite(v) || v <= 0;
-      for (double bad : source.invalid_values) invalid = invalid || v == bad;
-      out[x] = invalid ? 0.0f : static_cast<float>(v * source.scale);
+  const auto metres = [&source](double v) {
+    bool invalid = !std::isfinite(v) || v <= 0;
+    for (double bad : source.invalid_values) invalid = invalid || v == bad;
+    return invalid ? 0.0f : static_cast<float>(v * source.scale);
+  };
+  cv::Mat1f depth(stored.size());
+  if (stored.depth() == CV_16U) {
+    // 16-bit PNGs (7-Scenes, TUM, phone depth) take one table of all 65536 stored values: the
+    // per-pixel test and conversion in double took 6 % of the time of mapping such frames.
+    std::vector<float> table(65536);
+    for (size_t v = 0; v < table.size(); ++v) table[v] = metres(static_cast<double>(v));
+    for (int y = 0; y < stored.rows; ++y) {
+      const uint16_t* in = stored.ptr<uint16_t>(y);
+      float* out = depth[y];
+      for (int x = 0; x < stored.cols; ++x) out[x] = table[in[x]];
+    }
+  } else {
+    cv::Mat1d values;
+    stored.convertTo(values, CV_64F);
+    for (int y = 0; y < values.rows; ++y) {
+      const double* in = values[y];
+      float* out = depth[y];
+      for (int x = 0; x < values.cols; ++x) out[x] = metres(in[x]);
     }
   }
   return source.camera ? toColourGrid(depth, *source.camera, frame.intrinsics) : depth;
