@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstring>
+#include <future>
 #include <map>
 #include <set>
 
@@ -20,9 +21,17 @@
 
 namespace ffloc {
 
-MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingOptions& options) {
-  const PreparedImage prepared = prepareImage(readImageRgb(frame.image_path), frame.intrinsics, frame.name,
-                                              preprocessOptionsFor(model, options.long_side));
+MappingFramePixels readMappingFrame(const FastForwardModel& model, const Frame& frame) {
+  MappingFramePixels pixels;
+  pixels.rgb = readImageRgb(frame.image_path);
+  if (frame.depth && model.config().usesTokenPoints()) pixels.depth_metres = readDepthMetres(frame);
+  return pixels;
+}
+
+MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingFramePixels& pixels,
+                            const MappingOptions& options) {
+  const PreparedImage prepared =
+      prepareImage(pixels.rgb, frame.intrinsics, frame.name, preprocessOptionsFor(model, options.long_side));
   const Dust3rEncoding encoding = encodeImage(model, prepared);
   const int64_t patch = model.config().dust3r.patch_size;
 
@@ -40,9 +49,8 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
   std::memcpy(bits.data(), half.data_ptr(), bits.size() * sizeof(uint16_t));
   image.tokens = StoredTokens(std::move(bits));
   image.descriptor = encodingDescriptor(encoding, options.descriptor);
-  const FastForwardConfig& config = model.config();
-  if (frame.depth && config.usesTokenPoints()) {
-    const cv::Mat1f depth = preprocessDepthNearest(readDepthMetres(frame), prepared.preprocessed.geometry);
+  if (!pixels.depth_metres.empty()) {
+    const cv::Mat1f depth = preprocessDepthNearest(pixels.depth_metres, prepared.preprocessed.geometry);
     const std::vector<Eigen::Vector3d> points =
         patchCentrePoints(depth, image.intrinsics, frame.camera_to_world, static_cast<int>(patch));
     image.token_points.reserve(3 * points.size());
@@ -85,18 +93,26 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
   std::set<std::string> names;
   for (const MapImage& image : map.images) names.insert(image.name);
   MappingReport report;
-  const auto start = std::chrono::steady_clock::now();
-  ProgressBar progress("mapping " + scene.name, frames.size(), options.quiet);
-  for (size_t i = 0; i < frames.size(); ++i) {
-    if (frames[i] >= scene.frames.size())
-      throw InputError("mapping: frame index " + std::to_string(frames[i]) + " out of range");
-    const Frame& frame = scene.frames[frames[i]];
-    if (!names.insert(frame.name).second) {
-      ++report.skipped_duplicates;
+  std::vector<const Frame*> to_add;
+  for (const size_t f : frames) {
+    if (f >= scene.frames.size()) throw InputError("mapping: frame index " + std::to_string(f) + " out of range");
+    if (names.insert(scene.frames[f].name).second) {
+      to_add.push_back(&scene.frames[f]);
     } else {
-      map.images.push_back(encodeMappingImage(*model.model, frame, options));
-      ++report.added;
+      ++report.skipped_duplicates;
     }
+  }
+  const auto start = std::chrono::steady_clock::now();
+  ProgressBar progress("mapping " + scene.name, to_add.size(), options.quiet);
+  const FastForwardModel& network = *model.model;
+  const auto read = [&network](const Frame* frame) { return readMappingFrame(network, *frame); };
+  std::future<MappingFramePixels> next;
+  if (!to_add.empty()) next = std::async(std::launch::async, read, to_add.front());
+  for (size_t i = 0; i < to_add.size(); ++i) {
+    const MappingFramePixels pixels = next.get();
+    if (i + 1 < to_add.size()) next = std::async(std::launch::async, read, to_add[i + 1]);
+    map.images.push_back(encodeMappingImage(network, *to_add[i], pixels, options));
+    ++report.added;
     progress.update(i + 1);
   }
   progress.finish();

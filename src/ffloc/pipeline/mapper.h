@@ -2,6 +2,7 @@
 
 #include <string>
 #include <vector>
+#include <opencv2/core.hpp>
 
 #include "ffloc/data/scene.h"
 #include "ffloc/io/map_file.h"
@@ -30,8 +31,18 @@ struct MappingReport {
   double seconds = 0;             // reading, preprocessing and encoding the added images
 };
 
-// Encodes one posed image.
-MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingOptions& options = {});
+// A mapping frame's pixels as decoded from its files. Decoding is the serial part of mapping
+// (the encoder's work spreads over the threads), so addToMap decodes the next frame while it
+// encodes the current one.
+struct MappingFramePixels {
+  cv::Mat rgb;
+  cv::Mat1f depth_metres;  // empty when the frame has no depth or `model` does not use it
+};
+MappingFramePixels readMappingFrame(const FastForwardModel& model, const Frame& frame);
+
+// Encodes one posed image from its pixels.
+MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingFramePixels& pixels,
+                            const MappingOptions& options = {});
 
 // An empty map for `model`.
 MapFile emptyMap(const LoadedModel& model, bool metric);
