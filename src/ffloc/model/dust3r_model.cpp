@@ -8,6 +8,8 @@
 #include <ATen/ops/linalg_vector_norm.h>
 #include <ATen/ops/stack.h>
 
+#include <algorithm>
+
 #include "ffloc/core/error.h"
 #include "ffloc/model/op_profile.h"
 #include "ffloc/model/rope2d.h"
@@ -154,7 +156,7 @@ Dust3rEncoding Dust3rModel::encode(const at::Tensor& images, TensorTrace* trace,
 }
 
 std::array<std::vector<at::Tensor>, 2> Dust3rModel::decode(const Dust3rEncoding& view1, const Dust3rEncoding& view2,
-                                                           TensorTrace* trace) const {
+                                                           TensorTrace* trace, std::array<DecoderOutputs, 2> keep) const {
   for (const Dust3rEncoding* view : {&view1, &view2}) {
     if (!view->tokens.defined() || view->tokens.dim() != 3 || view->tokens.size(2) != config_.enc_dim ||
         !view->positions.defined() || view->positions.sizes() != at::IntArrayRef({view->tokens.size(0), view->tokens.size(1), 2})) {
@@ -168,9 +170,15 @@ std::array<std::vector<at::Tensor>, 2> Dust3rModel::decode(const Dust3rEncoding&
   const int64_t head_dim = config_.dec_dim / config_.dec_heads;
   const RopeFactors rope1 = ropeFactors(view1.positions, head_dim, backbone_dtype_, config_.rope_base);
   const RopeFactors rope2 = ropeFactors(view2.positions, head_dim, backbone_dtype_, config_.rope_base);
+  const std::array<int64_t, 4> hooks = config_.dptHooks();
+  // Output `layer` < d of view `v` (0: the encoder tokens) when the caller reads it, else undefined.
+  const auto kept = [&](size_t v, int64_t layer, const at::Tensor& value) {
+    const bool is_hook = std::find(hooks.begin(), hooks.end(), layer) != hooks.end();
+    return keep[v] == DecoderOutputs::kHeadInputs && is_hook ? value : at::Tensor();
+  };
   std::array<std::vector<at::Tensor>, 2> outputs;
-  outputs[0].push_back(view1.tokens);
-  outputs[1].push_back(view2.tokens);
+  outputs[0].push_back(kept(0, 0, view1.tokens));
+  outputs[1].push_back(kept(1, 0, view2.tokens));
   at::Tensor f1 = decoder_embed_.forward(view1.tokens);
   at::Tensor f2 = decoder_embed_.forward(view2.tokens);
   record(trace, "view1.dec.embed", f1);
@@ -184,8 +192,9 @@ std::array<std::vector<at::Tensor>, 2> Dust3rModel::decode(const Dust3rEncoding&
     record(trace, "view1.dec.block" + std::to_string(i), f1);
     record(trace, "view2.dec.block" + std::to_string(i), f2);
     if (i + 1 < dec_blocks_.size()) {
-      outputs[0].push_back(f1);
-      outputs[1].push_back(f2);
+      const int64_t layer = static_cast<int64_t>(i) + 1;
+      outputs[0].push_back(kept(0, layer, f1));
+      outputs[1].push_back(kept(1, layer, f2));
     }
   }
   outputs[0].push_back(dec_norm_.forward(f1));
@@ -199,7 +208,11 @@ at::Tensor Dust3rModel::headForward(size_t index, const std::vector<at::Tensor>&
                                     int64_t width, TensorTrace* trace, const std::string& view) const {
   const std::array<int64_t, 4> hooks = config_.dptHooks();
   std::array<at::Tensor, 4> tokens;
-  for (size_t i = 0; i < 4; ++i) tokens[i] = decoded.at(hooks[i]).to(head_dtype_);
+  for (size_t i = 0; i < 4; ++i) {
+    const at::Tensor& layer = decoded.at(hooks[i]);
+    if (!layer.defined()) throw std::logic_error("Dust3rModel::headForward: decode() kept only the last output");
+    tokens[i] = layer.to(head_dtype_);
+  }
   return heads_.at(index).forward(tokens, height, width, config_.patch_size, trace, view + ".head");
 }
 

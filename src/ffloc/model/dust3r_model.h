@@ -43,6 +43,10 @@ Dust3rPointMap pointMapFromRaw(const at::Tensor& raw);
 // when another head predicts the query's points.
 enum class Dust3rHeads { kBoth, kFirstOnly, kNone };
 
+// Which decoder outputs of a view decode() returns: the DPT head's inputs (Dust3rConfig::dptHooks,
+// the last output among them), or the last output only (a view that no DPT head reads).
+enum class DecoderOutputs { kHeadInputs, kLast };
+
 // Patch (row, col) positions of an image of rows x cols patches, row-major: (batch, rows*cols, 2)
 // int64.
 at::Tensor patchPositions(int64_t batch, int64_t rows, int64_t cols, at::Device device);
@@ -78,10 +82,14 @@ class Dust3rModel {
   Dust3rEncoding encode(const at::Tensor& images, TensorTrace* trace = nullptr,
                         const std::string& view = "view1") const;
 
-  // Decoder of both views: per view the d + 1 head inputs [encoder tokens, layer 1, ...,
-  // layer d - 1, dec_norm(layer d)].
+  // Decoder of both views: per view the d + 1 outputs [encoder tokens, layer 1, ..., layer d - 1,
+  // dec_norm(layer d)], of which only those `keep` names are defined; the others are dropped as
+  // soon as the next layer has read them (all d + 1 of a pair at 768 tokens are 54 MiB in
+  // float32, a FastForward map stream of 1500 tokens alone 57 MiB).
   std::array<std::vector<at::Tensor>, 2> decode(const Dust3rEncoding& view1, const Dust3rEncoding& view2,
-                                                TensorTrace* trace = nullptr) const;
+                                                TensorTrace* trace = nullptr,
+                                                std::array<DecoderOutputs, 2> keep = {DecoderOutputs::kHeadInputs,
+                                                                                      DecoderOutputs::kHeadInputs}) const;
 
   // DPT head `index` (0 for view 1, 1 for view 2) on a decoder output list; raw (B, 4, H, W).
   at::Tensor headForward(size_t index, const std::vector<at::Tensor>& decoded, int64_t height,

@@ -9,9 +9,14 @@
 #include <ATen/ops/abs.h>
 #include <ATen/ops/equal.h>
 
+#include <algorithm>
+#include <array>
 #include <cstdio>
 #include <cstdlib>
+#include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/testing/shared_data.h"
@@ -122,6 +127,18 @@ class Dust3rParity : public ::testing::Test {
     // The returned prediction is what the trace recorded.
     EXPECT_TRUE(at::equal(prediction.view2.pts3d, trace.at("view2.pts3d_in_other_view")));
     EXPECT_TRUE(at::equal(prediction.view1.conf, trace.at("view1.conf")));
+    // Untraced, the heads run their finest path banded (it is never whole, so a trace cannot
+    // record it): the prediction must match the reference all the same.
+    const Dust3rPairPrediction untraced = model_->forward(image1.to(testDevice()), image2.to(testDevice()));
+    const std::vector<std::pair<std::string, at::Tensor>> outputs = {
+        {"view1.pts3d", untraced.view1.pts3d},
+        {"view1.conf", untraced.view1.conf},
+        {"view2.pts3d_in_other_view", untraced.view2.pts3d},
+        {"view2.conf", untraced.view2.conf}};
+    for (const auto& [name, value] : outputs) {
+      const Comparison c = compareTensors(value.cpu(), toTorch(fixture->at(name)));
+      EXPECT_LE(c.max_abs, kRelativeTolerance * c.ref_max) << name << " without a trace";
+    }
   }
 
   std::filesystem::path dir_;
@@ -143,6 +160,37 @@ TEST_F(Dust3rParity, EncoderSingle) {
 TEST_F(Dust3rParity, PairLandscape) { checkPairCase("case_pair_landscape.safetensors"); }
 
 TEST_F(Dust3rParity, PairMixed) { checkPairCase("case_pair_mixed.safetensors"); }
+
+TEST_F(Dust3rParity, DecodeKeepsOnlyTheOutputsTheCallerReads) {
+  const auto fixture = openSafetensors(dir_ / "case_pair_landscape.safetensors");
+  const std::array<Dust3rEncoding, 2> views = {model_->encode(checkedInput(*fixture, "view1").to(testDevice())),
+                                               model_->encode(checkedInput(*fixture, "view2").to(testDevice()))};
+  TensorTrace trace;  // every layer's output, whatever decode() returns
+  const auto heads = model_->decode(views[0], views[1], &trace);
+  const auto first_heads =
+      model_->decode(views[0], views[1], nullptr, {DecoderOutputs::kHeadInputs, DecoderOutputs::kLast});
+  const std::array<int64_t, 4> hooks = model_->config().dptHooks();
+  const int64_t last = model_->config().dec_depth;
+  for (size_t view = 0; view < 2; ++view) {
+    const std::string name = "view" + std::to_string(view + 1) + ".dec.";
+    ASSERT_EQ(heads[view].size(), static_cast<size_t>(last + 1));
+    ASSERT_EQ(first_heads[view].size(), static_cast<size_t>(last + 1));
+    for (int64_t layer = 0; layer <= last; ++layer) {
+      const at::Tensor expected = layer == 0      ? views[view].tokens
+                                  : layer == last ? trace.at(name + "out")
+                                                  : trace.at(name + "block" + std::to_string(layer - 1));
+      const bool hook = std::find(hooks.begin(), hooks.end(), layer) != hooks.end();
+      const bool read_by_head = view == 0 ? hook : layer == last;
+      EXPECT_EQ(heads[view][layer].defined(), hook) << name << layer;
+      EXPECT_EQ(first_heads[view][layer].defined(), read_by_head) << name << layer;
+      for (const auto* decoded : {&heads, &first_heads}) {
+        const at::Tensor& value = (*decoded)[view][layer];
+        if (value.defined()) EXPECT_TRUE(at::equal(value, expected)) << name << layer;
+      }
+    }
+  }
+  EXPECT_THROW(model_->headForward(1, first_heads[1], views[1].height, views[1].width), std::logic_error);
+}
 
 TEST(TorchThreads, SetsRequestedCount) {
   EXPECT_EQ(setTorchThreadCount(2), 2);

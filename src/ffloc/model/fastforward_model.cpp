@@ -215,7 +215,10 @@ FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, con
                               .to(map.features.scalar_type());
   }
   map_encoding.positions = map.positions;
-  const auto decoded = dust3r_.decode(query, map_encoding, trace);
+  // The map stream feeds only the map head (and the matching head), which read its last output.
+  const DecoderOutputs query_outputs =
+      config_.query_head == QueryHeadKind::kMatching ? DecoderOutputs::kLast : DecoderOutputs::kHeadInputs;
+  const auto decoded = dust3r_.decode(query, map_encoding, trace, {query_outputs, DecoderOutputs::kLast});
   FastForwardPrediction out;
   if (config_.query_head == QueryHeadKind::kMatching) {
     const int64_t patch = config_.dust3r.patch_size;
