@@ -21,6 +21,15 @@ struct PoseEvidence {
   // Fraction of the cells of an 8x8 grid over the image that hold an inlier: a pose held by
   // one small patch of the image is poorly determined whatever the count.
   double inlier_spread = 0;
+  // The pose's predicted uncertainty from its inliers (estimatePoseCovariance, pixel noise
+  // estimated from their residuals): the RMS error of the camera centre in scene units and as a
+  // fraction of the median inlier depth, and of the rotation. Unlike the second estimate, not one
+  // random draw of the error but its expected size. Negative without a pose, +inf when the
+  // inliers do not determine one.
+  double residual_sigma_px = -1;
+  double predicted_centre_sigma = -1;
+  double predicted_centre_sigma_relative = -1;
+  double predicted_rotation_sigma_deg = -1;
   // A second, independent estimate (another reference image, another half of the pairs): the
   // distance between the two camera centres over the median inlier depth, and the angle
   // between the two rotations. Negative when no second estimate was made or it failed.
@@ -36,17 +45,21 @@ struct PoseEvidence {
 // precision and recall). A pose is kLocalized when every test passes, kUncertain when PnP found
 // one but a test fails.
 struct VerdictOptions {
-  int min_inliers = 12;
+  int min_inliers = 20;
   double min_inlier_ratio = 0.1;
   double min_inlier_spread = 0.1;
+  // A predicted uncertainty (PoseEvidence::predicted_*) above any of these makes the pose
+  // kUncertain: the inliers do not pin it down, however well they agree with each other.
+  double max_centre_sigma_relative = 0.015;  // of the median inlier depth
+  double max_centre_sigma_m = 0.075;         // in metric maps only
+  double max_rotation_sigma_deg = 1.0;
   // A second estimate that lands farther than this makes the pose kUncertain; so does an
-  // independent one that fails, and a half-sample one that fails when require_agreement.
+  // independent one that fails, and a half-sample one that fails when require_agreement. It
+  // catches the gross errors a covariance cannot see (a consistent but wrong set of inliers).
   double max_agreement_translation = 0.05;  // of the median inlier depth
   double max_agreement_rotation_deg = 2.0;
-  // In metric maps also in metres: far from the camera a small fraction of the depth is already
-  // more than a caller can use.
-  double max_agreement_distance_m = 0.05;
-  bool require_agreement = true;
+  double max_agreement_distance_m = 0.1;  // in metric maps only
+  bool require_agreement = false;
 
   // InputError naming the field for a value out of range or NaN.
   void check() const;
