@@ -1,5 +1,6 @@
 #pragma once
 
+#include <limits>
 #include <string>
 
 #include "ffloc/geometry/camera.h"
@@ -45,21 +46,23 @@ struct PoseEvidence {
 // precision and recall). A pose is kLocalized when every test passes, kUncertain when PnP found
 // one but a test fails.
 struct VerdictOptions {
-  int min_inliers = 20;
+  int min_inliers = 12;
   double min_inlier_ratio = 0.1;
   double min_inlier_spread = 0.1;
   // A predicted uncertainty (PoseEvidence::predicted_*) above any of these makes the pose
-  // kUncertain: the inliers do not pin it down, however well they agree with each other.
-  double max_centre_sigma_relative = 0.015;  // of the median inlier depth
-  double max_centre_sigma_m = 0.075;         // in metric maps only
-  double max_rotation_sigma_deg = 1.0;
+  // kUncertain. Off by default: the rule calibrated on them was no better than this one on a
+  // held-out set (docs/verdict.md gives both).
+  double max_centre_sigma_relative = std::numeric_limits<double>::infinity();  // of the median inlier depth
+  double max_centre_sigma_m = std::numeric_limits<double>::infinity();         // in metric maps only
+  double max_rotation_sigma_deg = std::numeric_limits<double>::infinity();
   // A second estimate that lands farther than this makes the pose kUncertain; so does an
-  // independent one that fails, and a half-sample one that fails when require_agreement. It
-  // catches the gross errors a covariance cannot see (a consistent but wrong set of inliers).
+  // independent one that fails, and a half-sample one that fails when require_agreement.
   double max_agreement_translation = 0.05;  // of the median inlier depth
   double max_agreement_rotation_deg = 2.0;
-  double max_agreement_distance_m = 0.1;  // in metric maps only
-  bool require_agreement = false;
+  // In metric maps also in metres: far from the camera a small fraction of the depth is already
+  // more than a caller can use.
+  double max_agreement_distance_m = 0.05;
+  bool require_agreement = true;
 
   // InputError naming the field for a value out of range or NaN.
   void check() const;

@@ -45,23 +45,38 @@ TEST(Verdict, EachTestCanMakeAPoseUncertain) {
     change(e);
     return judgePose(e, success(), metric, rule);
   };
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.inliers = 19; }).reason, "19 inliers, fewer than 20");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.inliers = 11; }).reason, "11 inliers, fewer than 12");
   EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_ratio = 0.09; }).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_spread = 0.09; }).reason, "inliers cover too little of the image");
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_rotation_sigma_deg = 2.5; }).reason,
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_rotation_deg = 9; }).reason, "a second estimate disagrees");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_translation = 0.06; }).status, PoseStatus::kUncertain);
+  // 8 cm apart: too far in a metric map, not judged in metres in one of arbitrary units.
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }, false).status, PoseStatus::kLocalized);
+}
+
+// The predicted-uncertainty tests, off by default, each reject a pose when set.
+TEST(Verdict, PredictedUncertaintyTestsRejectWhenSet) {
+  EXPECT_EQ(judgePose(strong(), success(), true, VerdictOptions{}).status, PoseStatus::kLocalized);
+  VerdictOptions rule;
+  rule.max_centre_sigma_relative = 0.015;
+  rule.max_centre_sigma_m = 0.075;
+  rule.max_rotation_sigma_deg = 1.0;
+  auto judged = [&](auto change, bool metric = true) {
+    PoseEvidence e = strong();
+    change(e);
+    return judgePose(e, success(), metric, rule);
+  };
+  EXPECT_EQ(judged([](PoseEvidence&) {}).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_rotation_sigma_deg = 1.5; }).reason,
             "the inliers leave the pose too uncertain");
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma_relative = 1e9; }).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma_relative = 0.02; }).status, PoseStatus::kUncertain);
   // Inliers that determine no pose at all (J^T J singular).
   EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_rotation_sigma_deg = std::numeric_limits<double>::infinity(); }).status,
             PoseStatus::kUncertain);
   // A predicted 20 cm: too uncertain in a metric map, not judged in metres in one of arbitrary units.
   EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.2; }).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.2; }, false).status, PoseStatus::kLocalized);
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_rotation_deg = 9; }).reason, "a second estimate disagrees");
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_translation = 0.06; }).status, PoseStatus::kUncertain);
-  // 15 cm apart: too far in a metric map, not judged in metres in one of arbitrary units.
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.15; }).status, PoseStatus::kUncertain);
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.15; }, false).status, PoseStatus::kLocalized);
 }
 
 // A half-sample estimate that fails says the pairs are few, not that they disagree; the method's
@@ -71,9 +86,9 @@ TEST(Verdict, AFailedSecondEstimateCountsOnlyWhenIndependent) {
   PoseEvidence e = strong();
   e.agreement_translation = e.agreement_rotation_deg = e.agreement_distance = inf;
   VerdictOptions rule;
-  EXPECT_EQ(judgePose(e, success(), true, rule).status, PoseStatus::kLocalized);
-  rule.require_agreement = true;
   EXPECT_EQ(judgePose(e, success(), true, rule).reason, "too few pairs for a second estimate");
+  rule.require_agreement = false;
+  EXPECT_EQ(judgePose(e, success(), true, rule).status, PoseStatus::kLocalized);
   e.independent_second_estimate = true;
   EXPECT_EQ(judgePose(e, success(), true, VerdictOptions{}).reason, "the second reference frame gives no pose");
 }
