@@ -89,9 +89,17 @@ TEST(Report, SummaryJsonFollowsTheFixedSchema) {
 }
 
 TEST(Report, CsvHasOneRowPerFrame) {
-  const std::string csv = perFrameCsv({frame(0.01, 0.5), frame(0, 0, false)});
+  FrameResult localized = frame(0.01, 0.5);
+  localized.evidence.predicted_centre_sigma = 0.0123;
+  localized.evidence.predicted_rotation_sigma_deg = 0.456;
+  const std::string csv = perFrameCsv({localized, frame(0, 0, false)});
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 3);
   EXPECT_NE(csv.find("inf"), std::string::npos);
+  // The predicted uncertainty, the last evidence columns, as scripts/calibrate_verdict.py reads them.
+  const std::string header = csv.substr(0, csv.find('\n'));
+  EXPECT_NE(header.find(",predicted_centre_sigma,predicted_centre_sigma_relative,predicted_rotation_sigma_deg"),
+            std::string::npos);
+  EXPECT_NE(csv.find(",0.012300,-1.000000,0.456000\n"), std::string::npos) << csv;
   const std::string table = markdownTable({summarize({frame(0.01, 0.5)})}, {"d"});
   EXPECT_NE(table.find("units not metric"), std::string::npos);
 }

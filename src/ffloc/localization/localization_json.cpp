@@ -36,7 +36,11 @@ nlohmann::json localizationJson(const std::string& name, const LocalizationResul
                      {"inlier_spread", e.inlier_spread},
                      {"agreement_translation", e.agreement_translation < 0 ? nlohmann::json() : finiteOrNull(e.agreement_translation)},
                      {"agreement_rotation_deg", e.agreement_rotation_deg < 0 ? nlohmann::json() : finiteOrNull(e.agreement_rotation_deg)},
-                     {"agreement_distance", e.agreement_distance < 0 ? nlohmann::json() : finiteOrNull(e.agreement_distance)}};
+                     {"agreement_distance", e.agreement_distance < 0 ? nlohmann::json() : finiteOrNull(e.agreement_distance)},
+                     {"residual_sigma_px", e.residual_sigma_px < 0 ? nlohmann::json() : finiteOrNull(e.residual_sigma_px)},
+                     {"predicted_centre_sigma", e.predicted_centre_sigma < 0 ? nlohmann::json() : finiteOrNull(e.predicted_centre_sigma)},
+                     {"predicted_centre_sigma_relative", e.predicted_centre_sigma_relative < 0 ? nlohmann::json() : finiteOrNull(e.predicted_centre_sigma_relative)},
+                     {"predicted_rotation_sigma_deg", e.predicted_rotation_sigma_deg < 0 ? nlohmann::json() : finiteOrNull(e.predicted_rotation_sigma_deg)}};
   nlohmann::json selected = nlohmann::json::array();
   for (size_t index : result.selected) selected.push_back(localizer.cameras().at(index).name);
   out["selected"] = selected;

@@ -2,9 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
+#include "ffloc/pose/pose_covariance.h"
 #include "ffloc/pose/reprojection.h"
 #include "ffloc/pose/select_correspondences.h"
 
@@ -35,6 +37,9 @@ void VerdictOptions::check() const {
   requireAtLeast("min_inliers", min_inliers, 0);
   requireAtLeast("min_inlier_ratio", min_inlier_ratio, 0);
   requireAtLeast("min_inlier_spread", min_inlier_spread, 0);
+  requireAtLeast("max_centre_sigma_relative", max_centre_sigma_relative, 0);
+  requireAtLeast("max_centre_sigma_m", max_centre_sigma_m, 0);
+  requireAtLeast("max_rotation_sigma_deg", max_rotation_sigma_deg, 0);
   requireAtLeast("max_agreement_translation", max_agreement_translation, 0);
   requireAtLeast("max_agreement_rotation_deg", max_agreement_rotation_deg, 0);
   requireAtLeast("max_agreement_distance_m", max_agreement_distance_m, 0);
@@ -73,13 +78,25 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   for (const auto& row : occupied) cells += static_cast<int>(std::count(std::begin(row), std::end(row), true));
   evidence.inlier_spread = static_cast<double>(cells) / (kGrid * kGrid);
 
+  double depth = 1;
+  if (!depths.empty()) {
+    std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+    depth = std::max(depths[depths.size() / 2], 1e-9);
+  }
+
+  const PoseCovariance covariance = estimatePoseCovariance(pixels, points, inliers, camera, world_to_camera);
+  if (covariance.valid) {
+    evidence.residual_sigma_px = covariance.residual_sigma_px;
+    evidence.predicted_centre_sigma = covariance.centre_sigma;
+    evidence.predicted_centre_sigma_relative = covariance.centre_sigma / depth;
+    evidence.predicted_rotation_sigma_deg = covariance.rotation_sigma_deg;
+  } else {
+    evidence.residual_sigma_px = evidence.predicted_centre_sigma = evidence.predicted_centre_sigma_relative =
+        evidence.predicted_rotation_sigma_deg = std::numeric_limits<double>::infinity();
+  }
+
   if (second_estimate) {
     if (second_estimate->ok()) {
-      double depth = 1;
-      if (!depths.empty()) {
-        std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
-        depth = std::max(depths[depths.size() / 2], 1e-9);
-      }
       evidence.agreement_distance = translationError(second_estimate->camera_to_world, pose.camera_to_world);
       evidence.agreement_translation = evidence.agreement_distance / depth;
       evidence.agreement_rotation_deg = rotationErrorDeg(second_estimate->camera_to_world, pose.camera_to_world);
@@ -106,6 +123,10 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
     verdict.reason = "inlier ratio below " + std::to_string(options.min_inlier_ratio);
   else if (evidence.inlier_spread < options.min_inlier_spread)
     verdict.reason = "inliers cover too little of the image";
+  else if (!(evidence.predicted_centre_sigma_relative <= options.max_centre_sigma_relative &&
+             evidence.predicted_rotation_sigma_deg <= options.max_rotation_sigma_deg &&
+             (!metric || evidence.predicted_centre_sigma <= options.max_centre_sigma_m)))
+    verdict.reason = "the inliers leave the pose too uncertain";
   else if (!std::isfinite(evidence.agreement_translation) || evidence.agreement_translation < 0) {
     if (evidence.independent_second_estimate)
       verdict.reason = "the second reference frame gives no pose";

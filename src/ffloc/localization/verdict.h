@@ -1,5 +1,6 @@
 #pragma once
 
+#include <limits>
 #include <string>
 
 #include "ffloc/geometry/camera.h"
@@ -21,6 +22,15 @@ struct PoseEvidence {
   // Fraction of the cells of an 8x8 grid over the image that hold an inlier: a pose held by
   // one small patch of the image is poorly determined whatever the count.
   double inlier_spread = 0;
+  // The pose's predicted uncertainty from its inliers (estimatePoseCovariance, pixel noise
+  // estimated from their residuals): the RMS error of the camera centre in scene units and as a
+  // fraction of the median inlier depth, and of the rotation. Unlike the second estimate, not one
+  // random draw of the error but its expected size. Negative without a pose, +inf when the
+  // inliers do not determine one.
+  double residual_sigma_px = -1;
+  double predicted_centre_sigma = -1;
+  double predicted_centre_sigma_relative = -1;
+  double predicted_rotation_sigma_deg = -1;
   // A second, independent estimate (another reference image, another half of the pairs): the
   // distance between the two camera centres over the median inlier depth, and the angle
   // between the two rotations. Negative when no second estimate was made or it failed.
@@ -39,6 +49,12 @@ struct VerdictOptions {
   int min_inliers = 12;
   double min_inlier_ratio = 0.1;
   double min_inlier_spread = 0.1;
+  // A predicted uncertainty (PoseEvidence::predicted_*) above any of these makes the pose
+  // kUncertain. Off by default: the rule calibrated on them was no better than this one on a
+  // held-out set (docs/verdict.md gives both).
+  double max_centre_sigma_relative = std::numeric_limits<double>::infinity();  // of the median inlier depth
+  double max_centre_sigma_m = std::numeric_limits<double>::infinity();         // in metric maps only
+  double max_rotation_sigma_deg = std::numeric_limits<double>::infinity();
   // A second estimate that lands farther than this makes the pose kUncertain; so does an
   // independent one that fails, and a half-sample one that fails when require_agreement.
   double max_agreement_translation = 0.05;  // of the median inlier depth

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include "ffloc/core/error.h"
 #include "ffloc/localization/localizer.h"
@@ -28,6 +29,10 @@ PoseEvidence strong() {
   e.agreement_translation = 0.002;
   e.agreement_rotation_deg = 0.1;
   e.agreement_distance = 0.004;
+  e.residual_sigma_px = 1.0;
+  e.predicted_centre_sigma = 0.01;
+  e.predicted_centre_sigma_relative = 0.004;
+  e.predicted_rotation_sigma_deg = 0.3;
   return e;
 }
 
@@ -43,11 +48,35 @@ TEST(Verdict, EachTestCanMakeAPoseUncertain) {
   EXPECT_EQ(judged([](PoseEvidence& e) { e.inliers = 11; }).reason, "11 inliers, fewer than 12");
   EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_ratio = 0.09; }).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged([](PoseEvidence& e) { e.inlier_spread = 0.09; }).reason, "inliers cover too little of the image");
-  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_rotation_deg = 2.5; }).reason, "a second estimate disagrees");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_rotation_deg = 9; }).reason, "a second estimate disagrees");
   EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_translation = 0.06; }).status, PoseStatus::kUncertain);
   // 8 cm apart: too far in a metric map, not judged in metres in one of arbitrary units.
   EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }, false).status, PoseStatus::kLocalized);
+}
+
+// The predicted-uncertainty tests, off by default, each reject a pose when set.
+TEST(Verdict, PredictedUncertaintyTestsRejectWhenSet) {
+  EXPECT_EQ(judgePose(strong(), success(), true, VerdictOptions{}).status, PoseStatus::kLocalized);
+  VerdictOptions rule;
+  rule.max_centre_sigma_relative = 0.015;
+  rule.max_centre_sigma_m = 0.075;
+  rule.max_rotation_sigma_deg = 1.0;
+  auto judged = [&](auto change, bool metric = true) {
+    PoseEvidence e = strong();
+    change(e);
+    return judgePose(e, success(), metric, rule);
+  };
+  EXPECT_EQ(judged([](PoseEvidence&) {}).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_rotation_sigma_deg = 1.5; }).reason,
+            "the inliers leave the pose too uncertain");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma_relative = 0.02; }).status, PoseStatus::kUncertain);
+  // Inliers that determine no pose at all (J^T J singular).
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_rotation_sigma_deg = std::numeric_limits<double>::infinity(); }).status,
+            PoseStatus::kUncertain);
+  // A predicted 20 cm: too uncertain in a metric map, not judged in metres in one of arbitrary units.
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.2; }).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.2; }, false).status, PoseStatus::kLocalized);
 }
 
 // A half-sample estimate that fails says the pairs are few, not that they disagree; the method's
@@ -109,6 +138,34 @@ TEST(Verdict, SpreadCountsTheGridCellsWithInliers) {
   const PoseEvidence evidence = measureEvidence(pairs, camera, pose, PnpOptions{}, nullptr);
   EXPECT_DOUBLE_EQ(evidence.inlier_spread, 1.0 / 64);
   EXPECT_LT(evidence.agreement_translation, 0);  // no second estimate given
+}
+
+// The predicted uncertainty comes from the inliers' residuals: pixels 1 px off (per axis) give a
+// residual sigma near 1 px, and the relative figure is the centre's over the median inlier depth.
+TEST(Verdict, PredictedUncertaintyComesFromTheInliers) {
+  Intrinsics camera;
+  camera.fx = camera.fy = 500;
+  camera.cx = 320;
+  camera.cy = 240;
+  camera.width = 640;
+  camera.height = 480;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(0, 640), v(0, 480);
+  std::normal_distribution<double> noise(0, 1);
+  Correspondences pairs;
+  const double depth = 4;
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Vector2d pixel(u(rng), v(rng));
+    pairs.add(pixel + Eigen::Vector2d(noise(rng), noise(rng)), camera.backproject(pixel, depth), 3.0f);
+  }
+  PnpResult pose = success();
+  pose.camera_to_world = Pose::identity();
+  const PoseEvidence evidence = measureEvidence(pairs, camera, pose, PnpOptions{}, nullptr);
+  EXPECT_NEAR(evidence.residual_sigma_px, 1.0, 0.15);
+  EXPECT_GT(evidence.predicted_centre_sigma, 0);
+  EXPECT_NEAR(evidence.predicted_centre_sigma_relative, evidence.predicted_centre_sigma / depth, 1e-12);
+  EXPECT_GT(evidence.predicted_rotation_sigma_deg, 0);
+  EXPECT_LT(evidence.predicted_rotation_sigma_deg, 1);
 }
 
 }  // namespace

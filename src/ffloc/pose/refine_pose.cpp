@@ -4,6 +4,8 @@
 #include <Eigen/Geometry>
 #include <cmath>
 
+#include "ffloc/pose/reprojection.h"
+
 namespace ffloc {
 namespace {
 
@@ -42,19 +44,10 @@ class ReprojectionProblem {
     for (int i : indices_) {
       const Eigen::Vector3d p = pose.R * points_[i] + pose.t;
       if (!(p.z() > 0)) continue;
-      const double inv_z = 1.0 / p.z();
-      const double x = p.x() * inv_z, y = p.y() * inv_z;
-      const Eigen::Vector2d r(camera_.fx * x + camera_.cx - pixels_[i].x(),
-                              camera_.fy * y + camera_.cy - pixels_[i].y());
+      const Eigen::Vector2d r(camera_.fx * p.x() / p.z() + camera_.cx - pixels_[i].x(),
+                              camera_.fy * p.y() / p.z() + camera_.cy - pixels_[i].y());
       const double w = weight(r.squaredNorm());
-      Eigen::Matrix<double, 2, 3> d_projection;
-      d_projection << camera_.fx * inv_z, 0, -camera_.fx * x * inv_z,  //
-          0, camera_.fy * inv_z, -camera_.fy * y * inv_z;
-      Eigen::Matrix3d d_point_d_omega;
-      d_point_d_omega << 0, p.z(), -p.y(), -p.z(), 0, p.x(), p.y(), -p.x(), 0;  // -[p]x
-      Eigen::Matrix<double, 2, 6> J;
-      J.leftCols<3>() = d_projection * d_point_d_omega;
-      J.rightCols<3>() = d_projection;
+      const Eigen::Matrix<double, 2, 6> J = projectionJacobian(camera_, p);
       const Eigen::Matrix<double, 6, 2> weighted_Jt = w * J.transpose();
       H->noalias() += weighted_Jt.lazyProduct(J);
       g->noalias() += weighted_Jt * r;

@@ -13,6 +13,21 @@ double squaredReprojectionError(const Intrinsics& camera, const Pose& world_to_c
   return du * du + dv * dv;
 }
 
+Eigen::Matrix<double, 2, 6> projectionJacobian(const Intrinsics& camera, const Eigen::Vector3d& point_in_camera) {
+  const Eigen::Vector3d& p = point_in_camera;
+  const double inv_z = 1.0 / p.z();
+  const double x = p.x() * inv_z, y = p.y() * inv_z;
+  Eigen::Matrix<double, 2, 3> d_projection;
+  d_projection << camera.fx * inv_z, 0, -camera.fx * x * inv_z,  //
+      0, camera.fy * inv_z, -camera.fy * y * inv_z;
+  Eigen::Matrix3d d_point_d_omega;
+  d_point_d_omega << 0, p.z(), -p.y(), -p.z(), 0, p.x(), p.y(), -p.x(), 0;  // -[p]x
+  Eigen::Matrix<double, 2, 6> J;
+  J.leftCols<3>() = d_projection * d_point_d_omega;
+  J.rightCols<3>() = d_projection;
+  return J;
+}
+
 std::vector<int> findInliers(const std::vector<Eigen::Vector2d>& pixels,
                              const std::vector<Eigen::Vector3d>& points, const Intrinsics& camera,
                              const Pose& world_to_camera, double threshold_px) {
