@@ -118,15 +118,21 @@ TEST(Verdict, OptionsOutOfRangeNameTheField) {
   EXPECT_EQ(errorOf([](VerdictOptions&) {}), "");
 }
 
-// Spread is measured on the pairs PnP chose from: a pose held by one corner of the image covers
-// one cell of the 8 x 8 grid.
-TEST(Verdict, SpreadCountsTheGridCellsWithInliers) {
+// 640 x 480, 500 px focal length, principal point at the centre.
+Intrinsics vgaCamera() {
   Intrinsics camera;
   camera.fx = camera.fy = 500;
   camera.cx = 320;
   camera.cy = 240;
   camera.width = 640;
   camera.height = 480;
+  return camera;
+}
+
+// Spread is measured on the pairs PnP chose from: a pose held by one corner of the image covers
+// one cell of the 8 x 8 grid.
+TEST(Verdict, SpreadCountsTheGridCellsWithInliers) {
+  const Intrinsics camera = vgaCamera();
   Correspondences pairs;
   for (int i = 0; i < 50; ++i) {
     const Eigen::Vector2d pixel(10 + (i % 5) * 5, 10 + (i / 5) * 4);
@@ -143,12 +149,7 @@ TEST(Verdict, SpreadCountsTheGridCellsWithInliers) {
 // The predicted uncertainty comes from the inliers' residuals: pixels 1 px off (per axis) give a
 // residual sigma near 1 px, and the relative figure is the centre's over the median inlier depth.
 TEST(Verdict, PredictedUncertaintyComesFromTheInliers) {
-  Intrinsics camera;
-  camera.fx = camera.fy = 500;
-  camera.cx = 320;
-  camera.cy = 240;
-  camera.width = 640;
-  camera.height = 480;
+  const Intrinsics camera = vgaCamera();
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(0, 640), v(0, 480);
   std::normal_distribution<double> noise(0, 1);
