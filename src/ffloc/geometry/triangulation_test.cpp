@@ -9,16 +9,7 @@
 namespace ffloc {
 namespace {
 
-Intrinsics testCamera() {
-  Intrinsics camera;
-  camera.fx = 800;
-  camera.fy = 780;
-  camera.cx = 319.5;
-  camera.cy = 241.0;
-  camera.width = 640;
-  camera.height = 480;
-  return camera;
-}
+Intrinsics testCamera() { return {800, 780, 319.5, 241.0, 640, 480, {}}; }
 
 // A camera at `centre` looking at `target` (OpenCV axes, world up is -y).
 Pose lookAt(const Eigen::Vector3d& centre, const Eigen::Vector3d& target) {

@@ -119,15 +119,7 @@ TEST(Verdict, OptionsOutOfRangeNameTheField) {
 }
 
 // 640 x 480, 500 px focal length, principal point at the centre.
-Intrinsics vgaCamera() {
-  Intrinsics camera;
-  camera.fx = camera.fy = 500;
-  camera.cx = 320;
-  camera.cy = 240;
-  camera.width = 640;
-  camera.height = 480;
-  return camera;
-}
+Intrinsics vgaCamera() { return {500, 500, 320, 240, 640, 480, {}}; }
 
 // Spread is measured on the pairs PnP chose from: a pose held by one corner of the image covers
 // one cell of the 8 x 8 grid.

@@ -8,15 +8,7 @@
 namespace ffloc {
 namespace {
 
-Intrinsics testCamera() {
-  Intrinsics camera;
-  camera.fx = camera.fy = 600;
-  camera.cx = 320;
-  camera.cy = 240;
-  camera.width = 640;
-  camera.height = 480;
-  return camera;
-}
+Intrinsics testCamera() { return {600, 600, 320, 240, 640, 480, {}}; }
 
 struct Pairs {
   Pose world_to_camera;

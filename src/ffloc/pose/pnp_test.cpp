@@ -11,16 +11,7 @@
 namespace ffloc {
 namespace {
 
-Intrinsics testCamera() {
-  Intrinsics camera;
-  camera.fx = 525;
-  camera.fy = 525;
-  camera.cx = 319.5;
-  camera.cy = 239.5;
-  camera.width = 640;
-  camera.height = 480;
-  return camera;
-}
+Intrinsics testCamera() { return {525, 525, 319.5, 239.5, 640, 480, {}}; }
 
 struct SyntheticQuery {
   Pose camera_to_world;

@@ -7,16 +7,7 @@
 namespace ffloc {
 namespace {
 
-Intrinsics testCamera() {
-  Intrinsics camera;
-  camera.fx = 500;
-  camera.fy = 400;
-  camera.cx = 320;
-  camera.cy = 240;
-  camera.width = 640;
-  camera.height = 480;
-  return camera;
-}
+Intrinsics testCamera() { return {500, 400, 320, 240, 640, 480, {}}; }
 
 TEST(Reprojection, MeasuresPixelDistanceOfTheProjection) {
   Pose world_to_camera;
