@@ -7,8 +7,11 @@
 namespace ffloc {
 namespace {
 
-// JSON has no infinity: a failed second estimate is null.
-nlohmann::json finiteOrNull(double value) { return std::isfinite(value) ? nlohmann::json(value) : nlohmann::json(); }
+// An evidence measure that was not taken (negative) or has no finite value (a failed second
+// estimate, a pose its inliers do not determine) is null: JSON has no infinity.
+nlohmann::json measuredOrNull(double value) {
+  return value >= 0 && std::isfinite(value) ? nlohmann::json(value) : nlohmann::json();
+}
 
 }  // namespace
 
@@ -34,13 +37,13 @@ nlohmann::json localizationJson(const std::string& name, const LocalizationResul
   out["pnp_correspondences"] = e.used_correspondences;
   out["evidence"] = {{"inlier_ratio", e.inlier_ratio},
                      {"inlier_spread", e.inlier_spread},
-                     {"agreement_translation", e.agreement_translation < 0 ? nlohmann::json() : finiteOrNull(e.agreement_translation)},
-                     {"agreement_rotation_deg", e.agreement_rotation_deg < 0 ? nlohmann::json() : finiteOrNull(e.agreement_rotation_deg)},
-                     {"agreement_distance", e.agreement_distance < 0 ? nlohmann::json() : finiteOrNull(e.agreement_distance)},
-                     {"residual_sigma_px", e.residual_sigma_px < 0 ? nlohmann::json() : finiteOrNull(e.residual_sigma_px)},
-                     {"predicted_centre_sigma", e.predicted_centre_sigma < 0 ? nlohmann::json() : finiteOrNull(e.predicted_centre_sigma)},
-                     {"predicted_centre_sigma_relative", e.predicted_centre_sigma_relative < 0 ? nlohmann::json() : finiteOrNull(e.predicted_centre_sigma_relative)},
-                     {"predicted_rotation_sigma_deg", e.predicted_rotation_sigma_deg < 0 ? nlohmann::json() : finiteOrNull(e.predicted_rotation_sigma_deg)}};
+                     {"agreement_translation", measuredOrNull(e.agreement_translation)},
+                     {"agreement_rotation_deg", measuredOrNull(e.agreement_rotation_deg)},
+                     {"agreement_distance", measuredOrNull(e.agreement_distance)},
+                     {"residual_sigma_px", measuredOrNull(e.residual_sigma_px)},
+                     {"predicted_centre_sigma", measuredOrNull(e.predicted_centre_sigma)},
+                     {"predicted_centre_sigma_relative", measuredOrNull(e.predicted_centre_sigma_relative)},
+                     {"predicted_rotation_sigma_deg", measuredOrNull(e.predicted_rotation_sigma_deg)}};
   nlohmann::json selected = nlohmann::json::array();
   for (size_t index : result.selected) selected.push_back(localizer.cameras().at(index).name);
   out["selected"] = selected;

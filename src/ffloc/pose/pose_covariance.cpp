@@ -27,7 +27,7 @@ PoseCovariance estimatePoseCovariance(const std::vector<Eigen::Vector2d>& pixels
     if (!(p.z() > 0)) continue;
     const Eigen::Matrix<double, 2, 6> J = projectionJacobian(camera, p);
     information.noalias() += J.transpose() * J;
-    squared_residuals += squaredReprojectionError(camera, world_to_camera, pixels[i], points[i]);
+    squared_residuals += (camera.project(p) - pixels[i]).squaredNorm();
     ++result.pairs;
   }
   // Four pairs leave two degrees of freedom for the noise estimate; fewer leave none.

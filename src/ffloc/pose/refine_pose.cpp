@@ -27,8 +27,7 @@ class ReprojectionProblem {
     for (int i : indices_) {
       const Eigen::Vector3d p = pose.R * points_[i] + pose.t;
       if (!(p.z() > 0)) continue;
-      const Eigen::Vector2d r(camera_.fx * p.x() / p.z() + camera_.cx - pixels_[i].x(),
-                              camera_.fy * p.y() / p.z() + camera_.cy - pixels_[i].y());
+      const Eigen::Vector2d r = camera_.project(p) - pixels_[i];
       e.cost += rho(r.squaredNorm());
       ++e.in_front;
     }
@@ -44,8 +43,7 @@ class ReprojectionProblem {
     for (int i : indices_) {
       const Eigen::Vector3d p = pose.R * points_[i] + pose.t;
       if (!(p.z() > 0)) continue;
-      const Eigen::Vector2d r(camera_.fx * p.x() / p.z() + camera_.cx - pixels_[i].x(),
-                              camera_.fy * p.y() / p.z() + camera_.cy - pixels_[i].y());
+      const Eigen::Vector2d r = camera_.project(p) - pixels_[i];
       const double w = weight(r.squaredNorm());
       const Eigen::Matrix<double, 2, 6> J = projectionJacobian(camera_, p);
       const Eigen::Matrix<double, 6, 2> weighted_Jt = w * J.transpose();
