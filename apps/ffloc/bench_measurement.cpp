@@ -1,6 +1,5 @@
 #include "bench_measurement.h"
 
-#include <malloc.h>
 #include <sys/resource.h>
 
 #include <chrono>
@@ -8,6 +7,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <optional>
+
+#include "ffloc/core/allocator.h"
 
 namespace ffloc::cli {
 namespace {
@@ -53,12 +54,10 @@ Timing timeCalls(int warmup, int repeats, const std::function<void()>& call) {
 
 // Starts the peak-RSS window for a freshly built model.
 MemoryReport startMemoryWindow() {
-#ifdef __GLIBC__
   // glibc keeps freed heap memory resident: the previous model's weights, where this model's did
   // not land, stayed as 100-180 MiB of the next model's peak. Returned first, the window starts
   // from what this model holds, as in a process that builds only it.
-  malloc_trim(0);
-#endif
+  returnFreeMemory();
   MemoryReport memory;
   memory.after_build_mib = procStatusMiB("VmRSS").value_or(0.0);
   memory.peak_is_per_model = resetPeakRss() && procStatusMiB("VmHWM").has_value();

@@ -17,4 +17,10 @@ void configureAllocator(const AllocatorOptions& options) {
 #endif
 }
 
+void returnFreeMemory() {
+#if defined(__GLIBC__)
+  malloc_trim(0);
+#endif
+}
+
 }  // namespace ffloc

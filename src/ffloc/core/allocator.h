@@ -25,4 +25,9 @@ struct AllocatorOptions {
 // another C library does nothing.
 void configureAllocator(const AllocatorOptions& options = {});
 
+// Hands the heap's free memory back to the kernel now, whatever the trim threshold: for a
+// measurement that should start from what is live (a benchmark's peak-memory window). Under
+// another C library does nothing.
+void returnFreeMemory();
+
 }  // namespace ffloc
