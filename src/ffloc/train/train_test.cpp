@@ -117,14 +117,18 @@ TEST(Optimiser, ClippingAndSchedule) {
 TEST(TrainableParameters, GradientsReachTheModelsOwnTensors) {
   LoadedModel loaded = loadModel("random:tiny:3");
   FastForwardModel& model = *loaded.model;
+  at::manual_seed(0);
   const at::Tensor query_image = at::rand({1, 3, 64, 96}) * 2 - 1;
   const at::Tensor map_image = at::rand({1, 3, 48, 64}) * 2 - 1;
   const std::vector<at::Tensor> rays = {at::rand({1, 12, 6})};
   const at::Tensor indices = sampleMapTokenIndices({12}, 7, 1);
   // Before any parameter requires a gradient the forward is plain inference; the same forward
-  // with gradients on must give the same numbers, up to the last float bits (inference takes the
-  // vectorised softmax kernel, autograd ATen's), measured against the largest value as the
-  // fixture parity tests do.
+  // with gradients on must give the same numbers, up to float rounding (inference takes its own
+  // GEMM, softmax and banded DPT kernels, autograd ATen's), measured against the largest value as
+  // the fixture parity tests do. Through this random model's four decoder blocks and DPT the two
+  // differ by up to 9.8e-6 of the largest point over 60 seeded inputs on AMD Zen 3 and reached
+  // 1.04e-5 on the CI machine's kernels, so the bound is 5e-5: a wrong weight or a missed layer
+  // moves them by orders of magnitude more.
   const FastForwardPrediction expected =
       model.forward(model.encode(query_image), gatherMapTokens({model.encode(map_image)}, rays, indices));
 
@@ -135,10 +139,11 @@ TEST(TrainableParameters, GradientsReachTheModelsOwnTensors) {
   const auto relative_difference = [](const at::Tensor& a, const at::Tensor& b) {
     return (a - b).abs().max().item<double>() / b.abs().max().item<double>();
   };
-  EXPECT_LE(relative_difference(actual.query.pts3d, expected.query.pts3d), 1e-5);
-  EXPECT_LE(relative_difference(actual.query.conf, expected.query.conf), 1e-5);
-  EXPECT_LE(relative_difference(actual.map.pts3d, expected.map.pts3d), 1e-5);
-  EXPECT_LE(relative_difference(actual.map.conf, expected.map.conf), 1e-5);
+  constexpr double kRoundingBound = 5e-5;
+  EXPECT_LE(relative_difference(actual.query.pts3d, expected.query.pts3d), kRoundingBound);
+  EXPECT_LE(relative_difference(actual.query.conf, expected.query.conf), kRoundingBound);
+  EXPECT_LE(relative_difference(actual.map.pts3d, expected.map.pts3d), kRoundingBound);
+  EXPECT_LE(relative_difference(actual.map.conf, expected.map.conf), kRoundingBound);
 
   (actual.query.pts3d.sum() + actual.map.conf.sum()).backward();
   std::map<std::string, double> grad_norm;
