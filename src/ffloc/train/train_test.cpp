@@ -58,6 +58,13 @@ TEST(TrainingConfig, ReadsJsonAndNamesBadFields) {
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"alpha", "x"}}, "cfg.json"); }), "field 'alpha'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"alpha", -1}}, "cfg.json"); }), "field 'alpha'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"max_overlap", 1.5}}, "cfg.json"); }), "max_overlap"));
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"point_weight", -0.5}}, "cfg.json"); }), "field 'point_weight'"));
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"trained_parameters", {""}}}, "cfg.json"); }),
+                       "field 'trained_parameters'"));
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"trained_parameters", "match_head."}}, "cfg.json"); }),
+                       "field 'trained_parameters': wrong type"));
+  const TrainingConfig head_only = trainingConfigFromJson({{"trained_parameters", {"match_head.", "decoder_embed."}}}, "cfg.json");
+  EXPECT_EQ(head_only.trained_parameters, (std::vector<std::string>{"match_head.", "decoder_embed."}));
   EXPECT_TRUE(contains(errorOf([] { readTrainingConfig("/nonexistent/cfg.json"); }), "/nonexistent/cfg.json"));
 }
 
@@ -167,6 +174,13 @@ TEST(TrainableParameters, GradientsReachTheModelsOwnTensors) {
   for (const auto& entry : decoder_side) EXPECT_FALSE(isEncoderParameter(entry.first)) << entry.first;
   EXPECT_LT(decoder_side.size(), parameters.size());
   EXPECT_EQ(parameters.size() + 1, table.entries().size());  // all but mask_token
+  // Only the prefixes asked for, and a prefix that names nothing says so.
+  const auto heads = trainableParameters(model, false, {"map_head.", "ray_embed.fc2."});
+  std::vector<std::string> names;
+  for (const auto& entry : heads) names.push_back(entry.first);
+  EXPECT_EQ(names, (std::vector<std::string>{"ray_embed.fc2.weight", "ray_embed.fc2.bias", "map_head.weight", "map_head.bias"}));
+  EXPECT_TRUE(contains(errorOf([&] { trainableParameters(model, false, {"enc_blocks."}, "cfg.json"); }),
+                       "cfg.json: field 'trained_parameters': 'enc_blocks.' names no decoder-side parameter"));
 }
 
 TEST(TrainingSampler, BuildsConsistentSamplesFromASyntheticScene) {
@@ -447,6 +461,35 @@ TEST(MatchingFamilyTraining, FitsOneSampleAndReloadsItsArchitecture) {
   const auto b = parameterSnapshot(*reloaded.model);
   ASSERT_EQ(a.size(), b.size());
   for (size_t i = 0; i < a.size(); ++i) EXPECT_TRUE(at::equal(a[i].second, b[i].second)) << a[i].first;
+}
+
+// A run that trains only the matching head moves the head and leaves every other weight as it
+// was loaded, and with Eq. 2 weighed at zero its loss is the matching loss alone.
+TEST(MatchingFamilyTraining, TrainsOnlyTheParametersItIsAskedFor) {
+  TrainingConfig config = smallConfig();
+  config.model = "random:sift-tiny:1";
+  config.steps = 4;
+  config.warmup_steps = 0;
+  config.validation_samples = 1;
+  config.trained_parameters = {"match_head."};
+  config.point_weight = 0;
+  Trainer trainer(config, {smallScene()}, testing::makeTempDir("ffloc-train-head-only"));
+  EXPECT_LT(trainer.trainableParameterCount(), 20000);
+  const auto before = parameterSnapshot(trainer.model());
+  const TrainingSample sample = trainer.validationSample(0);
+  TrainingStepStats stats;
+  for (int64_t i = 0; i < config.steps; ++i) stats = trainer.step({sample});
+  EXPECT_NEAR(stats.loss, config.match_weight * stats.match_loss, 1e-5 * std::abs(stats.loss));
+  const auto after = parameterSnapshot(trainer.model());
+  ASSERT_EQ(before.size(), after.size());
+  int moved = 0;
+  for (size_t i = 0; i < before.size(); ++i) {
+    const bool head = before[i].first.rfind("match_head.", 0) == 0;
+    const bool same = at::equal(before[i].second, after[i].second);
+    if (!head) EXPECT_TRUE(same) << before[i].first;
+    moved += head && !same;
+  }
+  EXPECT_GE(moved, 3);
 }
 
 }  // namespace

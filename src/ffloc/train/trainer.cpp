@@ -152,7 +152,7 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   if (!checkpoint && config_.model.rfind("random:", 0) == 0) shrinkOutputLayers(*model_);
   model_->to(device_, at::kFloat);
 
-  auto trainable = trainableParameters(*model_, config_.train_encoder);
+  auto trainable = trainableParameters(*model_, config_.train_encoder, config_.trained_parameters);
   for (auto& entry : trainable) entry.second.requires_grad_(true);
   AdamWOptions adam;
   adam.beta1 = config_.beta1;
@@ -293,7 +293,7 @@ Trainer::Losses Trainer::lossesOf(const FastForwardPrediction& prediction, const
   losses.match = matchingLoss(prediction.match_logits[0], targets);
   // The map head's targets are the points its tokens already carry: logged, not trained on, so
   // that its large early errors do not dominate the clipped gradient.
-  losses.total = losses.query.loss + config_.match_weight * losses.match.loss;
+  losses.total = config_.point_weight * losses.query.loss + config_.match_weight * losses.match.loss;
   return losses;
 }
 

@@ -40,6 +40,7 @@ const std::map<std::string, FieldBinding>& fieldBindings() {
       {"alpha", bindField(&TrainingConfig::alpha)},
       {"match_weight", bindField(&TrainingConfig::match_weight)},
       {"match_radius", bindField(&TrainingConfig::match_radius)},
+      {"point_weight", bindField(&TrainingConfig::point_weight)},
       {"steps", bindField(&TrainingConfig::steps)},
       {"warmup_steps", bindField(&TrainingConfig::warmup_steps)},
       {"learning_rate", bindField(&TrainingConfig::learning_rate)},
@@ -50,6 +51,7 @@ const std::map<std::string, FieldBinding>& fieldBindings() {
       {"adam_epsilon", bindField(&TrainingConfig::adam_epsilon)},
       {"clip_grad_norm", bindField(&TrainingConfig::clip_grad_norm)},
       {"train_encoder", bindField(&TrainingConfig::train_encoder)},
+      {"trained_parameters", bindField(&TrainingConfig::trained_parameters)},
       {"batch_size", bindField(&TrainingConfig::batch_size)},
       {"accumulate", bindField(&TrainingConfig::accumulate)},
       {"loader_threads", bindField(&TrainingConfig::loader_threads)},
@@ -92,6 +94,10 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (!(alpha > 0)) fail("alpha", "must be positive");
   if (!(match_weight >= 0 && match_weight <= 1e3)) fail("match_weight", "must be in [0, 1000]");
   if (!(match_radius > 0 && match_radius <= 16)) fail("match_radius", "must be in (0, 16] patch footprints");
+  if (!(point_weight >= 0 && point_weight <= 1e3)) fail("point_weight", "must be in [0, 1000]");
+  for (const std::string& prefix : trained_parameters) {
+    if (prefix.empty()) fail("trained_parameters", "an empty prefix would name every parameter; leave the list empty instead");
+  }
   if (steps < 1) fail("steps", "must be positive");
   if (warmup_steps < 0 || warmup_steps > steps) fail("warmup_steps", "must be in [0, steps]");
   if (!(learning_rate > 0)) fail("learning_rate", "must be positive");

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -36,6 +37,10 @@ struct TrainingConfig {
   // token's point counts as the patch's match.
   double match_weight = 1.0;
   double match_radius = 0.5;
+  // Eq. 2 on the matching head's query points, beside the matching loss: soft-assigned points
+  // pull the softmax towards averages of candidates, which PnP dislikes, so a run may weigh the
+  // points less than the matches.
+  double point_weight = 1.0;
 
   // Optimiser and schedule.
   int64_t steps = 1000;
@@ -48,6 +53,10 @@ struct TrainingConfig {
   double adam_epsilon = 1e-8;
   double clip_grad_norm = 1.0;  // 0: no clipping
   bool train_encoder = false;
+  // Name prefixes of the parameters training updates (e.g. "match_head."); empty: every
+  // parameter (the encoder's only with train_encoder). The rest stay as loaded, and a frozen
+  // decoder records no graph.
+  std::vector<std::string> trained_parameters;
 
   // Batches (trainer.h): each optimiser step averages the loss over batch_size x accumulate x
   // the number of ranks samples, which share one map token count.
