@@ -2,6 +2,8 @@
 
 #include <ATen/Parallel.h>
 
+#include <opencv2/core/utility.hpp>
+
 #include "ffloc/core/threads.h"
 
 #ifndef _OPENMP
@@ -17,6 +19,21 @@ int setTorchThreadCount(int requested) {
   const int threads = setLibraryThreadCount(requested);
   at::set_num_threads(threads);
   return threads;
+}
+
+int torchThreadCount() { return at::get_num_threads(); }
+
+SingleThreadedKernels::SingleThreadedKernels()
+    : torch_threads_(at::get_num_threads()), blas_threads_(blasThreadCount()), opencv_threads_(cv::getNumThreads()) {
+  at::set_num_threads(1);
+  setBlasThreadCount(1);
+  cv::setNumThreads(1);
+}
+
+SingleThreadedKernels::~SingleThreadedKernels() {
+  at::set_num_threads(torch_threads_);
+  if (blas_threads_ > 0) setBlasThreadCount(blas_threads_);
+  cv::setNumThreads(opencv_threads_);
 }
 
 void parallelFor(int64_t begin, int64_t end, int64_t grain_size, const std::function<void(int64_t, int64_t)>& body) {

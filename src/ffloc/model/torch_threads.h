@@ -9,6 +9,21 @@ namespace ffloc {
 // threads) and returns it. libtorch has been seen to start with a single thread, so callers set
 // this explicitly before running the network.
 int setTorchThreadCount(int requested);
+int torchThreadCount();
+
+// For its lifetime, libtorch's, OpenBLAS's and OpenCV's pools at one thread each, for callers
+// that run independent items on threads of their own (one frame per thread); then the counts it
+// found again.
+class SingleThreadedKernels {
+ public:
+  SingleThreadedKernels();
+  ~SingleThreadedKernels();
+  SingleThreadedKernels(const SingleThreadedKernels&) = delete;
+  SingleThreadedKernels& operator=(const SingleThreadedKernels&) = delete;
+
+ private:
+  int torch_threads_, blas_threads_, opencv_threads_;
+};
 
 // at::parallel_for on libtorch's intra-op threads, for the network's own kernels. It exists
 // because at::parallel_for is a template whose '#pragma omp parallel' expands in the caller's

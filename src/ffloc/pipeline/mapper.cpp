@@ -5,17 +5,19 @@
 #include <algorithm>
 #include <chrono>
 #include <cstring>
-#include <future>
 #include <map>
+#include <optional>
 #include <set>
 
 #include "ffloc/classical/sift_features.h"
 #include "ffloc/classical/vlad.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/ordered_parallel.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/geometry/preprocess.h"
 #include "ffloc/geometry/rays.h"
+#include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/prepared_image.h"
 #include "ffloc/pipeline/query_descriptor.h"
 
@@ -61,6 +63,18 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
   return image;
 }
 
+namespace {
+
+int frameWorkers(const FastForwardModel& model, const MappingOptions& options) {
+  if (options.frame_workers < 0) {
+    throwInputError("mapping options", 0, "field 'frame_workers': must be at least 0 (0: chosen for the encoder)");
+  }
+  if (options.frame_workers > 0) return options.frame_workers;
+  return model.config().encoder == TokenEncoderKind::kDenseSift ? torchThreadCount() : 1;
+}
+
+}  // namespace
+
 MapFile emptyMap(const LoadedModel& model, bool metric) {
   MapFile map;
   map.model_id = model.id;
@@ -105,16 +119,18 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
   const auto start = std::chrono::steady_clock::now();
   ProgressBar progress("mapping " + scene.name, to_add.size(), options.quiet);
   const FastForwardModel& network = *model.model;
-  const auto read = [&network](const Frame* frame) { return readMappingFrame(network, *frame); };
-  std::future<MappingFramePixels> next;
-  if (!to_add.empty()) next = std::async(std::launch::async, read, to_add.front());
-  for (size_t i = 0; i < to_add.size(); ++i) {
-    const MappingFramePixels pixels = next.get();
-    if (i + 1 < to_add.size()) next = std::async(std::launch::async, read, to_add[i + 1]);
-    map.images.push_back(encodeMappingImage(network, *to_add[i], pixels, options));
-    ++report.added;
-    progress.update(i + 1);
-  }
+  const int workers = frameWorkers(network, options);
+  std::optional<SingleThreadedKernels> one_thread_per_frame;
+  if (workers > 1) one_thread_per_frame.emplace();
+  forEachInOrder<MapImage>(
+      to_add.size(), workers,
+      [&](size_t i) { return encodeMappingImage(network, *to_add[i], readMappingFrame(network, *to_add[i]), options); },
+      [&](size_t i, MapImage&& image) {
+        map.images.push_back(std::move(image));
+        ++report.added;
+        progress.update(i + 1);
+      });
+  one_thread_per_frame.reset();
   progress.finish();
   if (options.vlad || !map.vlad_centres.empty()) addVladRetrieval(map, scene, options.quiet);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

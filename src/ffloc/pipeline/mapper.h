@@ -23,6 +23,10 @@ struct MappingOptions {
   // so that queries may select their K images by classical retrieval.
   bool vlad = false;
   bool quiet = false;  // no progress bar
+  // Frames read and encoded at once, each on a thread of its own with single-threaded kernels.
+  // 0: as many as libtorch has threads when the encoder is dense SIFT (one image is too little
+  // work to split over threads), 1 for a ViT encoder (its products use every thread).
+  int frame_workers = 0;
 };
 
 struct MappingReport {
@@ -31,9 +35,7 @@ struct MappingReport {
   double seconds = 0;             // reading, preprocessing and encoding the added images
 };
 
-// A mapping frame's pixels as decoded from its files. Decoding is the serial part of mapping
-// (the encoder's work spreads over the threads), so addToMap decodes the next frame while it
-// encodes the current one.
+// A mapping frame's pixels as decoded from its files.
 struct MappingFramePixels {
   cv::Mat rgb;
   cv::Mat1f depth_metres;  // empty when the frame has no depth or `model` does not use it
@@ -49,7 +51,8 @@ MapFile emptyMap(const LoadedModel& model, bool metric);
 
 // Adds `frames` (indices into scene.frames) to `map`, keeping the images already there untouched
 // and skipping frames whose name the map already holds. InputError when the map was built by
-// another model, with another token width, or in other units (metric vs not).
+// another model, with another token width, or in other units (metric vs not), and for an option
+// out of range. The map's images come out in the order of `frames` however many workers ran.
 MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scene, const std::vector<size_t>& frames,
                        const MappingOptions& options = {});
 

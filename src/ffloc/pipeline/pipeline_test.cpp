@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <cstdio>
@@ -376,6 +377,49 @@ TEST(Pipeline, MatchingModelMapsCarryTokenPointsAndNeedDepth) {
     EXPECT_NE(std::string(e.what()).find("no mapping frame of this dataset has depth"), std::string::npos) << e.what();
   }
   EXPECT_TRUE(without.images.empty());
+}
+
+// Frames encoded on several workers give the serial map, image for image and in order; a frame
+// that does not decode stops mapping naming its file, with the frames before it mapped.
+TEST(Pipeline, FrameWorkersGiveTheSerialMap) {
+  SyntheticOptions options;
+  options.seed = 4;
+  options.width = 128;
+  options.height = 96;
+  options.mapping_frames = 7;
+  options.query_frames = 1;
+  const fs::path dir = testing::makeTempDir("ffloc_pipeline_workers");
+  Scene scene = generateSyntheticScene(options, dir);
+  const LoadedModel model = loadModel("random:sift-tiny");
+  const auto mapWith = [&](int workers) {
+    MappingOptions mapping;
+    mapping.quiet = true;
+    mapping.frame_workers = workers;
+    MapFile map = emptyMap(model, scene.metric);
+    addToMap(map, model, scene, range(0, 7), mapping);
+    const fs::path file = dir / ("workers" + std::to_string(workers) + ".ffmap");
+    writeMapFile(map, file);
+    std::ifstream in(file, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  const std::string serial = mapWith(1);
+  EXPECT_EQ(mapWith(3), serial);
+  EXPECT_EQ(mapWith(0), serial);
+
+  MappingOptions bad;
+  bad.frame_workers = -1;
+  MapFile unused = emptyMap(model, scene.metric);
+  EXPECT_NE(inputErrorOf([&] { addToMap(unused, model, scene, range(0, 2), bad); }).find("field 'frame_workers'"),
+            std::string::npos);
+
+  fs::remove(scene.frames[4].image_path);
+  MappingOptions three;
+  three.quiet = true;
+  three.frame_workers = 3;
+  MapFile partial = emptyMap(model, scene.metric);
+  const std::string error = inputErrorOf([&] { addToMap(partial, model, scene, range(0, 7), three); });
+  EXPECT_NE(error.find(scene.frames[4].image_path.string()), std::string::npos) << error;
+  EXPECT_EQ(partial.images.size(), 4u);
 }
 
 }  // namespace
