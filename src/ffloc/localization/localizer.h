@@ -91,7 +91,7 @@ struct QueryTimings {
   double retrieval = 0;      // global descriptor and image selection
   double matching = 0;       // map assembly, decoder and heads / descriptor matching, back to world
   double pnp = 0;
-  double verification = 0;   // the second estimate behind the verdict
+  double verification = 0;   // the second estimate behind the verdict: what it added beyond matching
   double total() const { return preprocessing + features + retrieval + matching + pnp + verification; }
 };
 

@@ -65,10 +65,6 @@ class FastForwardLocalizer : public Localizer {
  private:
   EncodedQuery encode(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                       const LocalizeOptions& options, QueryTimings& timings) const;
-  // encode(), then decode() against the retrieved images; `query` keeps the encoding for a second
-  // decoding.
-  QueryPrediction firstPrediction(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
-                                  const LocalizeOptions& options, EncodedQuery& query) const;
   // Decodes the query against `selected` (the first is P_0).
   void decode(const EncodedQuery& query, const std::vector<size_t>& selected, uint64_t seed,
               const LocalizeOptions& options, QueryPrediction& out) const;

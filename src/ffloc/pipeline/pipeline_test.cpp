@@ -379,6 +379,43 @@ TEST(Pipeline, MatchingModelMapsCarryTokenPointsAndNeedDepth) {
   EXPECT_TRUE(without.images.empty());
 }
 
+// With two threads the verdict's second pass runs beside the first, each on one thread: the
+// answer is the one the serial passes give, and the thread counts are back afterwards.
+TEST(Pipeline, SecondPassBesideTheFirstGivesTheSerialAnswer) {
+  SyntheticOptions options;
+  options.seed = 5;
+  options.width = 128;
+  options.height = 96;
+  options.mapping_frames = 6;
+  options.query_frames = 1;
+  const fs::path dir = testing::makeTempDir("ffloc_pipeline_side_by_side");
+  const Scene scene = generateSyntheticScene(options, dir);
+  const LoadedModel model = loadModel("random:sift-tiny");
+  MappingOptions quiet;
+  quiet.quiet = true;
+  MapFile map = emptyMap(model, scene.metric);
+  addToMap(map, model, scene, scene.mappingIndices(), quiet);
+  const FastForwardLocalizer localizer(*model.model, std::move(map));
+  const Frame& query = scene.frames[scene.queryIndices()[0]];
+  const cv::Mat rgb = readImageRgb(query.image_path);
+  LocalizeOptions localize;
+  localize.top_k = 3;
+  setTorchThreadCount(1);
+  const LocalizationResult serial = localizer.localize(rgb, query.intrinsics, query.name, localize);
+  setTorchThreadCount(2);
+  const LocalizationResult beside = localizer.localize(rgb, query.intrinsics, query.name, localize);
+  EXPECT_EQ(torchThreadCount(), 2);
+  setTorchThreadCount(1);
+  ASSERT_TRUE(serial.pnp.ok());
+  EXPECT_TRUE(serial.verdict.evidence.independent_second_estimate);
+  EXPECT_TRUE(beside.verdict.evidence.independent_second_estimate);
+  EXPECT_LT(translationError(serial.pnp.camera_to_world, beside.pnp.camera_to_world), 1e-9);
+  EXPECT_LT(rotationErrorDeg(serial.pnp.camera_to_world, beside.pnp.camera_to_world), 1e-6);
+  EXPECT_DOUBLE_EQ(serial.verdict.evidence.agreement_distance, beside.verdict.evidence.agreement_distance);
+  EXPECT_EQ(serial.verdict.status, beside.verdict.status);
+  EXPECT_GT(beside.timings.verification, 0);
+}
+
 // Frames encoded on several workers give the serial map, image for image and in order; a frame
 // that does not decode stops mapping naming its file, with the frames before it mapped.
 TEST(Pipeline, FrameWorkersGiveTheSerialMap) {
