@@ -341,17 +341,22 @@ TEST(Pipeline, ShippedDefaultModelLoadsAndPredicts) {
 namespace ffloc {
 namespace {
 
+// A rendered 128 x 96 scene with depth, for the matching family's untrained tiny model.
+Scene renderedScene(uint64_t seed, int mapping_frames, const std::string& name) {
+  SyntheticOptions options;
+  options.seed = seed;
+  options.width = 128;
+  options.height = 96;
+  options.mapping_frames = mapping_frames;
+  options.query_frames = 1;
+  return generateSyntheticScene(options, testing::makeTempDir(name));
+}
+
 // The matching family maps with the points of its tokens, which come from depth: they survive the
 // map file, and a dataset without depth is refused before any image is encoded.
 TEST(Pipeline, MatchingModelMapsCarryTokenPointsAndNeedDepth) {
-  SyntheticOptions options;
-  options.seed = 3;
-  options.width = 128;
-  options.height = 96;
-  options.mapping_frames = 3;
-  options.query_frames = 1;
-  const fs::path dir = testing::makeTempDir("ffloc_pipeline_points");
-  Scene scene = generateSyntheticScene(options, dir);
+  Scene scene = renderedScene(3, 3, "ffloc_pipeline_points");
+  const fs::path dir = scene.root;
   const LoadedModel model = loadModel("random:sift-tiny");
   MappingOptions quiet;
   quiet.quiet = true;
@@ -382,14 +387,7 @@ TEST(Pipeline, MatchingModelMapsCarryTokenPointsAndNeedDepth) {
 // With two threads the verdict's second pass runs beside the first, each on one thread: the
 // answer is the one the serial passes give, and the thread counts are back afterwards.
 TEST(Pipeline, SecondPassBesideTheFirstGivesTheSerialAnswer) {
-  SyntheticOptions options;
-  options.seed = 5;
-  options.width = 128;
-  options.height = 96;
-  options.mapping_frames = 6;
-  options.query_frames = 1;
-  const fs::path dir = testing::makeTempDir("ffloc_pipeline_side_by_side");
-  const Scene scene = generateSyntheticScene(options, dir);
+  const Scene scene = renderedScene(5, 6, "ffloc_pipeline_side_by_side");
   const LoadedModel model = loadModel("random:sift-tiny");
   MappingOptions quiet;
   quiet.quiet = true;
@@ -419,14 +417,8 @@ TEST(Pipeline, SecondPassBesideTheFirstGivesTheSerialAnswer) {
 // Frames encoded on several workers give the serial map, image for image and in order; a frame
 // that does not decode stops mapping naming its file, with the frames before it mapped.
 TEST(Pipeline, FrameWorkersGiveTheSerialMap) {
-  SyntheticOptions options;
-  options.seed = 4;
-  options.width = 128;
-  options.height = 96;
-  options.mapping_frames = 7;
-  options.query_frames = 1;
-  const fs::path dir = testing::makeTempDir("ffloc_pipeline_workers");
-  Scene scene = generateSyntheticScene(options, dir);
+  Scene scene = renderedScene(4, 7, "ffloc_pipeline_workers");
+  const fs::path dir = scene.root;
   const LoadedModel model = loadModel("random:sift-tiny");
   const auto mapWith = [&](int workers) {
     MappingOptions mapping;

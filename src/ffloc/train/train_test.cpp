@@ -434,12 +434,17 @@ namespace {
 // The matching family trains through the same loop: on one sample its matching loss falls, and
 // its checkpoint loads back as the same architecture (the dense-sift encoder and matching head
 // are not visible in tensor shapes: the file's 'architecture' metadata carries them).
-TEST(MatchingFamilyTraining, FitsOneSampleAndReloadsItsArchitecture) {
+TrainingConfig matchingConfig(int64_t steps, int64_t warmup_steps) {
   TrainingConfig config = smallConfig();
   config.model = "random:sift-tiny:1";
-  config.steps = 60;
-  config.warmup_steps = 2;
+  config.steps = steps;
+  config.warmup_steps = warmup_steps;
   config.validation_samples = 1;
+  return config;
+}
+
+TEST(MatchingFamilyTraining, FitsOneSampleAndReloadsItsArchitecture) {
+  const TrainingConfig config = matchingConfig(60, 2);
   const fs::path run = testing::makeTempDir("ffloc-train-matching");
   Trainer trainer(config, {smallScene()}, run);
   const TrainingSample sample = trainer.validationSample(0);
@@ -466,11 +471,7 @@ TEST(MatchingFamilyTraining, FitsOneSampleAndReloadsItsArchitecture) {
 // A run that trains only the matching head moves the head and leaves every other weight as it
 // was loaded, and with Eq. 2 weighed at zero its loss is the matching loss alone.
 TEST(MatchingFamilyTraining, TrainsOnlyTheParametersItIsAskedFor) {
-  TrainingConfig config = smallConfig();
-  config.model = "random:sift-tiny:1";
-  config.steps = 4;
-  config.warmup_steps = 0;
-  config.validation_samples = 1;
+  TrainingConfig config = matchingConfig(4, 0);
   config.trained_parameters = {"match_head."};
   config.point_weight = 0;
   Trainer trainer(config, {smallScene()}, testing::makeTempDir("ffloc-train-head-only"));
