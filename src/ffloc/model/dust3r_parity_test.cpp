@@ -13,10 +13,13 @@
 #include <array>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <opencv2/core/utility.hpp>
 
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/testing/shared_data.h"
@@ -197,6 +200,22 @@ TEST(TorchThreads, SetsRequestedCount) {
   EXPECT_EQ(at::get_num_threads(), 2);
   EXPECT_EQ(setTorchThreadCount(0), resolveThreadCount(0));
   EXPECT_EQ(at::get_num_threads(), resolveThreadCount(0));
+}
+
+// Guards that overlap, as two queries from two threads do, leave the counts as they found them
+// whichever ends first.
+TEST(TorchThreads, OverlappingSingleThreadedGuardsRestoreTheCountsOnce) {
+  setTorchThreadCount(3);
+  auto first = std::make_unique<SingleThreadedKernels>();
+  EXPECT_EQ(torchThreadCount(), 1);
+  EXPECT_EQ(cv::getNumThreads(), 1);
+  auto second = std::make_unique<SingleThreadedKernels>();
+  first.reset();
+  EXPECT_EQ(torchThreadCount(), 1);  // the second guard still runs single-threaded
+  second.reset();
+  EXPECT_EQ(torchThreadCount(), 3);
+  EXPECT_EQ(cv::getNumThreads(), 3);
+  setTorchThreadCount(0);
 }
 
 TEST_F(Dust3rParity, RopeUnit) {

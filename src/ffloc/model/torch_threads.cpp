@@ -2,6 +2,8 @@
 
 #include <ATen/Parallel.h>
 
+#include <mutex>
+
 #include <opencv2/core/utility.hpp>
 
 #include "ffloc/core/threads.h"
@@ -23,17 +25,40 @@ int setTorchThreadCount(int requested) {
 
 int torchThreadCount() { return at::get_num_threads(); }
 
-SingleThreadedKernels::SingleThreadedKernels()
-    : torch_threads_(at::get_num_threads()), blas_threads_(blasThreadCount()), opencv_threads_(cv::getNumThreads()) {
+namespace {
+
+struct SavedThreadCounts {
+  std::mutex mutex;
+  int guards = 0;
+  int torch = 1, blas = 0, opencv = 1;
+};
+
+SavedThreadCounts& savedThreadCounts() {
+  static SavedThreadCounts saved;
+  return saved;
+}
+
+}  // namespace
+
+SingleThreadedKernels::SingleThreadedKernels() {
+  SavedThreadCounts& saved = savedThreadCounts();
+  const std::lock_guard<std::mutex> lock(saved.mutex);
+  if (saved.guards++ > 0) return;
+  saved.torch = at::get_num_threads();
+  saved.blas = blasThreadCount();
+  saved.opencv = cv::getNumThreads();
   at::set_num_threads(1);
   setBlasThreadCount(1);
   cv::setNumThreads(1);
 }
 
 SingleThreadedKernels::~SingleThreadedKernels() {
-  at::set_num_threads(torch_threads_);
-  if (blas_threads_ > 0) setBlasThreadCount(blas_threads_);
-  cv::setNumThreads(opencv_threads_);
+  SavedThreadCounts& saved = savedThreadCounts();
+  const std::lock_guard<std::mutex> lock(saved.mutex);
+  if (--saved.guards > 0) return;
+  at::set_num_threads(saved.torch);
+  if (saved.blas > 0) setBlasThreadCount(saved.blas);
+  cv::setNumThreads(saved.opencv);
 }
 
 void parallelFor(int64_t begin, int64_t end, int64_t grain_size, const std::function<void(int64_t, int64_t)>& body) {

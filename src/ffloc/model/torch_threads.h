@@ -12,17 +12,15 @@ int setTorchThreadCount(int requested);
 int torchThreadCount();
 
 // For its lifetime, libtorch's, OpenBLAS's and OpenCV's pools at one thread each, for callers
-// that run independent items on threads of their own (one frame per thread); then the counts it
-// found again.
+// that run independent items on threads of their own (one frame per thread). The counts are
+// process-wide, so guards that overlap (two queries from two threads) share one saving: the
+// first saves the counts, the last restores them.
 class SingleThreadedKernels {
  public:
   SingleThreadedKernels();
   ~SingleThreadedKernels();
   SingleThreadedKernels(const SingleThreadedKernels&) = delete;
   SingleThreadedKernels& operator=(const SingleThreadedKernels&) = delete;
-
- private:
-  int torch_threads_, blas_threads_, opencv_threads_;
 };
 
 // at::parallel_for on libtorch's intra-op threads, for the network's own kernels. It exists
