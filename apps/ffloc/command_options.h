@@ -21,7 +21,7 @@ struct QueryArguments {
   const CLI::Option* features_option = nullptr;
   uint64_t seed = 0;
   std::string selection = "retrieval";
-  std::string retrieval = "encoder";
+  std::string retrieval = "token-vlad";
   std::string solver = "lo-ransac";
   bool no_verify = false;
 };

@@ -5,6 +5,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -23,6 +24,7 @@
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/query_descriptor.h"
+#include "ffloc/pipeline/token_vlad.h"
 #include "ffloc/retrieval/image_selection.h"
 #include "ffloc/retrieval/retrieval_recall.h"
 
@@ -38,7 +40,7 @@ struct RetrievalArguments {
   size_t max_queries = 0;
   uint64_t seed = 0;
   std::string json_path;
-  std::string retrieval = "encoder";
+  std::string retrieval = "token-vlad";
   bool quiet = false;
 };
 
@@ -112,11 +114,19 @@ void runRetrieval(const RetrievalArguments& args) {
     query_frames = kept;
   }
 
+  std::optional<TokenVlad> token_vlad;
+  if (retrieval == FastForwardRetrieval::kTokenVlad) token_vlad.emplace(map);
   std::vector<Pose> mapping_poses, query_poses;
   std::vector<std::vector<float>> mapping_descriptors, query_descriptors;
-  for (const MapImage& image : map.images) {
+  for (size_t i = 0; i < map.images.size(); ++i) {
+    const MapImage& image = map.images[i];
     mapping_poses.push_back(image.camera_to_world);
-    mapping_descriptors.push_back(retrieval == FastForwardRetrieval::kVlad ? image.vlad_descriptor : image.descriptor);
+    if (token_vlad) {
+      const Eigen::VectorXf& vlad = token_vlad->imageDescriptors()[i];
+      mapping_descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
+    } else {
+      mapping_descriptors.push_back(retrieval == FastForwardRetrieval::kVlad ? image.vlad_descriptor : image.descriptor);
+    }
   }
   const VladVocabulary vocabulary =
       map.vlad_centres.empty() ? VladVocabulary()
@@ -132,6 +142,11 @@ void runRetrieval(const RetrievalArguments& args) {
     const cv::Mat rgb = readImageRgb(frame.image_path);
     if (retrieval == FastForwardRetrieval::kVlad) {
       const Eigen::VectorXf vlad = vocabulary.describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name).descriptors);
+      query_descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
+    } else if (token_vlad) {
+      const Dust3rEncoding encoding =
+          queryEncoding(*model.model, rgb, frame.intrinsics, frame.name, mapping_options.long_side);
+      const Eigen::VectorXf vlad = token_vlad->describe(encoding.tokens);
       query_descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
     } else {
       query_descriptors.push_back(queryDescriptor(*model.model, rgb, frame.intrinsics, frame.name,
@@ -202,8 +217,9 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the random selection")->capture_default_str();
   cmd->add_option("--retrieval", args->retrieval,
-                  "What ranks the mapping images: encoder (the model's pooled tokens) or vlad (the classical "
-                  "descriptor; the map must have been built with --vlad)")
+                  "What ranks the mapping images: encoder (the model's pooled tokens), vlad (the classical "
+                  "descriptor; the map must have been built with --vlad) or token-vlad (a VLAD of the model's "
+                  "tokens, its vocabulary learned from the map's)")
       ->capture_default_str();
   cmd->add_option("--json", args->json_path, "Write the recall table and per-query ranks as JSON here");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");

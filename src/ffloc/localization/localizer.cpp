@@ -19,13 +19,23 @@ LocalizationMethod parseLocalizationMethod(const std::string& name) {
 }
 
 const char* toString(FastForwardRetrieval retrieval) {
-  return retrieval == FastForwardRetrieval::kVlad ? "vlad" : "encoder";
+  switch (retrieval) {
+    case FastForwardRetrieval::kEncoder:
+      return "encoder";
+    case FastForwardRetrieval::kVlad:
+      return "vlad";
+    case FastForwardRetrieval::kTokenVlad:
+      return "token-vlad";
+  }
+  return "encoder";
 }
 
 FastForwardRetrieval parseFastForwardRetrieval(const std::string& name) {
-  if (name == "encoder") return FastForwardRetrieval::kEncoder;
-  if (name == "vlad") return FastForwardRetrieval::kVlad;
-  throw InputError("retrieval: unknown retrieval '" + name + "' (expected encoder or vlad)");
+  for (const FastForwardRetrieval retrieval :
+       {FastForwardRetrieval::kEncoder, FastForwardRetrieval::kVlad, FastForwardRetrieval::kTokenVlad}) {
+    if (name == toString(retrieval)) return retrieval;
+  }
+  throw InputError("retrieval: unknown retrieval '" + name + "' (expected encoder, vlad or token-vlad)");
 }
 
 LocalizeOptions LocalizeOptions::preset(const std::string& name) {

@@ -27,8 +27,10 @@ LocalizationMethod parseLocalizationMethod(const std::string& name);  // InputEr
 
 // Where FastForward takes its K mapping images from: the global descriptor pooled from encoder
 // tokens, or the classical VLAD descriptor stored beside them.
-enum class FastForwardRetrieval { kEncoder, kVlad };
-const char* toString(FastForwardRetrieval retrieval);                     // "encoder", "vlad"
+// How FastForward ranks the mapping images: by the pooled encoder tokens, by the classical VLAD
+// of sparse SIFT (maps built with VLAD), or by a VLAD of the encoder's tokens (pipeline/token_vlad.h).
+enum class FastForwardRetrieval { kEncoder, kVlad, kTokenVlad };
+const char* toString(FastForwardRetrieval retrieval);                     // "encoder", "vlad", "token-vlad"
 FastForwardRetrieval parseFastForwardRetrieval(const std::string& name);  // InputError naming "retrieval"
 
 // One query's options. Fields marked with a method are read by that method only.
@@ -40,7 +42,9 @@ struct LocalizeOptions {
 
   int64_t num_features = 1500;  // FastForward: N map tokens sampled from the K images
   ImageSelection selection = ImageSelection::kRetrieval;           // FastForward
-  FastForwardRetrieval retrieval = FastForwardRetrieval::kEncoder;  // FastForward
+  // FastForward. The token VLAD ranked better than the pooled tokens and localised more queries
+  // on both of the model card's sets (docs/pipeline.md, "Retrieval").
+  FastForwardRetrieval retrieval = FastForwardRetrieval::kTokenVlad;
   int long_side = 0;                   // FastForward: of the preprocessed query, 0: the map's
   GlobalDescriptorOptions descriptor;  // FastForward: must match the mapper's
   // FastForward: predict a second time with the second-ranked image as the reference frame and
@@ -67,7 +71,7 @@ struct QuerySettings {
   std::optional<int64_t> features;
   uint64_t seed = 0;  // RANSAC, token sampling and random selection alike
   std::string selection = "retrieval";
-  std::string retrieval = "encoder";
+  std::string retrieval = "token-vlad";
   std::string solver = "lo-ransac";
   bool verify = true;  // LocalizeOptions::verify_with_second_reference
 };

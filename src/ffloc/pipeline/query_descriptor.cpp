@@ -12,11 +12,16 @@ std::vector<float> encodingDescriptor(const Dust3rEncoding& encoding, const Glob
   return globalDescriptor(tokens.data_ptr<float>(), tokens.size(0), tokens.size(1), options);
 }
 
-std::vector<float> queryDescriptor(const FastForwardModel& model, const cv::Mat& rgb, const Intrinsics& intrinsics,
-                                   const std::string& name, int long_side, const GlobalDescriptorOptions& options) {
+Dust3rEncoding queryEncoding(const FastForwardModel& model, const cv::Mat& rgb, const Intrinsics& intrinsics,
+                             const std::string& name, int long_side) {
   c10::InferenceMode inference;
   const PreparedImage query = prepareImage(rgb, intrinsics, name, preprocessOptionsFor(model, long_side));
-  return encodingDescriptor(encodeImage(model, query), options);
+  return encodeImage(model, query);
+}
+
+std::vector<float> queryDescriptor(const FastForwardModel& model, const cv::Mat& rgb, const Intrinsics& intrinsics,
+                                   const std::string& name, int long_side, const GlobalDescriptorOptions& options) {
+  return encodingDescriptor(queryEncoding(model, rgb, intrinsics, name, long_side), options);
 }
 
 }  // namespace ffloc

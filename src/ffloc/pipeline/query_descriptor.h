@@ -14,6 +14,10 @@ namespace ffloc {
 // image and the localizer ranks them with.
 std::vector<float> encodingDescriptor(const Dust3rEncoding& encoding, const GlobalDescriptorOptions& options = {});
 
+// A query's tokens with the localizer's own preparation (as queryDescriptor below).
+Dust3rEncoding queryEncoding(const FastForwardModel& model, const cv::Mat& rgb, const Intrinsics& intrinsics,
+                             const std::string& name, int long_side = 0);
+
 // A query's global descriptor with the localizer's own preparation (undistortion, resize, crop at
 // `long_side`, 0: the model's input size) and encoder pass, without the decoder: what retrieval
 // alone needs. `long_side` and `options` must match the map's (LocalizeOptions::long_side and

@@ -14,6 +14,7 @@
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/query_descriptor.h"
+#include "ffloc/pipeline/token_vlad.h"
 #include "ffloc/retrieval/image_selection.h"
 #include "ffloc/retrieval/retrieval_recall.h"
 
@@ -101,12 +102,46 @@ TEST(QueryDescriptor, AMappingImageAsQueryRetrievesItselfFirst) {
   options.long_side = kLongSide;
   options.top_k = map.images.size();
   options.num_features = 64;
+  options.retrieval = FastForwardRetrieval::kEncoder;
   const Frame& probe = scene.frames[3];
   const cv::Mat rgb = readImageRgb(probe.image_path);
   const FastForwardLocalizer localizer(*model.model, map);
   EXPECT_EQ(localizer.predictCoordinates(rgb, probe.intrinsics, probe.name, options).selected,
             topKBySimilarity(database, queryDescriptor(*model.model, rgb, probe.intrinsics, probe.name, kLongSide),
                              map.images.size()));
+}
+
+// The token VLAD (the default retrieval) learns its vocabulary from the map: a mapping image as
+// query finds itself first, and the localizer's selection is the ranking by the same VLAD.
+TEST(QueryDescriptor, TokenVladOfAMappingImageRetrievesItselfFirst) {
+  const fs::path dir = testing::makeTempDir("ffloc_token_vlad");
+  const Scene scene = texturedScene(dir);
+  const LoadedModel& model = tinyRandomModel();
+  MappingOptions mapping;
+  mapping.long_side = kLongSide;
+  mapping.quiet = true;
+  MapFile map = emptyMap(model, scene.metric);
+  addToMap(map, model, scene, scene.mappingIndices(), mapping);
+  const TokenVlad vlad(map);
+  ASSERT_EQ(vlad.imageDescriptors().size(), map.images.size());
+  std::vector<Eigen::VectorXf> queries;
+  for (size_t i = 0; i < scene.frames.size(); ++i) {
+    const Frame& frame = scene.frames[i];
+    const Dust3rEncoding encoding =
+        queryEncoding(*model.model, readImageRgb(frame.image_path), frame.intrinsics, frame.name, kLongSide);
+    queries.push_back(vlad.describe(encoding.tokens));
+    EXPECT_NEAR(queries.back().norm(), 1.0, 1e-5);
+    EXPECT_EQ(rankBySimilarity(vlad.imageDescriptors(), queries.back()).front(), i) << frame.name;
+  }
+
+  LocalizeOptions options;
+  options.long_side = kLongSide;
+  options.top_k = map.images.size();
+  options.num_features = 64;
+  const Frame& probe = scene.frames[2];
+  const FastForwardLocalizer localizer(*model.model, map);
+  EXPECT_EQ(localizer.predictCoordinates(readImageRgb(probe.image_path), probe.intrinsics, probe.name, options).selected,
+            rankBySimilarity(vlad.imageDescriptors(), queries[2]));
 }
 
 TEST(QueryDescriptor, BadQueryNamesTheImage) {

@@ -1,0 +1,35 @@
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "ffloc/classical/vlad.h"
+#include "ffloc/io/map_file.h"
+
+namespace ffloc {
+
+// VLAD over the encoder's own tokens as local descriptors, with a vocabulary learned from the
+// map's tokens when the map is loaded: nothing more to store or to compute per image. For the
+// dense-SIFT encoder this is DenseVLAD (Torii et al. 2015: dense RootSIFT at two scales), which
+// ranked the pose-nearest mapping image better than pooling the same tokens on the held-out
+// synthetic scenes (docs/pipeline.md, "Retrieval").
+class TokenVlad {
+ public:
+  // 128 words: recall@10 of the pose-nearest image on the 10 held-out synthetic scenes (150
+  // queries, the dense-SIFT encoder) was 0.47 / 0.50 / 0.51 / 0.55 / 0.53 with 16 / 32 / 64 / 128
+  // / 256 words.
+  explicit TokenVlad(const MapFile& map, const VladOptions& options = VladOptions{128});
+
+  // One unit-norm descriptor per map image, in map order.
+  const std::vector<Eigen::VectorXf>& imageDescriptors() const { return images_; }
+  // The descriptor of one image's tokens, (T, D) or (1, T, D) of any float type.
+  Eigen::VectorXf describe(const at::Tensor& tokens) const;
+
+ private:
+  VladVocabulary vocabulary_;
+  std::vector<Eigen::VectorXf> images_;
+};
+
+}  // namespace ffloc
