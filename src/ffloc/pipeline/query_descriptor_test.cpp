@@ -65,15 +65,20 @@ const LoadedModel& tinyRandomModel() {
   return model;
 }
 
-TEST(QueryDescriptor, AMappingImageAsQueryRetrievesItselfFirst) {
-  const fs::path dir = testing::makeTempDir("ffloc_query_descriptor");
-  const Scene scene = texturedScene(dir);
-  const LoadedModel& model = tinyRandomModel();
+// The textured scene's every frame mapped with the tiny random model.
+MapFile mapOf(const Scene& scene) {
   MappingOptions mapping;
   mapping.long_side = kLongSide;
   mapping.quiet = true;
-  MapFile map = emptyMap(model, scene.metric);
-  addToMap(map, model, scene, scene.mappingIndices(), mapping);
+  MapFile map = emptyMap(tinyRandomModel(), scene.metric);
+  addToMap(map, tinyRandomModel(), scene, scene.mappingIndices(), mapping);
+  return map;
+}
+
+TEST(QueryDescriptor, AMappingImageAsQueryRetrievesItselfFirst) {
+  const Scene scene = texturedScene(testing::makeTempDir("ffloc_query_descriptor"));
+  const LoadedModel& model = tinyRandomModel();
+  const MapFile map = mapOf(scene);
   ASSERT_EQ(map.images.size(), scene.frames.size());
 
   std::vector<std::vector<float>> database;
@@ -114,14 +119,9 @@ TEST(QueryDescriptor, AMappingImageAsQueryRetrievesItselfFirst) {
 // The token VLAD (the default retrieval) learns its vocabulary from the map: a mapping image as
 // query finds itself first, and the localizer's selection is the ranking by the same VLAD.
 TEST(QueryDescriptor, TokenVladOfAMappingImageRetrievesItselfFirst) {
-  const fs::path dir = testing::makeTempDir("ffloc_token_vlad");
-  const Scene scene = texturedScene(dir);
+  const Scene scene = texturedScene(testing::makeTempDir("ffloc_token_vlad"));
   const LoadedModel& model = tinyRandomModel();
-  MappingOptions mapping;
-  mapping.long_side = kLongSide;
-  mapping.quiet = true;
-  MapFile map = emptyMap(model, scene.metric);
-  addToMap(map, model, scene, scene.mappingIndices(), mapping);
+  const MapFile map = mapOf(scene);
   const TokenVlad vlad(map);
   ASSERT_EQ(vlad.imageDescriptors().size(), map.images.size());
   std::vector<Eigen::VectorXf> queries;
