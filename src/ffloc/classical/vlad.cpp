@@ -19,16 +19,28 @@ VladVocabulary::VladVocabulary(RowMatrixXf centres)
     : centres_(std::move(centres)), squared_norms_(centres_.rowwise().squaredNorm()) {}
 
 VladVocabulary VladVocabulary::train(const std::vector<const cv::Mat*>& descriptors, const VladOptions& options) {
+  std::vector<int> rows;
+  for (const cv::Mat* d : descriptors) rows.push_back(d->rows);
+  return train(rows, [&descriptors](size_t i) { return *descriptors[i]; }, options);
+}
+
+VladVocabulary VladVocabulary::train(const std::vector<int>& rows_per_image,
+                                     const std::function<cv::Mat(size_t)>& descriptors_of, const VladOptions& options) {
   size_t total = 0;
-  for (const cv::Mat* d : descriptors) total += static_cast<size_t>(d->rows);
+  for (int rows : rows_per_image) total += static_cast<size_t>(rows);
   if (total == 0) return {};
   const double keep = std::min(1.0, static_cast<double>(options.training_descriptors) / static_cast<double>(total));
   Rng rng(options.seed);
   cv::Mat training;
-  for (const cv::Mat* d : descriptors)
-    for (int r = 0; r < d->rows; ++r)
-      if (rng.uniform() < keep) training.push_back(d->row(r));
-  if (training.rows == 0) training.push_back(descriptors.front()->row(0));
+  cv::Mat first_row;
+  for (size_t i = 0; i < rows_per_image.size(); ++i) {
+    if (rows_per_image[i] == 0) continue;
+    const cv::Mat d = descriptors_of(i);
+    if (first_row.empty()) first_row = d.row(0).clone();
+    for (int r = 0; r < d.rows; ++r)
+      if (rng.uniform() < keep) training.push_back(d.row(r));
+  }
+  if (training.rows == 0) training.push_back(first_row);
   const int words = std::max(1, std::min(options.words, training.rows));
   cv::Mat labels, centres;
   // cv::kmeans draws from the thread's cv::RNG; seed it and put the caller's state back.

@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <vector>
 
@@ -25,6 +26,10 @@ class VladVocabulary {
 
   // k-means on an even random share of every image's descriptors (CV_32F rows).
   static VladVocabulary train(const std::vector<const cv::Mat*>& descriptors, const VladOptions& options = {});
+  // The same, with image i's `rows_per_image[i]` descriptors made by `descriptors_of(i)` when
+  // they are sampled: only one image's descriptors exist at a time beside the sample.
+  static VladVocabulary train(const std::vector<int>& rows_per_image,
+                              const std::function<cv::Mat(size_t)>& descriptors_of, const VladOptions& options = {});
 
   bool empty() const { return centres_.rows() == 0; }
   const RowMatrixXf& centres() const { return centres_; }

@@ -27,11 +27,6 @@ double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-MapFile checkedNotEmpty(MapFile map) {
-  if (map.images.empty()) throw InputError("map: holds no images (build one with 'ffloc map')");
-  return map;
-}
-
 }  // namespace
 
 struct EncodedQuery {
@@ -40,8 +35,8 @@ struct EncodedQuery {
   std::vector<size_t> ranked;  // map images by retrieval, best first
 };
 
-FastForwardLocalizer::FastForwardLocalizer(const FastForwardModel& model, MapFile map)
-    : model_(model), map_(checkedNotEmpty(std::move(map))), token_vlad_(map_) {
+FastForwardLocalizer::FastForwardLocalizer(const FastForwardModel& model, MapFile map) : model_(model), map_(std::move(map)) {
+  if (map_.images.empty()) throw InputError("map: holds no images (build one with 'ffloc map')");
   const int64_t dim = model_.config().dust3r.enc_dim;
   if (map_.token_dim != dim)
     throw InputError("map: token width " + std::to_string(map_.token_dim) + " differs from the model's " +
@@ -103,8 +98,9 @@ EncodedQuery FastForwardLocalizer::encode(const cv::Mat& rgb, const Intrinsics& 
         rankBySimilarity(vlad_descriptors_, vlad_.describe(extractSiftFeatures(rgb, intrinsics, name).descriptors));
     query.ranked = selectImages(descriptor, options, &ranking);
   } else if (options.retrieval == FastForwardRetrieval::kTokenVlad) {
+    std::call_once(token_vlad_learned_, [this] { token_vlad_.emplace(map_); });
     const std::vector<size_t> ranking =
-        rankBySimilarity(token_vlad_.imageDescriptors(), token_vlad_.describe(query.encoding.tokens));
+        rankBySimilarity(token_vlad_->imageDescriptors(), token_vlad_->describe(query.encoding.tokens));
     query.ranked = selectImages(descriptor, options, &ranking);
   } else {
     query.ranked = selectImages(descriptor, options);

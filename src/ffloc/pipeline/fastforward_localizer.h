@@ -1,6 +1,8 @@
 #pragma once
 
 #include <cstdint>
+#include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -76,9 +78,11 @@ class FastForwardLocalizer : public Localizer {
   std::vector<std::vector<float>> descriptors_;
   VladVocabulary vlad_;  // empty when the map has no VLAD descriptors
   std::vector<Eigen::VectorXf> vlad_descriptors_;
-  // Learned from the map's tokens when the map is loaded (the default retrieval; about 3 s for
-  // redkitchen's 150 images on one Zen 3 core).
-  TokenVlad token_vlad_;
+  // Learned from the map's tokens by the first query that ranks with it (about 3 s for
+  // redkitchen's 150 images on one Zen 3 core), so that a localizer asked for another retrieval
+  // (or a ViT map, where it is not measured) never pays for it.
+  mutable std::once_flag token_vlad_learned_;
+  mutable std::optional<TokenVlad> token_vlad_;
 };
 
 }  // namespace ffloc

@@ -18,14 +18,14 @@ cv::Mat storedTokenRows(const MapImage& image, int token_dim) {
 
 TokenVlad::TokenVlad(const MapFile& map, const VladOptions& options) {
   if (map.images.empty()) throw InputError("map: holds no images to learn a token vocabulary from");
-  std::vector<cv::Mat> tokens;
-  tokens.reserve(map.images.size());
-  for (const MapImage& image : map.images) tokens.push_back(storedTokenRows(image, map.token_dim));
-  std::vector<const cv::Mat*> views;
-  for (const cv::Mat& rows : tokens) views.push_back(&rows);
-  vocabulary_ = VladVocabulary::train(views, options);
-  images_.reserve(tokens.size());
-  for (const cv::Mat& rows : tokens) images_.push_back(vocabulary_.describe(rows));
+  // One image's tokens in float32 at a time: the map's fp16 tokens (memory-mapped, for a large
+  // map) are never copied whole.
+  const auto tokensOf = [&map](size_t i) { return storedTokenRows(map.images[i], map.token_dim); };
+  std::vector<int> rows;
+  for (const MapImage& image : map.images) rows.push_back(static_cast<int>(image.tokenCount()));
+  vocabulary_ = VladVocabulary::train(rows, tokensOf, options);
+  images_.reserve(map.images.size());
+  for (size_t i = 0; i < map.images.size(); ++i) images_.push_back(vocabulary_.describe(tokensOf(i)));
 }
 
 Eigen::VectorXf TokenVlad::describe(const at::Tensor& tokens) const {

@@ -11,7 +11,8 @@
 namespace ffloc {
 
 // VLAD over the encoder's own tokens as local descriptors, with a vocabulary learned from the
-// map's tokens when the map is loaded: nothing more to store or to compute per image. For the
+// map's tokens: nothing more to store or to compute when mapping. Each image's descriptor is
+// words x token width floats (128 KB for the dense-SIFT encoder's 256-wide tokens). For the
 // dense-SIFT encoder this is DenseVLAD (Torii et al. 2015: dense RootSIFT at two scales), which
 // ranked the pose-nearest mapping image better than pooling the same tokens on the held-out
 // synthetic scenes (docs/pipeline.md, "Retrieval").
