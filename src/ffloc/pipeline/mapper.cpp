@@ -23,17 +23,9 @@
 
 namespace ffloc {
 
-MappingFramePixels readMappingFrame(const FastForwardModel& model, const Frame& frame) {
-  MappingFramePixels pixels;
-  pixels.rgb = readImageRgb(frame.image_path);
-  if (frame.depth && model.config().usesTokenPoints()) pixels.depth_metres = readDepthMetres(frame);
-  return pixels;
-}
-
-MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingFramePixels& pixels,
-                            const MappingOptions& options) {
-  const PreparedImage prepared =
-      prepareImage(pixels.rgb, frame.intrinsics, frame.name, preprocessOptionsFor(model, options.long_side));
+MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingOptions& options) {
+  const PreparedImage prepared = prepareImage(readImageRgb(frame.image_path), frame.intrinsics, frame.name,
+                                              preprocessOptionsFor(model, options.long_side));
   const Dust3rEncoding encoding = encodeImage(model, prepared);
   const int64_t patch = model.config().dust3r.patch_size;
 
@@ -51,8 +43,9 @@ MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, c
   std::memcpy(bits.data(), half.data_ptr(), bits.size() * sizeof(uint16_t));
   image.tokens = StoredTokens(std::move(bits));
   image.descriptor = encodingDescriptor(encoding, options.descriptor);
-  if (!pixels.depth_metres.empty()) {
-    const cv::Mat1f depth = preprocessDepthNearest(pixels.depth_metres, prepared.preprocessed.geometry);
+  const FastForwardConfig& config = model.config();
+  if (frame.depth && config.usesTokenPoints()) {
+    const cv::Mat1f depth = preprocessDepthNearest(readDepthMetres(frame), prepared.preprocessed.geometry);
     const std::vector<Eigen::Vector3d> points =
         patchCentrePoints(depth, image.intrinsics, frame.camera_to_world, static_cast<int>(patch));
     image.token_points.reserve(3 * points.size());
@@ -124,7 +117,7 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
   if (workers > 1) one_thread_per_frame.emplace();
   forEachInOrder<MapImage>(
       to_add.size(), workers,
-      [&](size_t i) { return encodeMappingImage(network, *to_add[i], readMappingFrame(network, *to_add[i]), options); },
+      [&](size_t i) { return encodeMappingImage(network, *to_add[i], options); },
       [&](size_t i, MapImage&& image) {
         map.images.push_back(std::move(image));
         ++report.added;

@@ -2,7 +2,6 @@
 
 #include <string>
 #include <vector>
-#include <opencv2/core.hpp>
 
 #include "ffloc/data/scene.h"
 #include "ffloc/io/map_file.h"
@@ -35,16 +34,8 @@ struct MappingReport {
   double seconds = 0;             // reading, preprocessing and encoding the added images
 };
 
-// A mapping frame's pixels as decoded from its files.
-struct MappingFramePixels {
-  cv::Mat rgb;
-  cv::Mat1f depth_metres;  // empty when the frame has no depth or `model` does not use it
-};
-MappingFramePixels readMappingFrame(const FastForwardModel& model, const Frame& frame);
-
-// Encodes one posed image from its pixels.
-MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingFramePixels& pixels,
-                            const MappingOptions& options = {});
+// Reads and encodes one posed image (with its depth's points, for a model whose tokens carry them).
+MapImage encodeMappingImage(const FastForwardModel& model, const Frame& frame, const MappingOptions& options = {});
 
 // An empty map for `model`.
 MapFile emptyMap(const LoadedModel& model, bool metric);
