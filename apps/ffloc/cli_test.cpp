@@ -85,6 +85,20 @@ class Cli : public ::testing::Test {
   fs::path dir_;
 };
 
+// CLI11's own exit codes before: 105 for a missing required option, 106 for an extra argument.
+TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
+  const CliRun missing = runCli({"convert", "--output", (dir_ / "out.safetensors").string()});
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_TRUE(contains(missing.output, "--input is required")) << missing.output;
+  const CliRun extra = runCli({"convert", "in.pth", "out.safetensors"});
+  EXPECT_EQ(extra.exit_code, 2) << extra.output;
+  const CliRun unknown = runCli({"localise"});
+  EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
+  const CliRun help = runCli({"convert", "--help"});
+  EXPECT_EQ(help.exit_code, 0) << help.output;
+  EXPECT_TRUE(contains(help.output, "--input")) << help.output;
+}
+
 // A libtorch stack trace from deep inside the run, exit 3, before.
 TEST_F(Cli, CudaOnACpuOnlyBuildIsRefusedNamingTheField) {
   if (torch::cuda::is_available()) GTEST_SKIP() << "this libtorch has CUDA and sees a GPU";

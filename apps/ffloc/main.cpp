@@ -29,7 +29,9 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // CLI11's own codes (105, 106, ...) would contradict the documented 2 for bad input; --help
+    // and --version end here too, with 0.
+    return app.exit(e) == 0 ? 0 : 2;
   }
   ffloc::configureAllocator();
   try {
