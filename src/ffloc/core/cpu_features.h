@@ -9,8 +9,9 @@ namespace ffloc {
 bool cpuHasFlag(const std::string& flag);
 
 // Whether bfloat16 matrix products run natively here (AMX or AVX512-BF16, which oneDNN uses).
-// Without either, libtorch emulates bf16 through float32 conversions, and bf16 inference is far
-// slower than float32 (docs/benchmarks.md).
+// Without either, libtorch emulates bf16 products element by element, far slower than float32
+// (docs/benchmarks.md): inference then widens its layers to float32 (model/bfloat16_kernels.h),
+// and bf16 training, which goes through autograd, stays slow.
 bool cpuHasNativeBfloat16();
 
 // Without native bf16, writes to stderr that bf16 is emulated and slow here, ending with `advice`

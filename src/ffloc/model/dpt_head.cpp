@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "ffloc/model/bfloat16_kernels.h"
 #include "ffloc/model/cpu_conv.h"
 #include "ffloc/model/cpu_gemm.h"
 #include "ffloc/model/op_profile.h"
@@ -64,18 +65,23 @@ constexpr int64_t kOutputBandRows = 16;
 
 bool isFloatCpu(const at::Tensor& x) { return x.is_cpu() && x.scalar_type() == at::kFloat; }
 
-// Whether the output head can run banded: float32 CPU maps and weights, no autograd.
-bool bandedOutputHeadApplies(const at::Tensor& half, const nn::Conv2d& head2, const nn::Conv2d& head4) {
-  return withoutAutograd(half) && isFloatCpu(half) && isFloatCpu(head2.weight) && isFloatCpu(head4.weight) &&
-         cpuConvolutionApplies(half, head2.weight, head2.stride, head2.padding) && head4.kernel == 1 &&
-         !head2.weight.requires_grad() && !head4.weight.requires_grad();
+// Whether the banded float32 kernels below serve `conv` on x: float32 CPU maps and weights, or
+// bf16 maps computed in float32 (bfloat16_kernels.h), without autograd; stride 1 and a 1x1
+// kernel, or a 3x3 one with padding 1.
+bool bandedKernelsServe(const at::Tensor& x, const nn::Conv2d& conv, int64_t kernel) {
+  if (!withoutAutograd(x) || conv.weight.requires_grad() || !conv.weight.is_cpu() || x.dim() != 4) return false;
+  if (conv.transposed || conv.stride != 1 || conv.kernel != kernel || conv.padding != (kernel == 3 ? 1 : 0)) return false;
+  return (isFloatCpu(x) && isFloatCpu(conv.weight)) || computesInFloat32(x);
 }
 
-// Whether a fusion block's 1x1 out_conv after the x2 upsampling can run banded: float32 CPU, no
-// autograd.
+// Whether the output head can run banded.
+bool bandedOutputHeadApplies(const at::Tensor& half, const nn::Conv2d& head2, const nn::Conv2d& head4) {
+  return bandedKernelsServe(half, head2, 3) && bandedKernelsServe(half, head4, 1);
+}
+
+// Whether a fusion block's 1x1 out_conv after the x2 upsampling can run banded.
 bool bandedUpsampledProjectionApplies(const at::Tensor& x, const nn::Conv2d& conv) {
-  return withoutAutograd(x) && isFloatCpu(x) && isFloatCpu(conv.weight) && conv.kernel == 1 &&
-         cpuConvolutionApplies(x, conv.weight, conv.stride, conv.padding) && !conv.weight.requires_grad();
+  return bandedKernelsServe(x, conv, 1);
 }
 
 // Rows of the bilinear x2 upsampling with align corners of channels-last images (B, h, w, C),
@@ -150,7 +156,9 @@ void projectPixels(const float* src, int64_t pixels, int64_t in, int64_t out, co
 // output rows with each band's upsampled rows made on the fly: the upsampled map never exists
 // whole (12 MiB for the second finest block at 512x384, 48 MiB for the finest when a trace
 // asks for its output; untraced, the finest runs in bandedFinestPath).
-at::Tensor bandedUpsampledProjection(const at::Tensor& x, const nn::Conv2d& conv) {
+at::Tensor bandedUpsampledProjection(const at::Tensor& map, const nn::Conv2d& wide_or_not) {
+  const at::Tensor x = widened(map);
+  const nn::Conv2d conv = wide_or_not.withFloat32Weights();
   const UpsampledRows upsampled(x.permute({0, 2, 3, 1}).contiguous());
   const int64_t batch = x.size(0), rows = upsampled.rows(), cols = upsampled.cols();
   const int64_t in = upsampled.channels(), out = conv.out;
@@ -173,7 +181,7 @@ at::Tensor bandedUpsampledProjection(const at::Tensor& x, const nn::Conv2d& conv
                     dst + (image * rows + y_begin) * cols * out);
     }
   });
-  return result.permute({0, 3, 1, 2});
+  return narrowed(result.permute({0, 3, 1, 2}), map.scalar_type());
 }
 
 // A fusion block up to its out_conv: unit2(first + unit1(second)), or unit2(first) for the
@@ -193,9 +201,7 @@ at::Tensor upsampledProjection(const nn::Conv2d& out_conv, at::Tensor x) {
 // Whether head.0 can read the finest fusion block's out_conv rows as they are made: float32
 // CPU, no autograd.
 bool bandedFinestPathApplies(const at::Tensor& x, const nn::Conv2d& out_conv, const nn::Conv2d& head0) {
-  return bandedUpsampledProjectionApplies(x, out_conv) && isFloatCpu(head0.weight) &&
-         cpuConvolutionApplies(x, head0.weight, head0.stride, head0.padding) && head0.kernel == 3 &&
-         !head0.weight.requires_grad();
+  return bandedUpsampledProjectionApplies(x, out_conv) && bandedKernelsServe(x, head0, 3);
 }
 
 // head.0 (3x3) of the finest fusion block's last step (out_conv of the x2 upsampled map), in
@@ -203,7 +209,9 @@ bool bandedFinestPathApplies(const at::Tensor& x, const nn::Conv2d& out_conv, co
 // are made on the fly from upsampled rows, so the finest path (48 MiB at 512x384: 256 channels
 // at 256x192) never exists whole. The two halo rows of a band are made again by its neighbour:
 // 1/8 more of out_conv's products (0.8 of the head's 187 GFLOP).
-at::Tensor bandedFinestPath(const at::Tensor& x, const nn::Conv2d& out_conv, const nn::Conv2d& head0) {
+at::Tensor bandedFinestPath(const at::Tensor& map, const nn::Conv2d& stored_out_conv, const nn::Conv2d& stored_head0) {
+  const at::Tensor x = widened(map);
+  const nn::Conv2d out_conv = stored_out_conv.withFloat32Weights(), head0 = stored_head0.withFloat32Weights();
   const UpsampledRows upsampled(x.permute({0, 2, 3, 1}).contiguous());
   const int64_t batch = x.size(0), rows = upsampled.rows(), cols = upsampled.cols();
   const int64_t in = upsampled.channels(), mid = out_conv.out, out = head0.out;
@@ -235,7 +243,7 @@ at::Tensor bandedFinestPath(const at::Tensor& x, const nn::Conv2d& out_conv, con
                               mid, out, tap, bias0, dst + (image * rows + y_begin) * cols * out, y_begin, y_end);
     }
   });
-  return result.permute({0, 3, 1, 2});
+  return narrowed(result.permute({0, 3, 1, 2}), map.scalar_type());
 }
 
 // The output head after head.0: bilinear x2 with align corners, head.2 (3x3), ReLU, head.4
@@ -243,7 +251,9 @@ at::Tensor bandedFinestPath(const at::Tensor& x, const nn::Conv2d& out_conv, con
 // with the band's upsampled rows made on the fly. No full-resolution map of head.2's width
 // exists: at 512x384 those are 100 MB each, and the unbanded head holds two (the largest part
 // of the network's peak memory besides the weights).
-at::Tensor bandedOutputHead(const at::Tensor& half, const nn::Conv2d& head2, const nn::Conv2d& head4) {
+at::Tensor bandedOutputHead(const at::Tensor& stored_half, const nn::Conv2d& stored_head2, const nn::Conv2d& stored_head4) {
+  const at::Tensor half = widened(stored_half);
+  const nn::Conv2d head2 = stored_head2.withFloat32Weights(), head4 = stored_head4.withFloat32Weights();
   const UpsampledRows upsampled(half.permute({0, 2, 3, 1}).contiguous());
   const int64_t batch = half.size(0), rows = upsampled.rows(), cols = upsampled.cols();
   const int64_t channels = upsampled.channels(), hidden = head2.out, outputs = head4.out;

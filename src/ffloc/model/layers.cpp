@@ -9,6 +9,7 @@
 #include <ATen/ops/linear.h>
 #include <ATen/ops/matmul.h>
 
+#include "ffloc/model/bfloat16_kernels.h"
 #include "ffloc/model/cpu_attention.h"
 #include "ffloc/model/cpu_conv.h"
 #include "ffloc/model/cpu_gemm.h"
@@ -22,7 +23,17 @@ void Linear::registerIn(ParameterTable& table, const std::string& prefix) {
   table.add(prefix + ".bias", {out}, &bias);
 }
 
+Linear Linear::withFloat32Weights() const {
+  Linear wide = *this;
+  wide.weight = widened(weight);
+  wide.bias = widened(bias);
+  return wide;
+}
+
 at::Tensor Linear::forward(const at::Tensor& x, const at::Tensor& residual) const {
+  if (computesInFloat32(x)) {
+    return narrowed(withFloat32Weights().forward(widened(x), widened(residual)), x.scalar_type());
+  }
   const OpScope scope(OpKind::kGemm, 2.0 * static_cast<double>(x.numel()) * static_cast<double>(out));
   if (cpuGemmApplies(x, weight)) return cpuLinear(x, weight, bias, residual);
   at::Tensor y = at::linear(x, weight, bias);
@@ -84,7 +95,15 @@ double convolutionFlops(const at::Tensor& x, const Conv2d& conv) {
 
 }  // namespace
 
+Conv2d Conv2d::withFloat32Weights() const {
+  Conv2d wide = *this;
+  wide.weight = widened(weight);
+  wide.bias = widened(bias);
+  return wide;
+}
+
 at::Tensor Conv2d::forward(const at::Tensor& x) const {
+  if (computesInFloat32(x)) return narrowed(withFloat32Weights().forward(widened(x)), x.scalar_type());
   const OpScope scope(OpKind::kConvolution, convolutionFlops(x, *this));
   if (transposed && stride == kernel && padding == 0) return blockTransposedConv(x, weight, bias, kernel);
   if (transposed) return at::conv_transpose2d(x, weight, bias, {stride, stride}, {padding, padding});
@@ -98,6 +117,12 @@ void Mlp::registerIn(ParameterTable& table, const std::string& prefix) {
 }
 
 at::Tensor Mlp::forward(const at::Tensor& x, const at::Tensor& residual) const {
+  if (computesInFloat32(x)) {
+    Mlp wide = *this;
+    wide.fc1 = fc1.withFloat32Weights();
+    wide.fc2 = fc2.withFloat32Weights();
+    return narrowed(wide.forward(widened(x), widened(residual)), x.scalar_type());
+  }
   at::Tensor hidden = fc1.forward(x);
   {
     const OpScope scope(OpKind::kGelu);
@@ -112,6 +137,8 @@ at::Tensor Mlp::forward(const at::Tensor& x, const at::Tensor& residual) const {
 }
 
 namespace {
+
+RopeFactors widenedRope(const RopeFactors& rope) { return {widened(rope.cos), widened(rope.signed_sin)}; }
 
 // (B, N, C) -> (B, heads, N, C / heads).
 at::Tensor splitHeads(const at::Tensor& x, int64_t num_heads) {
@@ -132,6 +159,12 @@ void Attention::registerIn(ParameterTable& table, const std::string& prefix) {
 }
 
 at::Tensor Attention::forward(const at::Tensor& x, const RopeFactors& rope, const at::Tensor& residual) const {
+  if (computesInFloat32(x)) {
+    Attention wide = *this;
+    wide.qkv = qkv.withFloat32Weights();
+    wide.proj = proj.withFloat32Weights();
+    return narrowed(wide.forward(widened(x), widenedRope(rope), widened(residual)), x.scalar_type());
+  }
   const int64_t batch = x.size(0), tokens = x.size(1), dim = x.size(2);
   const at::Tensor fused = qkv.forward(x);  // (B, N, 3C): [q | k | v]
   const at::Tensor q_rows = fused.narrow(2, 0, dim), k_rows = fused.narrow(2, dim, dim);
@@ -164,6 +197,16 @@ void CrossAttention::registerIn(ParameterTable& table, const std::string& prefix
 at::Tensor CrossAttention::forward(const at::Tensor& query, const at::Tensor& key_value,
                                    const RopeFactors& query_rope, const RopeFactors& key_rope,
                                    const at::Tensor& residual) const {
+  if (computesInFloat32(query)) {
+    CrossAttention wide = *this;
+    wide.projq = projq.withFloat32Weights();
+    wide.projk = projk.withFloat32Weights();
+    wide.projv = projv.withFloat32Weights();
+    wide.proj = proj.withFloat32Weights();
+    return narrowed(wide.forward(widened(query), widened(key_value), widenedRope(query_rope), widenedRope(key_rope),
+                                 widened(residual)),
+                    query.scalar_type());
+  }
   const at::Tensor q_rows = projq.forward(query);
   const at::Tensor k_rows = projk.forward(key_value);
   const at::Tensor v_rows = projv.forward(key_value);

@@ -2,7 +2,8 @@
 
 // Functional building blocks of the DUSt3R/CroCo transformer: each holds its parameter tensors
 // under their PyTorch names and computes what the reference modules compute. float32 on the CPU
-// without autograd takes the fused kernels (cpu_gemm.h, cpu_attention.h, in-place RoPE);
+// without autograd takes the fused kernels (cpu_gemm.h, cpu_attention.h, in-place RoPE), and so
+// does bfloat16 on CPUs without native bf16, widened layer by layer (bfloat16_kernels.h);
 // everything else applies the reference's ATen ops. `residual` arguments add the block's skip
 // connection to the layer's output in the same pass.
 
@@ -24,6 +25,8 @@ struct Linear {
   void registerIn(ParameterTable& table, const std::string& prefix);
   // x weight^T + bias, plus `residual` when it is defined (a residual connection in one pass).
   at::Tensor forward(const at::Tensor& x, const at::Tensor& residual = {}) const;
+  // This layer with float32 copies of its bf16 tensors (bfloat16_kernels.h).
+  Linear withFloat32Weights() const;
 };
 
 struct LayerNorm {
@@ -51,6 +54,8 @@ struct Conv2d {
         transposed(transposed) {}
   void registerIn(ParameterTable& table, const std::string& prefix);
   at::Tensor forward(const at::Tensor& x) const;
+  // This layer with float32 copies of its bf16 tensors (bfloat16_kernels.h).
+  Conv2d withFloat32Weights() const;
 };
 
 // fc1 -> exact (erf) GELU -> fc2.
