@@ -6,6 +6,9 @@
 # server's RSS after 1k and after 10k requests, and /health latencies measured during the load.
 #
 #   scripts/load_test.sh [BUILD_DIR] [TOTAL_REQUESTS]
+#
+# SERVE_ARGS adds options to `ffloc serve`: SERVE_ARGS="--max-waiting 32" admits every query of
+# the 32 connections, so that none is refused as busy and every good request is localised.
 set -euo pipefail
 build_dir=${1:-build}
 total=${2:-10000}
@@ -30,7 +33,7 @@ cp "$scene/$image" "$work/query.png"
 
 port=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 "$ffloc" serve --map "small=$work/small.ffmap" --keys "$work/keys.txt" --port "$port" \
-  2>"$work/server.log" &
+  ${SERVE_ARGS:-} 2>"$work/server.log" &
 server_pid=$!
 for _ in $(seq 100); do curl -s "http://127.0.0.1:$port/health" >/dev/null && break; sleep 0.2; done
 
@@ -102,6 +105,7 @@ run() {  # requests
 }
 
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ *//'), $(nproc) cores; load: $(cut -d' ' -f1-3 /proc/loadavg)"
+echo "serve options: ${SERVE_ARGS:-(defaults)}"
 echo "server RSS idle: $(rss)"
 echo "== first 1000 requests"
 run 1000
