@@ -37,6 +37,7 @@ struct ServeArguments {
   size_t max_body_mb = 32;
   size_t max_waiting = 4;
   size_t max_connections = 64;
+  size_t max_pending_connections = 256;
   double header_timeout_s = 10;
   double body_timeout_s = 60;
 };
@@ -111,6 +112,7 @@ int runServe(const ServeArguments& args) {
   options.max_body_bytes = args.max_body_mb << 20;
   options.max_waiting_queries = args.max_waiting;
   options.max_connections = args.max_connections;
+  options.max_pending_connections = args.max_pending_connections;
   const auto milliseconds = [](double seconds) { return std::chrono::milliseconds(std::llround(seconds * 1000)); };
   options.header_timeout = milliseconds(args.header_timeout_s);
   options.body_timeout = milliseconds(args.body_timeout_s);
@@ -189,8 +191,12 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
                   "Queries that may wait while one runs; more are answered 503 (busy)")
       ->capture_default_str();
   cmd->add_option("--max-connections", args->max_connections,
-                  "Connections served at once, a thread each; more wait to be accepted")
+                  "Connections served at once, a thread each; more wait for a thread")
       ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  cmd->add_option("--max-pending-connections", args->max_pending_connections,
+                  "Connections that may wait for a thread; more are answered 503 (busy) at once and closed")
+      ->check(CLI::Range(0, 65536))
       ->capture_default_str();
   cmd->add_option("--header-timeout", args->header_timeout_s,
                   "Seconds a request's headers may take to arrive, in all; slower clients get 408 and are disconnected")

@@ -181,6 +181,43 @@ TEST_F(ConnectionTest, SlowHeadersAreCutAtTheirDeadlineAndHealthAnswers) {
   }
 }
 
+// Connections beyond the threads and the pending limit are answered 503 at once and closed,
+// instead of queueing without a bound behind slow clients; once the slow ones are cut at their
+// deadline, /health answers again.
+TEST_F(ConnectionTest, ConnectionsBeyondThePendingLimitAre503AtOnce) {
+  ServerOptions options;
+  options.max_connections = 2;
+  options.max_waiting_queries = 0;
+  options.max_pending_connections = 2;
+  options.header_timeout = std::chrono::milliseconds(1500);
+  start(options);
+  std::vector<std::thread> slow;
+  std::vector<std::string> slow_answers(4);
+  for (size_t i = 0; i < slow_answers.size(); ++i) {
+    slow.emplace_back([&, i] {
+      slow_answers[i] = trickle(port_, "GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n", "X-Slow: 1\r\n", 60);
+    });
+    // One at a time, so that a thread has taken each of the first two before the next arrives.
+    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));  // two served, two waiting
+  httplib::Client client("127.0.0.1", port_);
+  client.set_read_timeout(30);
+  const auto start_time = std::chrono::steady_clock::now();
+  const auto refused = client.Get("/health");
+  const double refused_after_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  for (std::thread& thread : slow) thread.join();
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 503);
+  EXPECT_NE(refused->body.find("too many connections are waiting"), std::string::npos) << refused->body;
+  EXPECT_LT(refused_after_s, 1.0) << "refused at once, not after a slow client's deadline";
+  for (const std::string& answer : slow_answers) EXPECT_EQ(answer.rfind("HTTP/1.1 408", 0), 0u) << answer;
+  const auto health = client.Get("/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+}
+
 // The request line itself trickled: the library answers nothing there, the server does.
 TEST_F(ConnectionTest, SlowRequestLineIsAnswered408) {
   ServerOptions options;

@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cstring>
 #include <string>
@@ -173,7 +174,49 @@ void writeTimeoutAnswer(DeadlineStream& stream) {
   stream.write(answer.data(), answer.size());
 }
 
+// Set on the accepting thread while it refuses a connection beyond the pending limit.
+thread_local bool refusing_connection = false;
+
+// The library's thread pool, with a bound on the connections waiting for a thread.
+class BoundedConnectionPool : public httplib::TaskQueue {
+ public:
+  BoundedConnectionPool(size_t threads, size_t max_pending) : pool_(threads), max_pending_(max_pending) {}
+
+  void enqueue(std::function<void()> connection) override {
+    if (pending_.load() >= max_pending_) {
+      // `connection` ends in process_and_close_socket, which answers and closes at once.
+      refusing_connection = true;
+      connection();
+      refusing_connection = false;
+      return;
+    }
+    ++pending_;
+    pool_.enqueue([this, connection = std::move(connection)] {
+      --pending_;
+      connection();
+    });
+  }
+  void shutdown() override { pool_.shutdown(); }
+
+ private:
+  httplib::ThreadPool pool_;
+  size_t max_pending_;
+  std::atomic<size_t> pending_{0};
+};
+
+// Without blocking the accepting thread: a fresh socket's send buffer takes the few bytes.
+void writeTooManyConnectionsAnswer(socket_t socket) {
+  const std::string body = "{\"error\":\"busy: too many connections are waiting for the server; retry later\"}";
+  const std::string answer = "HTTP/1.1 503 Service Unavailable\r\nContent-Type: application/json\r\nContent-Length: " +
+                             std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+  [[maybe_unused]] const ssize_t sent = send(socket, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+}
+
 }  // namespace
+
+void DeadlineServer::setConnectionLimits(size_t threads, size_t max_pending) {
+  new_task_queue = [threads, max_pending] { return new BoundedConnectionPool(threads, max_pending); };
+}
 
 std::string DeadlineServer::timeoutMessage() {
   return current_connection && current_connection->timedOut() ? current_connection->timeoutMessage() : std::string();
@@ -182,6 +225,12 @@ std::string DeadlineServer::timeoutMessage() {
 bool DeadlineServer::clientDisconnected() { return current_connection && current_connection->peerClosed(); }
 
 bool DeadlineServer::process_and_close_socket(socket_t sock) {
+  if (refusing_connection) {
+    writeTooManyConnectionsAnswer(sock);
+    shutdown(sock, SHUT_WR);
+    close(sock);
+    return false;
+  }
   const auto timeout = [](time_t seconds, time_t microseconds) {
     return std::chrono::seconds(seconds) + std::chrono::microseconds(microseconds);
   };

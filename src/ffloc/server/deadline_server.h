@@ -1,6 +1,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <string>
 
 // Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
@@ -21,6 +22,12 @@ class DeadlineServer : public httplib::Server {
   // last byte.
   DeadlineServer(std::chrono::milliseconds headers, std::chrono::milliseconds body)
       : header_deadline_(headers), body_deadline_(body) {}
+
+  // Serves connections on `threads` threads with at most `max_pending` accepted connections
+  // waiting for one: beyond them a connection is answered 503 at once, on the accepting thread,
+  // and closed. The library's own pool queues without a bound, so slow clients opened faster
+  // than the deadlines cut them would pile up until the process ran out of descriptors.
+  void setConnectionLimits(size_t threads, size_t max_pending);
 
   // For handlers, on the thread that serves the request. Why the current request ran out of
   // time, empty when it did not (the error handler turns the library's 400 into 408 with it).

@@ -181,8 +181,8 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     : maps_(maps), options_(std::move(options)), http_(std::make_unique<Http>(options_)) {
   httplib::Server& server = http_->server;
   server.set_payload_max_length(options_.max_body_bytes);
-  const size_t connections = std::max<size_t>(options_.max_connections, options_.max_waiting_queries + 2);
-  server.new_task_queue = [connections] { return new httplib::ThreadPool(connections); };
+  http_->server.setConnectionLimits(std::max<size_t>(options_.max_connections, options_.max_waiting_queries + 2),
+                                    options_.max_pending_connections);
   // Without it, small answers wait on Nagle's algorithm: 28 ms per GET /health over loopback
   // instead of 0.5 ms, both with the machine loaded (docs/server.md, "Overhead").
   server.set_tcp_nodelay(true);

@@ -31,7 +31,7 @@ namespace ffloc {
 //                               into the server; open to every client, as it holds no map data
 // Bad requests get status 400 and {"error": "<field>: <what>"}; without a valid key (when the
 // server has keys) 401, a map the key may not use 403, an unknown map 404, a body over
-// max_body_bytes 413, a POST without Content-Length 411, a query beyond max_waiting_queries 503,
+// max_body_bytes 413, a POST without Content-Length 411, a query beyond max_waiting_queries 503 (and so is a connection beyond max_pending_connections),
 // a request whose headers or body arrive slower than their deadline 408 (and the connection is
 // closed). A query whose client has disconnected while it waited is dropped unrun.
 struct ServerOptions {
@@ -41,10 +41,13 @@ struct ServerOptions {
   // Queries waiting while one runs. The HTTP library's threads are few (8 on small machines), so
   // without a bound, waiting queries would take every thread and /health would stop answering.
   size_t max_waiting_queries = 4;
-  // Connections served at once, one thread each (more wait to be accepted). The HTTP library's
-  // default (8 on small machines) let 32 keep-alive clients hold every thread, so queries were
-  // never refused as busy and /health waited seconds behind them (scripts/load_test.sh).
+  // Connections served at once, one thread each. The HTTP library's default (8 on small
+  // machines) let 32 keep-alive clients hold every thread, so queries were never refused as busy
+  // and /health waited seconds behind them (scripts/load_test.sh).
   size_t max_connections = 64;
+  // Accepted connections waiting for a thread; beyond them a connection is answered 503 at once
+  // and closed, so that clients opening connections faster than they are served cannot pile up.
+  size_t max_pending_connections = 256;
   // How long each request may take to arrive, in total: its headers from its first byte, then
   // its body. The HTTP library bounds each read (5 s), not the request, so clients trickling one
   // header line every 2 s held connection threads for as long as they liked.
