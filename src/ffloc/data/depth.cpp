@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/io/input_file.h"
 
 namespace ffloc {
@@ -59,6 +60,9 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
   const std::string file = source.path.string();
   requireRegularFile(source.path, "depth file");
   const Intrinsics& camera = source.camera ? *source.camera : frame.intrinsics;
+  if (source.path.extension() != ".depth" && !fileHasDecodableImageSignature(source.path)) {
+    throwInputError(file, 0, "cannot decode depth image: " + undecodableImageFormatMessage());
+  }
   cv::Mat stored;
   try {
     stored = source.path.extension() == ".depth" ? readRawFloatDepth(source.path, camera)

@@ -9,6 +9,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/depth.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 
 namespace ffloc {
@@ -89,6 +90,9 @@ void copyFrameImage(const Frame& frame, const fs::path& destination, bool as_jpe
   if (!fs::is_regular_file(frame.image_path)) throwInputError(frame.image_path.string(), 0, "image not found");
   createParent(destination);
   if (as_jpeg && !isJpeg(frame.image_path)) {
+    if (!fileHasDecodableImageSignature(frame.image_path)) {
+      throwInputError(frame.image_path.string(), 0, "cannot decode image: " + undecodableImageFormatMessage());
+    }
     const cv::Mat image = cv::imread(frame.image_path.string(), cv::IMREAD_UNCHANGED);
     if (image.empty()) throwInputError(frame.image_path.string(), 0, "cannot decode image");
     if (!cv::imwrite(destination.string(), image, {cv::IMWRITE_JPEG_QUALITY, 95}))

@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 #include "ffloc/io/input_file.h"
 
@@ -12,6 +13,9 @@ namespace ffloc {
 
 cv::Mat readImageRgb(const std::filesystem::path& path) {
   requireRegularFile(path, "image: file");
+  if (!fileHasDecodableImageSignature(path)) {
+    throwInputError(path.string(), 0, "image: cannot decode: " + undecodableImageFormatMessage());
+  }
   cv::Mat bgr;
   try {
     bgr = cv::imread(path.string(), cv::IMREAD_COLOR);

@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/io/input_file.h"
 
 namespace ffloc {
@@ -116,6 +117,9 @@ cv::Size readImageSize(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throwInputError(path.string(), 0, "cannot open image file");
   if (const std::optional<cv::Size> size = headerSize(in, true)) return *size;
+  if (!fileHasDecodableImageSignature(path)) {
+    throwInputError(path.string(), 0, "cannot decode image: " + undecodableImageFormatMessage());
+  }
   cv::Mat image;
   try {
     image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);

@@ -5,10 +5,31 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/testing/shared_data.h"
+#include "ffloc/io/image.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/data/scene_test_util.h"
 
 namespace ffloc {
 namespace {
+
+// Bytes with "DICM" at offset 128 reached OpenCV's DICOM decoder, whose GDCM library failed an
+// assertion and aborted the process (found by the localize_request fuzzer); image files of
+// formats ffloc does not decode are refused before any decoder sees them.
+TEST(ImageFormat, FilesOfOtherFormatsAreRefusedBeforeDecoding) {
+  const auto dir = testing::makeTempDir("ffloc-image-format");
+  testing::writeTextFile(dir / "scan.png", std::string(128, '\n') + "DICM.5\n");
+  testing::expectInputError([&] { readImageSize(dir / "scan.png"); },
+                            {"scan.png", "cannot decode image: not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file"});
+  testing::expectInputError([&] { readImageRgb(dir / "scan.png"); }, {"scan.png", "image: cannot decode: not a PNG"});
+  for (const char* signature : {"\x89PNG\r\n\x1a\n", "\xFF\xD8\xFF", "BM", "P6", "RIFF0000WEBP"}) {
+    EXPECT_TRUE(hasDecodableImageSignature(signature)) << signature;
+  }
+  EXPECT_TRUE(hasDecodableImageSignature(std::string("II*\0", 4)));
+  EXPECT_TRUE(hasDecodableImageSignature(std::string("\x76\x2F\x31\x01", 4)));
+  for (const char* other : {"", "P", "RIFF0000WAVE", "GIF89a", "#?RADIANCE", "\xFF\x4F\xFF\x51"}) {
+    EXPECT_FALSE(hasDecodableImageSignature(other)) << other;
+  }
+}
 
 TEST(ImageSize, ReadsHeadersOfEveryEncoding) {
   const auto dir = testing::makeTempDir("ffloc-image-size");

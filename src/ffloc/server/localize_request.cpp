@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 
 namespace ffloc {
@@ -89,6 +90,7 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
       declared && static_cast<size_t>(declared->width) * static_cast<size_t>(declared->height) > max_image_pixels) {
     throw InputError(pixelLimitError(*declared, max_image_pixels));
   }
+  if (!hasDecodableImageSignature(bytes)) throw InputError("image: " + undecodableImageFormatMessage());
   const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
   cv::Mat bgr;
   try {

@@ -152,6 +152,24 @@ TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
   EXPECT_EQ(requestErrorOf(pinholeFields(), huge).rfind("image: 30000x30000 is more", 0), 0u);
 }
 
+// Found by the localize_request fuzzer: bytes with "DICM" at offset 128 went to OpenCV's DICOM
+// decoder, whose GDCM library failed an assertion and aborted the server. Only the formats ffloc
+// decodes reach OpenCV now; each of them still decodes.
+TEST(LocalizeRequest, BodiesOfFormatsOutsideTheReadOnesNeverReachADecoder) {
+  const std::string dicom_signature = std::string(128, '\n') + "DICM.5\n";
+  EXPECT_EQ(requestErrorOf(pinholeFields(), dicom_signature),
+            "image: not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file (the image formats ffloc decodes)");
+  const cv::Mat pixels(48, 64, CV_8UC3, cv::Scalar(90, 60, 30));
+  for (const std::string extension : {".png", ".jpg", ".tiff", ".bmp", ".webp", ".ppm", ".exr"}) {
+    if (!cv::haveImageWriter(extension)) continue;
+    std::vector<uchar> encoded;
+    cv::Mat written = pixels;
+    if (extension == ".exr") pixels.convertTo(written, CV_32FC3, 1.0 / 255);
+    ASSERT_TRUE(cv::imencode(extension, written, encoded)) << extension;
+    EXPECT_EQ(requestErrorOf(pinholeFields(), std::string(encoded.begin(), encoded.end())), "") << extension;
+  }
+}
+
 // Found by the localize_request fuzzer: a JPEG whose quantisation table lost a byte, so that the
 // header walk met no marker where one should start and gave up, while libjpeg skips such bytes,
 // finds a 12040x14895 frame and decodes it (540 MB, more than 10 s). And a JPEG whose EXIF

@@ -1,0 +1,35 @@
+#include "ffloc/io/image_format.h"
+
+#include <array>
+#include <fstream>
+
+namespace ffloc {
+
+bool hasDecodableImageSignature(std::string_view bytes) {
+  const auto startsWith = [&](std::string_view prefix, size_t at = 0) {
+    return bytes.size() >= at + prefix.size() && bytes.substr(at, prefix.size()) == prefix;
+  };
+  if (startsWith("\x89PNG\r\n\x1a\n")) return true;
+  if (startsWith("\xFF\xD8\xFF")) return true;
+  if (startsWith(std::string_view("II*\0", 4)) || startsWith(std::string_view("MM\0*", 4))) return true;
+  if (startsWith(std::string_view("II+\0", 4)) || startsWith(std::string_view("MM\0+", 4))) return true;  // BigTIFF
+  if (startsWith("BM")) return true;
+  if (startsWith("RIFF") && startsWith("WEBP", 8)) return true;
+  if (bytes.size() >= 2 && bytes[0] == 'P' && ((bytes[1] >= '1' && bytes[1] <= '7') || bytes[1] == 'F' || bytes[1] == 'f')) {
+    return true;
+  }
+  return startsWith("\x76\x2F\x31\x01");  // OpenEXR
+}
+
+bool fileHasDecodableImageSignature(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::array<char, 12> leading{};
+  in.read(leading.data(), leading.size());
+  return hasDecodableImageSignature(std::string_view(leading.data(), static_cast<size_t>(in.gcount())));
+}
+
+std::string undecodableImageFormatMessage() {
+  return "not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file (the image formats ffloc decodes)";
+}
+
+}  // namespace ffloc
