@@ -279,6 +279,9 @@ void writeImageSeeds() {
   writeSeed("localize_request", "png", fields + std::string(1, '\0') + fuzz::smallPng());
   writeSeed("localize_request", "jpeg_distorted",
             "fx=9\nfy=9\ncx=4\ncy=3\ndistortion=0.01,-0.002,0,0.001,0" + std::string(1, '\0') + jpeg);
+  // What once reached OpenCV's DICOM decoder and aborted the server (docs/fuzzing.md, findings).
+  writeSeed("localize_request", "dicom_signature",
+            "fx=9.5\nfy=9.5\ncx=3.5\ncy=2.5" + std::string(1, '\0') + std::string(128, '\n') + "DICM.5\n");
 }
 
 }  // namespace
