@@ -116,8 +116,6 @@ int runServe(const ServeArguments& args) {
   const auto milliseconds = [](double seconds) { return std::chrono::milliseconds(std::llround(seconds * 1000)); };
   options.header_timeout = milliseconds(args.header_timeout_s);
   options.body_timeout = milliseconds(args.body_timeout_s);
-  // Formats whose header parseLocalizeRequest cannot read are bounded by OpenCV's own limit.
-  setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(options.limits.max_image_pixels).c_str(), /*overwrite=*/0);
   options.localize = localizeOptions(args.query);
   options.log = &std::cerr;
 

@@ -1,18 +1,9 @@
 // The server's decoding of POST /localize: the input's first piece holds the form fields, one
 // "name=value" a line, and everything after the first NUL is the image's bytes.
-#include <cstdlib>
-
 #include "../support/fuzz_support.h"
 #include "ffloc/server/localize_request.h"
 
 using namespace ffloc;
-
-// As ffloc serve does: formats whose size is not read from the header stop at OpenCV's own
-// limit, set to the server's.
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  setenv("OPENCV_IO_MAX_IMAGE_PIXELS", std::to_string(RequestLimits{}.max_image_pixels).c_str(), 0);
-  return 0;
-}
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string_view input(reinterpret_cast<const char*>(data), size);

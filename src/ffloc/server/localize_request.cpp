@@ -12,7 +12,6 @@
 #include <sstream>
 
 #include "ffloc/core/error.h"
-#include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 
 namespace ffloc {
@@ -82,15 +81,27 @@ std::string pixelLimitError(const cv::Size& size, size_t max_image_pixels) {
          std::to_string(max_image_pixels) + " pixels this server accepts";
 }
 
+bool isPng(const std::string& bytes) { return bytes.rfind("\x89PNG\r\n\x1a\n", 0) == 0; }
+bool isJpeg(const std::string& bytes) { return bytes.rfind("\xFF\xD8\xFF", 0) == 0; }
+
 cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
   if (bytes.empty()) throw InputError("image: the request carries no image");
   if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max()))
     throw InputError("image: " + std::to_string(bytes.size()) + " bytes is more than an image may have");
-  if (const std::optional<cv::Size> declared = encodedFrameSize(bytes);
-      declared && static_cast<size_t>(declared->width) * static_cast<size_t>(declared->height) > max_image_pixels) {
+  // Only images whose pixel grid the header declares reach a decoder, so that the pixel limit
+  // holds before any allocation: OpenCV reads its own limit (OPENCV_IO_MAX_IMAGE_PIXELS) once, as
+  // the library loads, so a server cannot set it, and its default lets a decoder allocate 3 GB.
+  const std::optional<cv::Size> declared = encodedFrameSize(bytes);
+  if (!declared) {
+    if (!isPng(bytes) && !isJpeg(bytes)) {
+      throw InputError("image: not a PNG or JPEG file (the server decodes those two, whose size it reads before decoding)");
+    }
+    throw InputError("image: a " + std::string(isPng(bytes) ? "PNG" : "JPEG") +
+                     " whose header does not give its size; it is not decoded");
+  }
+  if (static_cast<size_t>(declared->width) * static_cast<size_t>(declared->height) > max_image_pixels) {
     throw InputError(pixelLimitError(*declared, max_image_pixels));
   }
-  if (!hasDecodableImageSignature(bytes)) throw InputError("image: " + undecodableImageFormatMessage());
   const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
   cv::Mat bgr;
   try {
