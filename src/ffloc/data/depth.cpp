@@ -60,9 +60,7 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
   const std::string file = source.path.string();
   requireRegularFile(source.path, "depth file");
   const Intrinsics& camera = source.camera ? *source.camera : frame.intrinsics;
-  if (source.path.extension() != ".depth" && !fileHasDecodableImageSignature(source.path)) {
-    throwInputError(file, 0, "cannot decode depth image: " + undecodableImageFormatMessage());
-  }
+  if (source.path.extension() != ".depth") requireDecodableImageFile(source.path, "cannot decode depth image");
   cv::Mat stored;
   try {
     stored = source.path.extension() == ".depth" ? readRawFloatDepth(source.path, camera)

@@ -90,9 +90,7 @@ void copyFrameImage(const Frame& frame, const fs::path& destination, bool as_jpe
   if (!fs::is_regular_file(frame.image_path)) throwInputError(frame.image_path.string(), 0, "image not found");
   createParent(destination);
   if (as_jpeg && !isJpeg(frame.image_path)) {
-    if (!fileHasDecodableImageSignature(frame.image_path)) {
-      throwInputError(frame.image_path.string(), 0, "cannot decode image: " + undecodableImageFormatMessage());
-    }
+    requireDecodableImageFile(frame.image_path, "cannot decode image");
     const cv::Mat image = cv::imread(frame.image_path.string(), cv::IMREAD_UNCHANGED);
     if (image.empty()) throwInputError(frame.image_path.string(), 0, "cannot decode image");
     if (!cv::imwrite(destination.string(), image, {cv::IMWRITE_JPEG_QUALITY, 95}))

@@ -13,9 +13,7 @@ namespace ffloc {
 
 cv::Mat readImageRgb(const std::filesystem::path& path) {
   requireRegularFile(path, "image: file");
-  if (!fileHasDecodableImageSignature(path)) {
-    throwInputError(path.string(), 0, "image: cannot decode: " + undecodableImageFormatMessage());
-  }
+  requireDecodableImageFile(path, "image: cannot decode");
   cv::Mat bgr;
   try {
     bgr = cv::imread(path.string(), cv::IMREAD_COLOR);

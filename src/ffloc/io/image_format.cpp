@@ -3,6 +3,9 @@
 #include <array>
 #include <fstream>
 
+#include "ffloc/core/error.h"
+#include "ffloc/io/image_size.h"
+
 namespace ffloc {
 
 bool hasDecodableImageSignature(std::string_view bytes) {
@@ -21,15 +24,19 @@ bool hasDecodableImageSignature(std::string_view bytes) {
   return startsWith("\x76\x2F\x31\x01");  // OpenEXR
 }
 
-bool fileHasDecodableImageSignature(const std::filesystem::path& path) {
+void requireDecodableImageFile(const std::filesystem::path& path, const std::string& refusal) {
   std::ifstream in(path, std::ios::binary);
   std::array<char, 12> leading{};
   in.read(leading.data(), leading.size());
-  return hasDecodableImageSignature(std::string_view(leading.data(), static_cast<size_t>(in.gcount())));
-}
-
-std::string undecodableImageFormatMessage() {
-  return "not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file (the image formats ffloc decodes)";
+  const std::string_view bytes(leading.data(), static_cast<size_t>(in.gcount()));
+  if (!hasDecodableImageSignature(bytes)) {
+    throwInputError(path.string(), 0,
+                    refusal + ": not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file (the image formats ffloc decodes)");
+  }
+  const bool png = bytes.substr(0, 4) == "\x89PNG", jpeg = bytes.substr(0, 3) == "\xFF\xD8\xFF";
+  if ((png || jpeg) && !fileFrameSize(path)) {
+    throwInputError(path.string(), 0, refusal + ": a " + (png ? "PNG" : "JPEG") + " whose header does not give its size");
+  }
 }
 
 }  // namespace ffloc

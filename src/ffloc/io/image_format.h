@@ -13,10 +13,11 @@ namespace ffloc {
 // server), so bytes of any other format never reach a decoder.
 bool hasDecodableImageSignature(std::string_view leading_bytes);
 
-// The same for a file's first bytes; false when it cannot be read.
-bool fileHasDecodableImageSignature(const std::filesystem::path& path);
-
-// What the callers' refusals say: "not a PNG, JPEG, ... file".
-std::string undecodableImageFormatMessage();
+// Throws InputError naming `path`, "<refusal>: not a PNG, JPEG, ... file", unless its first
+// bytes are those of a format above, and "<refusal>: a JPEG whose header does not give its size"
+// for a PNG or JPEG whose header walk finds no frame: libjpeg skips damaged segments that the
+// walk stops at, and found a 65272 x 13041 frame behind one (2.5 GB; the localize_request
+// fuzzer), where the size a caller checks must come from the header.
+void requireDecodableImageFile(const std::filesystem::path& path, const std::string& refusal);
 
 }  // namespace ffloc

@@ -117,9 +117,7 @@ cv::Size readImageSize(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throwInputError(path.string(), 0, "cannot open image file");
   if (const std::optional<cv::Size> size = headerSize(in, true)) return *size;
-  if (!fileHasDecodableImageSignature(path)) {
-    throwInputError(path.string(), 0, "cannot decode image: " + undecodableImageFormatMessage());
-  }
+  requireDecodableImageFile(path, "cannot decode image");
   cv::Mat image;
   try {
     image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);

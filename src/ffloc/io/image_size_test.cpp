@@ -21,6 +21,16 @@ TEST(ImageFormat, FilesOfOtherFormatsAreRefusedBeforeDecoding) {
   testing::expectInputError([&] { readImageSize(dir / "scan.png"); },
                             {"scan.png", "cannot decode image: not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file"});
   testing::expectInputError([&] { readImageRgb(dir / "scan.png"); }, {"scan.png", "image: cannot decode: not a PNG"});
+  // A JPEG whose damaged APP0 length stops the header walk, while libjpeg skips on to a frame of
+  // 65272 x 13041 (2.5 GB; found by the localize_request fuzzer, docs/fuzzing.md).
+  static const char kBadApp0Length[] =
+      "\xff\xd8\xff\xe0\x00\x01\x00\x0a\x0a\x0a\xff\xc0\x00\x11\x08\xfe\xf8\x32\xf1\x03\x01\x22\x00"
+      "\x02\x11\x01\x03\x11\x01\xff\xda\x00\x0c\x03\x01\x00\x02\x11\x03\x11\x00\x3f\x05\x00\xff\xd9";
+  testing::writeTextFile(dir / "damaged.jpg", std::string(kBadApp0Length, sizeof(kBadApp0Length) - 1));
+  testing::expectInputError([&] { readImageSize(dir / "damaged.jpg"); },
+                            {"damaged.jpg", "cannot decode image: a JPEG whose header does not give its size"});
+  testing::expectInputError([&] { readImageRgb(dir / "damaged.jpg"); },
+                            {"damaged.jpg", "image: cannot decode: a JPEG whose header does not give its size"});
   for (const char* signature : {"\x89PNG\r\n\x1a\n", "\xFF\xD8\xFF", "BM", "P6", "RIFF0000WEBP"}) {
     EXPECT_TRUE(hasDecodableImageSignature(signature)) << signature;
   }
