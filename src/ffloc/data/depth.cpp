@@ -60,10 +60,11 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
   const std::string file = source.path.string();
   requireRegularFile(source.path, "depth file");
   const Intrinsics& camera = source.camera ? *source.camera : frame.intrinsics;
-  if (source.path.extension() != ".depth") requireDecodableImageFile(source.path, "cannot decode depth image");
+  const bool raw_floats = source.path.extension() == ".depth";
+  if (!raw_floats) requireDecodableImageFile(source.path, "cannot decode depth image");
   cv::Mat stored;
   try {
-    stored = source.path.extension() == ".depth" ? readRawFloatDepth(source.path, camera)
+    stored = raw_floats ? readRawFloatDepth(source.path, camera)
                                                  : cv::imread(file, cv::IMREAD_ANYDEPTH);
   } catch (const cv::Exception& error) {
     // OpenCV refuses some headers (a size beyond its limits) by throwing rather than failing.

@@ -75,9 +75,9 @@ namespace {
 
 bool isJpeg(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
-  unsigned char magic[3] = {0, 0, 0};
-  in.read(reinterpret_cast<char*>(magic), 3);
-  return magic[0] == 0xFF && magic[1] == 0xD8 && magic[2] == 0xFF;
+  char magic[3] = {};
+  in.read(magic, sizeof(magic));
+  return startsLikeJpeg(std::string_view(magic, static_cast<size_t>(in.gcount())));
 }
 
 void createParent(const fs::path& path) {

@@ -8,12 +8,15 @@
 
 namespace ffloc {
 
+bool startsLikePng(std::string_view bytes) { return bytes.substr(0, 8) == "\x89PNG\r\n\x1a\n"; }
+
+bool startsLikeJpeg(std::string_view bytes) { return bytes.substr(0, 3) == "\xFF\xD8\xFF"; }
+
 bool hasDecodableImageSignature(std::string_view bytes) {
   const auto startsWith = [&](std::string_view prefix, size_t at = 0) {
     return bytes.size() >= at + prefix.size() && bytes.substr(at, prefix.size()) == prefix;
   };
-  if (startsWith("\x89PNG\r\n\x1a\n")) return true;
-  if (startsWith("\xFF\xD8\xFF")) return true;
+  if (startsLikePng(bytes) || startsLikeJpeg(bytes)) return true;
   if (startsWith(std::string_view("II*\0", 4)) || startsWith(std::string_view("MM\0*", 4))) return true;
   if (startsWith(std::string_view("II+\0", 4)) || startsWith(std::string_view("MM\0+", 4))) return true;  // BigTIFF
   if (startsWith("BM")) return true;
@@ -33,8 +36,8 @@ void requireDecodableImageFile(const std::filesystem::path& path, const std::str
     throwInputError(path.string(), 0,
                     refusal + ": not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file (the image formats ffloc decodes)");
   }
-  const bool png = bytes.substr(0, 4) == "\x89PNG", jpeg = bytes.substr(0, 3) == "\xFF\xD8\xFF";
-  if ((png || jpeg) && !fileFrameSize(path)) {
+  const bool png = startsLikePng(bytes);
+  if ((png || startsLikeJpeg(bytes)) && !fileFrameSize(path)) {
     throwInputError(path.string(), 0, refusal + ": a " + (png ? "PNG" : "JPEG") + " whose header does not give its size");
   }
 }

@@ -13,6 +13,11 @@ namespace ffloc {
 // server), so bytes of any other format never reach a decoder.
 bool hasDecodableImageSignature(std::string_view leading_bytes);
 
+// Whether the bytes begin with the PNG signature, or with a JPEG's start-of-image marker and the
+// first marker after it.
+bool startsLikePng(std::string_view bytes);
+bool startsLikeJpeg(std::string_view bytes);
+
 // Throws InputError naming `path`, "<refusal>: not a PNG, JPEG, ... file", unless its first
 // bytes are those of a format above, and "<refusal>: a JPEG whose header does not give its size"
 // for a PNG or JPEG whose header walk finds no frame: libjpeg skips damaged segments that the

@@ -25,8 +25,7 @@ std::optional<cv::Size> pngSize(std::istream& in) {
   std::array<unsigned char, 24> header{};
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(header.data()), header.size())) return std::nullopt;
-  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
-  if (!std::equal(kSignature, kSignature + 8, header.begin())) return std::nullopt;
+  if (!startsLikePng(std::string_view(reinterpret_cast<const char*>(header.data()), header.size()))) return std::nullopt;
   if (std::string(header.begin() + 12, header.begin() + 16) != "IHDR") return std::nullopt;
   return cv::Size(static_cast<int>(bigEndian(&header[16], 4)), static_cast<int>(bigEndian(&header[20], 4)));
 }

@@ -156,9 +156,9 @@ void projectPixels(const float* src, int64_t pixels, int64_t in, int64_t out, co
 // output rows with each band's upsampled rows made on the fly: the upsampled map never exists
 // whole (12 MiB for the second finest block at 512x384, 48 MiB for the finest when a trace
 // asks for its output; untraced, the finest runs in bandedFinestPath).
-at::Tensor bandedUpsampledProjection(const at::Tensor& map, const nn::Conv2d& wide_or_not) {
+at::Tensor bandedUpsampledProjection(const at::Tensor& map, const nn::Conv2d& stored_conv) {
   const at::Tensor x = widened(map);
-  const nn::Conv2d conv = wide_or_not.withFloat32Weights();
+  const nn::Conv2d conv = stored_conv.withFloat32Weights();
   const UpsampledRows upsampled(x.permute({0, 2, 3, 1}).contiguous());
   const int64_t batch = x.size(0), rows = upsampled.rows(), cols = upsampled.cols();
   const int64_t in = upsampled.channels(), out = conv.out;

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 
 namespace ffloc {
@@ -81,9 +82,6 @@ std::string pixelLimitError(const cv::Size& size, size_t max_image_pixels) {
          std::to_string(max_image_pixels) + " pixels this server accepts";
 }
 
-bool isPng(const std::string& bytes) { return bytes.rfind("\x89PNG\r\n\x1a\n", 0) == 0; }
-bool isJpeg(const std::string& bytes) { return bytes.rfind("\xFF\xD8\xFF", 0) == 0; }
-
 cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
   if (bytes.empty()) throw InputError("image: the request carries no image");
   if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max()))
@@ -93,10 +91,11 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
   // the library loads, so a server cannot set it, and its default lets a decoder allocate 3 GB.
   const std::optional<cv::Size> declared = encodedFrameSize(bytes);
   if (!declared) {
-    if (!isPng(bytes) && !isJpeg(bytes)) {
+    const bool png = startsLikePng(bytes);
+    if (!png && !startsLikeJpeg(bytes)) {
       throw InputError("image: not a PNG or JPEG file (the server decodes those two, whose size it reads before decoding)");
     }
-    throw InputError("image: a " + std::string(isPng(bytes) ? "PNG" : "JPEG") +
+    throw InputError("image: a " + std::string(png ? "PNG" : "JPEG") +
                      " whose header does not give its size; it is not decoded");
   }
   if (static_cast<size_t>(declared->width) * static_cast<size_t>(declared->height) > max_image_pixels) {
