@@ -195,18 +195,31 @@ void FastForwardModel::to(at::Device device, at::ScalarType backbone_dtype, at::
   }
 }
 
-FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, const MapTokens& map,
-                                                TensorTrace* trace) const {
+FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, const MapTokens& map, TensorTrace* trace,
+                                                FastForwardOutputs outputs) const {
   if (!map.features.defined() || map.features.dim() != 3 || map.features.size(1) == 0) {
     throwInputError("map tokens", 0, "the map is empty");
   }
-  const at::Tensor ray_features = ray_embed_.forward(map.rays.to(map.features.device()));
-  if (trace) (*trace)["map.rays_embed"] = ray_features;
   at::Tensor points = map.points, point_valid = map.point_valid;
   if (config_.usesTokenPoints() && !points.defined()) {
     points = at::zeros({map.features.size(0), map.features.size(1), 3}, map.features.options().dtype(at::kFloat));
     point_valid = at::zeros({map.features.size(0), map.features.size(1)}, map.features.options().dtype(at::kBool));
   }
+  const bool matching = config_.query_head == QueryHeadKind::kMatching;
+  FastForwardPrediction out;
+  if (matching && outputs == FastForwardOutputs::kQuery && trace == nullptr && !match_head_.readsDecoderOutput()) {
+    const int64_t patch = config_.dust3r.patch_size, width = config_.dust3r.dec_dim;
+    const at::TensorOptions f32 = query.tokens.options().dtype(at::kFloat);
+    const at::Tensor query_decoded = at::zeros({query.tokens.size(0), query.tokens.size(1), width}, f32);
+    const at::Tensor map_decoded = at::zeros({map.features.size(0), map.features.size(1), width}, f32);
+    out.query = match_head_
+                    .forward(query.tokens, map.features, query_decoded, map_decoded, points, point_valid,
+                             query.height / patch, query.width / patch)
+                    .query;
+    return out;
+  }
+  const at::Tensor ray_features = ray_embed_.forward(map.rays.to(map.features.device()));
+  if (trace) (*trace)["map.rays_embed"] = ray_features;
   Dust3rEncoding map_encoding;
   map_encoding.tokens = map.features + ray_features.to(map.features.scalar_type());
   if (config_.points.enabled()) {
@@ -216,11 +229,9 @@ FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, con
   }
   map_encoding.positions = map.positions;
   // The map stream feeds only the map head (and the matching head), which read its last output.
-  const DecoderOutputs query_outputs =
-      config_.query_head == QueryHeadKind::kMatching ? DecoderOutputs::kLast : DecoderOutputs::kHeadInputs;
+  const DecoderOutputs query_outputs = matching ? DecoderOutputs::kLast : DecoderOutputs::kHeadInputs;
   const auto decoded = dust3r_.decode(query, map_encoding, trace, {query_outputs, DecoderOutputs::kLast});
-  FastForwardPrediction out;
-  if (config_.query_head == QueryHeadKind::kMatching) {
+  if (matching) {
     const int64_t patch = config_.dust3r.patch_size;
     MatchingPrediction prediction = match_head_.forward(query.tokens, map.features, decoded[0].back(), decoded[1].back(),
                                                         points, point_valid, query.height / patch, query.width / patch);
@@ -229,7 +240,9 @@ FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, con
   } else {
     out.query = pointMapFromRaw(dust3r_.headForward(0, decoded[0], query.height, query.width, trace, "view1"));
   }
-  out.map = pointsFromRaw(map_head_.forward(decoded[1].back().to(at::kFloat)));
+  if (outputs == FastForwardOutputs::kQueryAndMap) {
+    out.map = pointsFromRaw(map_head_.forward(decoded[1].back().to(at::kFloat)));
+  }
   return out;
 }
 

@@ -20,6 +20,12 @@ namespace ffloc {
 // the normalised scene, the map branch (dec_blocks2) a one-layer head that predicts the map
 // tokens' coordinates (a training signal).
 
+// What FastForwardModel::forward computes: both heads (training, traces), or the query's points
+// alone (localisation). For the query alone, a matching head that does not read the decoder's
+// outputs (MatchingHead::readsDecoderOutput, the untrained model) lets the decoder be skipped:
+// the same points, without the network's cost.
+enum class FastForwardOutputs { kQueryAndMap, kQuery };
+
 // N map tokens, each remembering where it came from.
 struct MapTokens {
   at::Tensor features;     // (1, N, enc_dim) encoder tokens
@@ -47,7 +53,7 @@ MapTokens gatherMapTokens(const std::vector<Dust3rEncoding>& images, const std::
 
 struct FastForwardPrediction {
   Dust3rPointMap query;  // (1, H, W, 3) / (1, H, W), normalised scene frame
-  Dust3rPointMap map;    // (1, N, 3) / (1, N)
+  Dust3rPointMap map;    // (1, N, 3) / (1, N); undefined when only the query was asked for
   at::Tensor match_logits;  // the matching head's (B, T_query, N + 1) logits; undefined for DPT
 };
 
@@ -80,8 +86,8 @@ class FastForwardModel {
   Dust3rEncoding encode(const at::Tensor& images) const;
 
   // Trace names: the query is "view1", the map "view2" (DUSt3R's names), plus "map.rays_embed".
-  FastForwardPrediction forward(const Dust3rEncoding& query, const MapTokens& map,
-                                TensorTrace* trace = nullptr) const;
+  FastForwardPrediction forward(const Dust3rEncoding& query, const MapTokens& map, TensorTrace* trace = nullptr,
+                                FastForwardOutputs outputs = FastForwardOutputs::kQueryAndMap) const;
 
  private:
   void registerNewParameters(ParameterTable& table);

@@ -65,6 +65,14 @@ void MatchingHead::initializeAsNearestNeighbour() {
   confidence_gain = at::full({1}, 1.0, f32);
 }
 
+bool MatchingHead::readsDecoderOutput() const {
+  // The learned similarity vanishes when either side's keys are zero for every input.
+  const bool learned_similarity_vanishes = (!map_key.weight.any().item<bool>() && !map_key.bias.any().item<bool>()) ||
+                                           (!query_key.weight.any().item<bool>() && !query_key.bias.any().item<bool>());
+  return !learned_similarity_vanishes || offset.weight.any().item<bool>() || confidence.weight.any().item<bool>() ||
+         no_match.weight.any().item<bool>();
+}
+
 MatchingPrediction MatchingHead::forward(const at::Tensor& query_descriptors, const at::Tensor& map_descriptors,
                                          const at::Tensor& query_decoded, const at::Tensor& map_decoded,
                                          const at::Tensor& map_points, const at::Tensor& map_point_valid, int64_t rows,

@@ -51,6 +51,11 @@ struct MatchingHead {
   MatchingHead(const MatchingHeadConfig& config, int64_t decoder_dim);
   void registerIn(ParameterTable& table, const std::string& prefix);
   void initializeAsNearestNeighbour();
+  // False when every weight that reads the decoder's outputs is zero (the learned similarity's
+  // map keys, the offset's, the confidence's and the no-match weights), as at step 0: forward()
+  // then gives the same result, bit for bit, for any decoder outputs, so a caller may skip the
+  // decoder and pass zeros.
+  bool readsDecoderOutput() const;
   // query_descriptors (B, rows * cols, Dd), map_descriptors (B, N, Dd), query_decoded (B, rows *
   // cols, D), map_decoded (B, N, D), map_points (B, N, 3) float32 normalised, map_point_valid
   // (B, N) bool. InputError when no map token carries a point: this head cannot place a query

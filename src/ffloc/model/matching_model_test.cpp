@@ -13,6 +13,8 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
@@ -54,6 +56,21 @@ class UntrainedMatchingModel : public ::testing::Test {
  protected:
   void SetUp() override { loaded_ = loadModel("random:sift-tiny:3"); }
   FastForwardModel& model() { return *loaded_.model; }
+  Dust3rEncoding queryOfTokens(const at::Tensor& tokens, int64_t rows, int64_t cols) {
+    Dust3rEncoding query;
+    query.tokens = tokens;
+    query.positions = patchPositions(1, rows, cols, at::kCPU);
+    query.height = rows * model().config().dust3r.patch_size;
+    query.width = cols * model().config().dust3r.patch_size;
+    return query;
+  }
+  at::Tensor& parameter(const std::string& name) {
+    const ParameterTable table = model().parameterTable();
+    for (const ParameterTable::Entry& entry : table.entries()) {
+      if (entry.name == name) return *entry.tensor;
+    }
+    throw std::runtime_error("no parameter " + name);
+  }
   LoadedModel loaded_;
 };
 
@@ -73,13 +90,8 @@ TEST_F(UntrainedMatchingModel, StepZeroIsNearestNeighbourMatching) {
   // Patch 2's best descriptor (token 7) has no point; its best token with a point is 20.
   query_tokens[0][2] = map_descriptors[0][7] * 0.6 + map_descriptors[0][20] * 0.4;
   query_tokens = query_tokens / query_tokens.norm(2, -1, true);
-  Dust3rEncoding query;
-  query.tokens = query_tokens;
-  query.positions = patchPositions(1, rows, cols, at::kCPU);
-  query.height = rows * model().config().dust3r.patch_size;
-  query.width = cols * model().config().dust3r.patch_size;
-
-  const FastForwardPrediction prediction = model().forward(query, handMadeMap(map_descriptors, points, valid));
+  const FastForwardPrediction prediction =
+      model().forward(queryOfTokens(query_tokens, rows, cols), handMadeMap(map_descriptors, points, valid));
   ASSERT_EQ(prediction.query.pts3d.sizes(), at::IntArrayRef({1, rows, cols, 3}));
   ASSERT_EQ(prediction.match_logits.sizes(), at::IntArrayRef({1, rows * cols, map_tokens + 1}));
   for (int64_t i = 0; i < rows * cols; ++i) {
@@ -93,6 +105,46 @@ TEST_F(UntrainedMatchingModel, StepZeroIsNearestNeighbourMatching) {
     EXPECT_LT(at::abs(predicted - points[0][expected]).max().item<double>(), 1e-3) << "patch " << i;
     EXPECT_GE(prediction.query.conf[0][i / cols][i % cols].item<double>(), 1.0);
   }
+}
+
+// At step 0 the head reads nothing the decoder computes, so localisation (the query's points
+// alone) skips the decoder and gets the same points bit for bit; once a weight that reads the
+// decoder is non-zero, the decoder runs again.
+TEST_F(UntrainedMatchingModel, QueryAloneSkipsADecoderTheHeadDoesNotRead) {
+  const int64_t dim = model().config().dust3r.enc_dim, rows = 3, cols = 4, map_tokens = 30;
+  const MapTokens map = handMadeMap(randomDescriptors(map_tokens, dim, 21), at::randn({1, map_tokens, 3}, at::kFloat),
+                                    at::ones({1, map_tokens}, at::kBool));
+  const Dust3rEncoding query = queryOfTokens(randomDescriptors(rows * cols, dim, 22), rows, cols);
+  c10::InferenceMode inference;
+  const auto queryPointsEqual = [&](const char* when) {
+    const FastForwardPrediction full = model().forward(query, map);
+    const FastForwardPrediction alone = model().forward(query, map, nullptr, FastForwardOutputs::kQuery);
+    EXPECT_TRUE(at::equal(full.query.pts3d, alone.query.pts3d)) << when;
+    EXPECT_TRUE(at::equal(full.query.conf, alone.query.conf)) << when;
+    EXPECT_TRUE(full.map.pts3d.defined()) << when;
+    EXPECT_FALSE(alone.map.pts3d.defined()) << when;
+    return full;
+  };
+  ASSERT_EQ(model().config().query_head, QueryHeadKind::kMatching);
+  queryPointsEqual("step 0");
+  // Proof that the decoder did not run: a decoder that outputs NaN poisons the full forward, not
+  // the query alone.
+  at::Tensor& decoder_bias = parameter("dec_norm.bias");
+  const at::Tensor kept_bias = decoder_bias.clone();
+  decoder_bias.fill_(std::numeric_limits<float>::quiet_NaN());
+  EXPECT_FALSE(at::isfinite(model().forward(query, map).query.pts3d).all().item<bool>());
+  EXPECT_TRUE(at::isfinite(model().forward(query, map, nullptr, FastForwardOutputs::kQuery).query.pts3d)
+                  .all()
+                  .item<bool>());
+  decoder_bias.copy_(kept_bias);
+
+  // A trained offset makes the points depend on the decoder: a different decoder (here its last
+  // norm's bias moved) must then move them, in both calls alike.
+  parameter("match_head.offset.weight").normal_(0, 0.1);
+  const FastForwardPrediction trained = queryPointsEqual("trained offset");
+  decoder_bias.add_(0.5);
+  const FastForwardPrediction moved = queryPointsEqual("trained offset, another decoder");
+  EXPECT_FALSE(at::allclose(trained.query.pts3d, moved.query.pts3d));
 }
 
 TEST_F(UntrainedMatchingModel, RefusesAMapWithoutPoints) {

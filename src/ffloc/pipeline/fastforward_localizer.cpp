@@ -159,7 +159,8 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
     images.push_back(std::move(encoded));
     if (uses_points) points.push_back(normalizedTokenPoints(image, layout.normalization));
   }
-  const FastForwardPrediction prediction = model_.forward(query.encoding, assembleMapTokens(layout, images, points));
+  const FastForwardPrediction prediction = model_.forward(query.encoding, assembleMapTokens(layout, images, points),
+                                                                nullptr, FastForwardOutputs::kQuery);
   out.correspondences = queryCorrespondences(prediction.query, 0, out.normalization, model_.config().queryGridStride(),
                                              &query.image.preprocessed.geometry);
 }
