@@ -2,9 +2,9 @@
 # Produces the per-frame CSVs behind the verdict's calibration and its measured precision and
 # recall (docs/verdict.md): tuning scenes (synthetic seeds 5000, 9000 and 9500, each held out
 # once before it was folded into tuning, and the shared real data) and held-out scenes (synthetic
-# seed 9900, rendered after the rule was frozen). Usage:
+# seeds 9900 and 9950, each rendered after the rule and the method it measures were frozen). Usage:
 #   scripts/verdict_runs.sh BUILD_DIR SHARED_DIR OUT_DIR [SET...]
-# SETs (default: all) are tuning, real, heldout, heldout2 and heldout3, so that a held-out set is
+# SETs (default: all) are tuning, real, heldout, heldout2, heldout3 and heldout4, so that a held-out set is
 # rendered and measured only once the rule is frozen.
 # Every method runs on every set: the rule must hold for each of them.
 set -euo pipefail
@@ -15,7 +15,7 @@ tuned=classical,sift-baseline
 all=classical,sift-baseline,fastforward
 ffloc="$build/bin/ffloc"
 sets=("${@:4}")
-[ ${#sets[@]} -gt 0 ] || sets=(tuning real heldout heldout2 heldout3)
+[ ${#sets[@]} -gt 0 ] || sets=(tuning real heldout heldout2 heldout3 heldout4)
 mkdir -p "$out"
 # render SET SEED: ten synthetic scenes (nine for tuning), once.
 render() {
@@ -49,6 +49,7 @@ for set in "${sets[@]}"; do
     heldout) render heldout 9000 10 && evaluate heldout "$all" ;;
     heldout2) render heldout2 9500 10 && evaluate heldout2 "$all" ;;
     heldout3) render heldout3 9900 10 && evaluate heldout3 "$all" ;;
+    heldout4) render heldout4 9950 10 && evaluate heldout4 "$all" ;;
     *) echo "unknown set $set" >&2 && exit 2 ;;
   esac
 done

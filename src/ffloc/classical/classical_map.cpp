@@ -130,7 +130,8 @@ void writeClassicalMap(const ClassicalMap& map, const std::filesystem::path& pat
       {"metric", map.metric},
       {"origin", {origin.x(), origin.y(), origin.z()}},
       {"sift", {{"max_image_size", map.sift.max_image_size}, {"max_features", map.sift.max_features},
-                {"contrast_threshold", map.sift.contrast_threshold}}},
+                {"contrast_threshold", map.sift.contrast_threshold}, {"min_features", map.sift.min_features},
+                {"low_contrast_threshold", map.sift.low_contrast_threshold}}},
       {"ratio", map.ratio},
       {"images", images},
       {"checksums", checksums}};
@@ -174,6 +175,10 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   map.sift.max_image_size = static_cast<int>(sift.integer("max_image_size", 16, 1 << 20));
   map.sift.max_features = static_cast<int>(sift.integer("max_features", 1, 1 << 24));
   map.sift.contrast_threshold = sift.finiteNumber("contrast_threshold");
+  // Maps written before the low-contrast fill-up described every image at contrast_threshold
+  // alone; their queries must be described the same way.
+  map.sift.min_features = sift.has("min_features") ? static_cast<int>(sift.integer("min_features", 0, 1 << 24)) : 0;
+  if (sift.has("low_contrast_threshold")) map.sift.low_contrast_threshold = sift.finiteNumber("low_contrast_threshold");
   map.ratio = static_cast<float>(top.finiteNumber("ratio"));
   try {
     map.sift.check();

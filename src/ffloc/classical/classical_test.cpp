@@ -5,6 +5,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/classical/classical_localizer.h"
@@ -16,7 +17,9 @@
 #include "ffloc/synthetic/synthetic.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/io/image.h"
+#include "ffloc/core/hash.h"
 #include "ffloc/io/map_file.h"
+#include "ffloc/io/tensor_archive.h"
 #include "ffloc/localization/localization_json.h"
 
 namespace ffloc {
@@ -106,6 +109,67 @@ TEST_F(ClassicalTest, MapRoundTripsThroughItsFile) {
   EXPECT_TRUE(reread.vocabulary.centres().isApprox(map.vocabulary.centres()));
   ASSERT_EQ(reread.images.size(), map.images.size());
   for (size_t i = 0; i < map.images.size(); ++i) expectSameImage(map.images[i], reread.images[i]);
+}
+
+// A small, weakly textured image is described again at the low contrast threshold up to
+// min_features keypoints, keeping every keypoint of the first description; an image that
+// already has min_features keypoints is described exactly as without the fill-up.
+TEST_F(ClassicalTest, WeakImagesAreFilledUpWithLowerContrastKeypoints) {
+  const Frame& frame = scene_->frames[scene_->mappingIndices()[0]];
+  SiftOptions strong_only;
+  strong_only.min_features = 0;
+  const SiftFeatures strong = extractSiftFeatures(frame, strong_only);
+  const SiftFeatures filled = extractSiftFeatures(frame, SiftOptions{});
+  ASSERT_LT(strong.pixels.size(), static_cast<size_t>(SiftOptions{}.min_features));
+  EXPECT_GT(filled.pixels.size(), strong.pixels.size() * 3 / 2);
+  EXPECT_LE(filled.pixels.size(), static_cast<size_t>(SiftOptions{}.min_features));
+  size_t kept = 0;
+  for (const Eigen::Vector2d& pixel : strong.pixels) {
+    for (const Eigen::Vector2d& other : filled.pixels) {
+      if ((pixel - other).norm() < 1e-3) {
+        ++kept;
+        break;
+      }
+    }
+  }
+  EXPECT_GE(kept, strong.pixels.size() * 95 / 100) << "of " << strong.pixels.size();
+
+  SiftOptions few_wanted;
+  few_wanted.min_features = static_cast<int>(strong.pixels.size());
+  const SiftFeatures same = extractSiftFeatures(frame, few_wanted);
+  ASSERT_EQ(same.pixels.size(), strong.pixels.size());
+  for (size_t i = 0; i < same.pixels.size(); ++i) EXPECT_EQ(same.pixels[i], strong.pixels[i]);
+  EXPECT_EQ(cv::norm(same.descriptors, strong.descriptors, cv::NORM_INF), 0.0);
+
+  SiftOptions bad;
+  bad.low_contrast_threshold = 0.05;
+  EXPECT_NE(inputErrorOf([&] { bad.check(); }).find("low_contrast_threshold"), std::string::npos);
+  bad = SiftOptions{};
+  bad.min_features = -1;
+  EXPECT_NE(inputErrorOf([&] { bad.check(); }).find("min_features"), std::string::npos);
+}
+
+// A map written before the fill-up existed has no min_features: its queries must be described
+// as its images were, at contrast_threshold alone.
+TEST_F(ClassicalTest, MapsWithoutTheFillUpKeepDescribingQueriesWithoutIt) {
+  const fs::path path = *dir_ / "fill.ffmap";
+  writeClassicalMap(build({0, 1, 2, 3}), path);
+  EXPECT_EQ(readClassicalMap(path).sift.min_features, SiftOptions{}.min_features);
+
+  const auto archive = openSafetensors(path);
+  nlohmann::json body = nlohmann::json::parse(archive->metadata().at("ffloc_map_body"));
+  body["sift"].erase("min_features");
+  body["sift"].erase("low_contrast_threshold");
+  const std::string body_text = body.dump();
+  nlohmann::json header = nlohmann::json::parse(archive->metadata().at(kMapMetadataKey));
+  header["body_checksum"] = hex64(fnv1a64(body_text));
+  std::vector<TensorView> tensors;
+  for (const std::string& name : archive->names()) tensors.push_back(archive->at(name));
+  const fs::path old_path = *dir_ / "before-fill.ffmap";
+  writeSafetensors(old_path, tensors, {{kMapMetadataKey, header.dump()}, {"ffloc_map_body", body_text}});
+  const ClassicalMap old = readClassicalMap(old_path);
+  EXPECT_EQ(old.sift.min_features, 0);
+  EXPECT_EQ(old.sift.contrast_threshold, SiftOptions{}.contrast_threshold);
 }
 
 // Depth-lifted points are the scene's surface: they reproject onto their keypoint in their own

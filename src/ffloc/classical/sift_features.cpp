@@ -1,5 +1,6 @@
 #include "ffloc/classical/sift_features.h"
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -15,6 +16,10 @@ void SiftOptions::check() const {
   if (max_features <= 0) throw InputError("max_features: must be positive, got " + std::to_string(max_features));
   if (!(contrast_threshold > 0 && contrast_threshold < 1))
     throw InputError("contrast_threshold: must be in (0, 1), got " + std::to_string(contrast_threshold));
+  if (min_features < 0) throw InputError("min_features: must not be negative, got " + std::to_string(min_features));
+  if (!(low_contrast_threshold > 0 && low_contrast_threshold <= contrast_threshold))
+    throw InputError("low_contrast_threshold: must be in (0, contrast_threshold], got " +
+                     std::to_string(low_contrast_threshold));
 }
 
 SiftFeatures extractSiftFeatures(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& source,
@@ -38,9 +43,15 @@ SiftFeatures extractSiftFeatures(const cv::Mat& rgb, const Intrinsics& intrinsic
 
   // Detection runs on the (possibly distorted) image; only keypoint positions are undistorted,
   // which avoids resampling the image and keeps SIFT's sub-pixel localisation intact.
-  const cv::Ptr<cv::SIFT> sift = cv::SIFT::create(options.max_features, 3, options.contrast_threshold);
   std::vector<cv::KeyPoint> keypoints;
-  sift->detectAndCompute(gray, cv::noArray(), keypoints, features.descriptors);
+  cv::SIFT::create(options.max_features, 3, options.contrast_threshold)
+      ->detectAndCompute(gray, cv::noArray(), keypoints, features.descriptors);
+  const int wanted = std::min(options.min_features, options.max_features);
+  if (static_cast<int>(keypoints.size()) < wanted) {
+    keypoints.clear();
+    cv::SIFT::create(wanted, 3, options.low_contrast_threshold)
+        ->detectAndCompute(gray, cv::noArray(), keypoints, features.descriptors);
+  }
   if (features.descriptors.empty()) features.descriptors = cv::Mat(0, 128, CV_32F);
   if (features.descriptors.type() != CV_32F) features.descriptors.convertTo(features.descriptors, CV_32F);
   toRootSift(features.descriptors);
