@@ -2,9 +2,9 @@
 # Produces the per-frame CSVs behind the verdict's calibration and its measured precision and
 # recall (docs/verdict.md): tuning scenes (synthetic seeds 5000, 9000 and 9500, each held out
 # once before it was folded into tuning, and the shared real data) and held-out scenes (synthetic
-# seeds 9900 and 9950, each rendered after the rule and the method it measures were frozen). Usage:
+# seeds 9900, 9950 and 9975, each rendered after the rule and the method it measures were frozen). Usage:
 #   scripts/verdict_runs.sh BUILD_DIR SHARED_DIR OUT_DIR [SET...]
-# SETs (default: all) are tuning, real, heldout, heldout2, heldout3 and heldout4, so that a held-out set is
+# SETs (default: all) are tuning, real and heldout to heldout5, so that a held-out set is
 # rendered and measured only once the rule is frozen.
 # Every method runs on every set: the rule must hold for each of them.
 set -euo pipefail
@@ -15,7 +15,7 @@ tuned=classical,sift-baseline
 all=classical,sift-baseline,fastforward
 ffloc="$build/bin/ffloc"
 sets=("${@:4}")
-[ ${#sets[@]} -gt 0 ] || sets=(tuning real heldout heldout2 heldout3 heldout4)
+[ ${#sets[@]} -gt 0 ] || sets=(tuning real heldout heldout2 heldout3 heldout4 heldout5)
 mkdir -p "$out"
 # render SET SEED: ten synthetic scenes (nine for tuning), once.
 render() {
@@ -50,6 +50,7 @@ for set in "${sets[@]}"; do
     heldout2) render heldout2 9500 10 && evaluate heldout2 "$all" ;;
     heldout3) render heldout3 9900 10 && evaluate heldout3 "$all" ;;
     heldout4) render heldout4 9950 10 && evaluate heldout4 "$all" ;;
+    heldout5) render heldout5 9975 10 && evaluate heldout5 "$all" ;;
     *) echo "unknown set $set" >&2 && exit 2 ;;
   esac
 done

@@ -53,9 +53,14 @@ TEST(Verdict, EachTestCanMakeAPoseUncertain) {
   // 8 cm apart: too far in a metric map, not judged in metres in one of arbitrary units.
   EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged([](PoseEvidence& e) { e.agreement_distance = 0.08; }, false).status, PoseStatus::kLocalized);
+  // A centre predicted 12 cm uncertain: too uncertain in a metric map, not judged in metres in one
+  // of arbitrary units.
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.12; }).reason,
+            "the inliers leave the pose too uncertain");
+  EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.12; }, false).status, PoseStatus::kLocalized);
 }
 
-// The predicted-uncertainty tests, off by default, each reject a pose when set.
+// The predicted-uncertainty tests (by default only the centre's in metres) each reject a pose when set.
 TEST(Verdict, PredictedUncertaintyTestsRejectWhenSet) {
   EXPECT_EQ(judgePose(strong(), success(), true, VerdictOptions{}).status, PoseStatus::kLocalized);
   VerdictOptions rule;
