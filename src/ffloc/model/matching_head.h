@@ -28,7 +28,11 @@ namespace ffloc {
 // whatever the decoder computes does not change its output at step 0.
 struct MatchingHeadConfig {
   int64_t key_dim = 64;
-  double initial_temperature = 0.02;       // of the descriptor similarity (in [0, 1])
+  // Of the descriptor similarity (in [0, 1]). Near-hard assignment places more queries than a
+  // soft one, whose points are averages of candidates: at 0.02, 0.01, 0.005, 0.0025 and 0.001
+  // the untrained sift-small model put 16.3, 25.9, 25.9, 27.4 and 25.2 % of the synthetic tuning
+  // scenes' queries (seed 5000) within (25 cm, 5 deg) (models/MODEL_CARD.md).
+  double initial_temperature = 0.005;
   double initial_no_match_similarity = 0.85;  // the similarity the no-match class starts at
   double initial_confidence_logit = 1.0;
 
