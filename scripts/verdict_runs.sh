@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Produces the per-frame CSVs behind the verdict's calibration and its measured precision and
-# recall (docs/verdict.md): tuning scenes (synthetic seeds 5000, 9000 and 9500, each held out
-# once before it was folded into tuning, and the shared real data) and held-out scenes (synthetic
-# seeds 9900, 9950 and 9975, each rendered after the rule and the method it measures were frozen). Usage:
+# recall (docs/verdict.md): tuning scenes (synthetic seeds 5000, 9000, 9500, 9900 and 9950, each
+# held out once before it was folded into tuning, and the shared real data) and held-out scenes
+# (synthetic seed 9975, rendered after the rule and the methods it measures were frozen). Usage:
 #   scripts/verdict_runs.sh BUILD_DIR SHARED_DIR OUT_DIR [SET...]
 # SETs (default: all) are tuning, real and heldout to heldout5, so that a held-out set is
 # rendered and measured only once the rule is frozen.

@@ -8,6 +8,7 @@
 #include <ATen/ops/zeros_like.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numeric>
 
@@ -206,31 +207,30 @@ FastForwardPrediction FastForwardModel::forward(const Dust3rEncoding& query, con
     point_valid = at::zeros({map.features.size(0), map.features.size(1)}, map.features.options().dtype(at::kBool));
   }
   const bool matching = config_.query_head == QueryHeadKind::kMatching;
-  FastForwardPrediction out;
-  if (matching && outputs == FastForwardOutputs::kQuery && trace == nullptr && !match_head_.readsDecoderOutput()) {
-    const int64_t patch = config_.dust3r.patch_size, width = config_.dust3r.dec_dim;
+  const bool skip_decoder =
+      matching && outputs == FastForwardOutputs::kQuery && trace == nullptr && !match_head_.readsDecoderOutput();
+  std::array<std::vector<at::Tensor>, 2> decoded;
+  if (skip_decoder) {
     const at::TensorOptions f32 = query.tokens.options().dtype(at::kFloat);
-    const at::Tensor query_decoded = at::zeros({query.tokens.size(0), query.tokens.size(1), width}, f32);
-    const at::Tensor map_decoded = at::zeros({map.features.size(0), map.features.size(1), width}, f32);
-    out.query = match_head_
-                    .forward(query.tokens, map.features, query_decoded, map_decoded, points, point_valid,
-                             query.height / patch, query.width / patch)
-                    .query;
-    return out;
+    const int64_t width = config_.dust3r.dec_dim;
+    decoded[0] = {at::zeros({query.tokens.size(0), query.tokens.size(1), width}, f32)};
+    decoded[1] = {at::zeros({map.features.size(0), map.features.size(1), width}, f32)};
+  } else {
+    const at::Tensor ray_features = ray_embed_.forward(map.rays.to(map.features.device()));
+    if (trace) (*trace)["map.rays_embed"] = ray_features;
+    Dust3rEncoding map_encoding;
+    map_encoding.tokens = map.features + ray_features.to(map.features.scalar_type());
+    if (config_.points.enabled()) {
+      map_encoding.tokens = map_encoding.tokens +
+                            point_embed_.forward(points.to(map.features.device()), point_valid.to(map.features.device()))
+                                .to(map.features.scalar_type());
+    }
+    map_encoding.positions = map.positions;
+    // The map stream feeds only the map head (and the matching head), which read its last output.
+    const DecoderOutputs query_outputs = matching ? DecoderOutputs::kLast : DecoderOutputs::kHeadInputs;
+    decoded = dust3r_.decode(query, map_encoding, trace, {query_outputs, DecoderOutputs::kLast});
   }
-  const at::Tensor ray_features = ray_embed_.forward(map.rays.to(map.features.device()));
-  if (trace) (*trace)["map.rays_embed"] = ray_features;
-  Dust3rEncoding map_encoding;
-  map_encoding.tokens = map.features + ray_features.to(map.features.scalar_type());
-  if (config_.points.enabled()) {
-    map_encoding.tokens = map_encoding.tokens +
-                          point_embed_.forward(points.to(map.features.device()), point_valid.to(map.features.device()))
-                              .to(map.features.scalar_type());
-  }
-  map_encoding.positions = map.positions;
-  // The map stream feeds only the map head (and the matching head), which read its last output.
-  const DecoderOutputs query_outputs = matching ? DecoderOutputs::kLast : DecoderOutputs::kHeadInputs;
-  const auto decoded = dust3r_.decode(query, map_encoding, trace, {query_outputs, DecoderOutputs::kLast});
+  FastForwardPrediction out;
   if (matching) {
     const int64_t patch = config_.dust3r.patch_size;
     MatchingPrediction prediction = match_head_.forward(query.tokens, map.features, decoded[0].back(), decoded[1].back(),

@@ -56,7 +56,7 @@ struct MatchingHead {
   void registerIn(ParameterTable& table, const std::string& prefix);
   void initializeAsNearestNeighbour();
   // False when every weight that reads the decoder's outputs is zero (the learned similarity's
-  // map keys, the offset's, the confidence's and the no-match weights), as at step 0: forward()
+  // keys on either side, the offset's, the confidence's and the no-match weights), as at step 0: forward()
   // then gives the same result, bit for bit, for any decoder outputs, so a caller may skip the
   // decoder and pass zeros.
   bool readsDecoderOutput() const;
