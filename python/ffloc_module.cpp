@@ -185,6 +185,7 @@ QuerySettings querySettings(const py::kwargs& kwargs, std::vector<std::string>& 
     else if (name == "retrieval") settings.retrieval = value.cast<std::string>();
     else if (name == "solver") settings.solver = value.cast<std::string>();
     else if (name == "verify") settings.verify = value.cast<bool>();
+    else if (name == "pose_guided") settings.pose_guided = value.cast<bool>();
     else unused.push_back(name);
   }
   return settings;
@@ -193,7 +194,7 @@ QuerySettings querySettings(const py::kwargs& kwargs, std::vector<std::string>& 
 void refuseUnknown(const std::vector<std::string>& unused, const std::string& function) {
   if (!unused.empty())
     throw InputError(unused.front() + ": not an option of " + function +
-                     " (query options: preset, top_k, features, seed, selection, retrieval, solver, verify)");
+                     " (query options: preset, top_k, features, seed, selection, retrieval, solver, verify, pose_guided)");
 }
 
 Scene sceneFrom(const py::handle& value, const std::string& format) {
@@ -502,7 +503,7 @@ PYBIND11_MODULE(_ffloc, m) {
            }),
            py::arg("map"), py::arg("model") = "default", py::arg("dtype") = "f32", py::arg("threads") = 0,
            "map: a Map or a map file; keyword query options as the CLI's flags (preset, top_k, features, seed, "
-           "selection, retrieval, solver, verify)")
+           "selection, retrieval, solver, verify, pose_guided)")
       .def("localize", &PyLocalizer::localize, py::arg("image"), py::arg("intrinsics"),
            py::arg("distortion") = py::none(), py::arg("name") = "",
            "image: a path or an H x W x 3 uint8 RGB array; intrinsics: 3x3 or (fx, fy, cx, cy)")

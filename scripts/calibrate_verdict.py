@@ -3,9 +3,10 @@
 `ffloc eval` (scripts/verdict_runs.sh) and prints its precision and recall per method and dataset.
 
 A pose counts as correct within (25 cm, 5 deg). Files are named SET.*: the tuning sets are tuning
-(synthetic seed 5000), heldout (seed 9000), heldout2 (seed 9500), heldout3 (9900), heldout4 (9950)
-and real, each synthetic one held out once before it was folded into tuning (docs/verdict.md);
-heldout5 (seed 9975) is only reported, never searched over.
+(synthetic seed 5000), heldout (seed 9000), heldout2 (seed 9500), heldout3 (9900), heldout4 (9950),
+t640 and h640 (seeds 5000 and 9000 at 640 x 480) and real, each 256 x 192 one held out once before
+it was folded into tuning (docs/verdict.md); heldout5 to heldout7 (seeds 9975 and 9990, and 9995
+at 640 x 480) are only reported, never searched over.
 
   scripts/calibrate_verdict.py DIR            search, then report the best rule
   scripts/calibrate_verdict.py DIR --report   report the rule in verdict.h's defaults
@@ -19,7 +20,7 @@ import math
 import os
 import sys
 
-TUNING_SETS = ("tuning", "heldout", "heldout2", "heldout3", "heldout4", "real")
+TUNING_SETS = ("tuning", "heldout", "heldout2", "heldout3", "heldout4", "t640", "h640", "real")
 SYNTHETIC_TUNING_SETS = TUNING_SETS[:-1]
 METHODS = ("classical", "sift-baseline", "fastforward")
 INF = math.inf

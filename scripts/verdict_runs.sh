@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # Produces the per-frame CSVs behind the verdict's calibration and its measured precision and
-# recall (docs/verdict.md): tuning scenes (synthetic seeds 5000, 9000, 9500, 9900 and 9950, each
-# held out once before it was folded into tuning, and the shared real data) and held-out scenes
-# (synthetic seed 9975, rendered after the rule and the methods it measures were frozen). Usage:
+# recall (docs/verdict.md): tuning scenes (synthetic seeds 5000, 9000, 9500, 9900 and 9950 at
+# 256 x 192, seeds 5000 and 9000 again at 640 x 480, each 256 x 192 set held out once before it
+# was folded into tuning, and the shared real data) and held-out scenes (seed 9975, rendered after
+# the rule was frozen; seeds 9990 at 256 x 192 and 9995 at 640 x 480, rendered after the
+# pose-guided retrieval was frozen). Usage:
 #   scripts/verdict_runs.sh BUILD_DIR SHARED_DIR OUT_DIR [SET...]
-# SETs (default: all) are tuning, real and heldout to heldout5, so that a held-out set is
-# rendered and measured only once the rule is frozen.
+# SETs (default: all) are tuning, real, heldout to heldout7, t640 and h640, so that a held-out set
+# is rendered and measured only once the rule is frozen.
 # Every method runs on every set: the rule must hold for each of them.
 set -euo pipefail
 build=${1:-build}
@@ -15,11 +17,11 @@ tuned=classical,sift-baseline
 all=classical,sift-baseline,fastforward
 ffloc="$build/bin/ffloc"
 sets=("${@:4}")
-[ ${#sets[@]} -gt 0 ] || sets=(tuning real heldout heldout2 heldout3 heldout4 heldout5)
+[ ${#sets[@]} -gt 0 ] || sets=(tuning real heldout heldout2 heldout3 heldout4 heldout5 t640 h640 heldout6 heldout7)
 mkdir -p "$out"
-# render SET SEED: ten synthetic scenes (nine for tuning), once.
+# render SET SEED SCENES [SIZE]: the synthetic scenes of a set, once (256 x 192 unless SIZE).
 render() {
-  [ -d "$out/$1" ] || "$ffloc" synth --out "$out/$1" --seed "$2" --scenes "$3" --kind mixed --quiet
+  [ -d "$out/$1" ] || "$ffloc" synth --out "$out/$1" --seed "$2" --scenes "$3" --kind mixed --size "${4:-256x192}" --quiet
 }
 # evaluate SET METHODS: every synthetic scene of the set, once.
 evaluate() {
@@ -51,6 +53,10 @@ for set in "${sets[@]}"; do
     heldout3) render heldout3 9900 10 && evaluate heldout3 "$all" ;;
     heldout4) render heldout4 9950 10 && evaluate heldout4 "$all" ;;
     heldout5) render heldout5 9975 10 && evaluate heldout5 "$all" ;;
+    t640) render t640 5000 9 640x480 && evaluate t640 "$all" ;;
+    h640) render h640 9000 10 640x480 && evaluate h640 "$all" ;;
+    heldout6) render heldout6 9990 10 && evaluate heldout6 "$all" ;;
+    heldout7) render heldout7 9995 10 640x480 && evaluate heldout7 "$all" ;;
     *) echo "unknown set $set" >&2 && exit 2 ;;
   esac
 done

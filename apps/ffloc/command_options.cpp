@@ -53,6 +53,9 @@ void addQueryOptions(CLI::App& command, QueryArguments& args) {
   command.add_flag("--no-verify", args.no_verify,
                    "fastforward: skip the second prediction behind the verdict (then a half-sample RANSAC estimate "
                    "stands in; about half the latency)");
+  command.add_flag("--no-pose-guided", args.no_pose_guided,
+                   "classical: when the first pose is not localized, do not match the mapping images it sees and "
+                   "estimate again");
 }
 
 LocalizeOptions localizeOptions(const QueryArguments& args) {
@@ -65,6 +68,7 @@ LocalizeOptions localizeOptions(const QueryArguments& args) {
   settings.retrieval = args.retrieval;
   settings.solver = args.solver;
   settings.verify = !args.no_verify;
+  settings.pose_guided = !args.no_pose_guided;
   return ffloc::localizeOptions(settings);
 }
 

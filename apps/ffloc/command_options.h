@@ -11,7 +11,7 @@
 namespace ffloc::cli {
 
 // The query options every localizing command shares (--preset, --top-k, --features, --seed,
-// --selection, --retrieval, --solver, --no-verify), declared once and turned into the
+// --selection, --retrieval, --solver, --no-verify, --no-pose-guided), declared once and turned into the
 // library's LocalizeOptions, whose check() names the library field.
 struct QueryArguments {
   std::string preset = "indoor";
@@ -24,6 +24,7 @@ struct QueryArguments {
   std::string retrieval = "token-vlad";
   std::string solver = "lo-ransac";
   bool no_verify = false;
+  bool no_pose_guided = false;
 };
 void addQueryOptions(CLI::App& command, QueryArguments& args);
 LocalizeOptions localizeOptions(const QueryArguments& args);

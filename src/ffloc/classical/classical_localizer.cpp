@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <memory>
 
 #include "ffloc/core/error.h"
 
@@ -13,6 +15,10 @@ using Clock = std::chrono::steady_clock;
 double secondsSince(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 constexpr uint8_t kMinPointViews = 2;
+
+// SIFT rarely matches a surface seen from directions further apart than this (measured on the
+// synthetic tuning scenes: 45 degrees marked 219 queries `localized`, 60 degrees 221).
+constexpr double kMaxViewingAngleDeg = 60;
 
 }  // namespace
 
@@ -59,32 +65,68 @@ std::vector<Eigen::Vector3d> ClassicalLocalizer::mapPoints(size_t max_points) co
 
 void ClassicalLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                                  const LocalizeOptions& options, LocalizationResult& result,
-                                 std::optional<PnpResult>& /*second_estimate*/) const {
+                                 std::optional<PnpResult>& /*second_estimate*/, PoseGuidedMatching& pose_guided) const {
   auto start = Clock::now();
-  const SiftFeatures query = extractSiftFeatures(rgb, intrinsics, name, map_.sift);
+  auto query = std::make_shared<const SiftFeatures>(extractSiftFeatures(rgb, intrinsics, name, map_.sift));
   result.camera = intrinsics.undistorted();
   result.timings.features = secondsSince(start);
 
   start = Clock::now();
-  std::vector<size_t> ranked = rankBySimilarity(globals_, map_.vocabulary.describe(query.descriptors));
+  std::vector<size_t> ranked = rankBySimilarity(globals_, map_.vocabulary.describe(query->descriptors));
   if (ranked.size() > options.top_k) ranked.resize(options.top_k);
-  result.selected = ranked;
   result.timings.retrieval = secondsSince(start);
 
   start = Clock::now();
+  matchImages(*query, ranked, result);
+  result.timings.matching = secondsSince(start);
+
+  const size_t top_k = options.top_k;
+  pose_guided = [this, query, ranked, top_k](const Pose& first_pose, LocalizationResult& again) {
+    matchImages(*query, imagesSeenFrom(first_pose, again.camera, top_k, ranked), again);
+  };
+}
+
+void ClassicalLocalizer::matchImages(const SiftFeatures& query, const std::vector<size_t>& images,
+                                     LocalizationResult& result) const {
   std::vector<const cv::Mat*> selected;
-  for (size_t index : ranked) selected.push_back(&descriptors_[index]);
-  const std::vector<std::vector<std::pair<int, int>>> matches =
-      matchExactly(query.descriptors, selected, map_.ratio);
-  for (size_t r = 0; r < ranked.size(); ++r) {
-    const ClassicalMapImage& image = map_.images[ranked[r]];
+  for (size_t index : images) selected.push_back(&descriptors_[index]);
+  const std::vector<std::vector<std::pair<int, int>>> matches = matchExactly(query.descriptors, selected, map_.ratio);
+  for (size_t r = 0; r < images.size(); ++r) {
+    const ClassicalMapImage& image = map_.images[images[r]];
     for (const auto& [q, row] : matches[r]) {
-      const uint32_t k = searched_keypoints_[ranked[r]][row];
+      const uint32_t k = searched_keypoints_[images[r]][row];
       // More views behind a point, more trust: 1 + views passes the paper's tau = 1.5 always.
       result.correspondences.add(query.pixels[q], image.points[k], 1.0f + image.point_views[k]);
     }
+    result.selected.push_back(images[r]);
   }
-  result.timings.matching = secondsSince(start);
+}
+
+std::vector<size_t> ClassicalLocalizer::imagesSeenFrom(const Pose& pose, const Intrinsics& camera, size_t count,
+                                                       const std::vector<size_t>& exclude) const {
+  const Pose world_to_query = pose.inverse();
+  const double min_cos = std::cos(kMaxViewingAngleDeg * M_PI / 180.0);
+  std::vector<std::pair<size_t, size_t>> seen;  // (points seen, image)
+  for (size_t i = 0; i < map_.images.size(); ++i) {
+    if (std::find(exclude.begin(), exclude.end(), i) != exclude.end()) continue;
+    const ClassicalMapImage& image = map_.images[i];
+    size_t points = 0;
+    for (uint32_t k : searched_keypoints_[i]) {
+      const Eigen::Vector3d& point = image.points[k];
+      const Eigen::Vector3d in_query = world_to_query * point;
+      if (in_query.z() <= 0) continue;
+      const Eigen::Vector2d pixel = camera.project(in_query);
+      if (pixel.x() < 0 || pixel.y() < 0 || pixel.x() >= camera.width || pixel.y() >= camera.height) continue;
+      const Eigen::Vector3d to_query = (pose.centre() - point).normalized();
+      const Eigen::Vector3d to_image = (image.camera_to_world.centre() - point).normalized();
+      if (to_query.dot(to_image) >= min_cos) ++points;
+    }
+    if (points > 0) seen.emplace_back(points, i);
+  }
+  std::stable_sort(seen.begin(), seen.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<size_t> images;
+  for (size_t r = 0; r < seen.size() && r < count; ++r) images.push_back(seen[r].second);
+  return images;
 }
 
 }  // namespace ffloc

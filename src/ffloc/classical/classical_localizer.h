@@ -26,7 +26,7 @@ class ClassicalLocalizer : public Localizer {
  protected:
   void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                const LocalizeOptions& options, LocalizationResult& result,
-               std::optional<PnpResult>& second_estimate) const override;
+               std::optional<PnpResult>& second_estimate, PoseGuidedMatching& pose_guided) const override;
 
  private:
   ClassicalMap map_;
@@ -34,6 +34,15 @@ class ClassicalLocalizer : public Localizer {
   std::vector<Eigen::VectorXf> globals_;
   std::vector<cv::Mat> descriptors_;  // CV_32F, decoded once: the keypoints that have a point
   std::vector<std::vector<uint32_t>> searched_keypoints_;  // descriptors_ row -> keypoint
+
+  // Matches `query` against `images` (ratio test) and appends the pairs and the images to
+  // `result`.
+  void matchImages(const SiftFeatures& query, const std::vector<size_t>& images, LocalizationResult& result) const;
+  // The `count` mapping images outside `exclude` that see the most of their searched points
+  // inside the query's image at `pose`, each point from a direction within
+  // kMaxViewingAngleDeg of the query's; best first.
+  std::vector<size_t> imagesSeenFrom(const Pose& pose, const Intrinsics& camera, size_t count,
+                                     const std::vector<size_t>& exclude) const;
 };
 
 }  // namespace ffloc

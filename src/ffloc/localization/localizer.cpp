@@ -77,6 +77,7 @@ LocalizeOptions localizeOptions(const QuerySettings& settings) {
   options.retrieval = parseFastForwardRetrieval(settings.retrieval);
   options.pnp.solver = parsePnpSolver(settings.solver);
   options.verify_with_second_reference = settings.verify;
+  options.pose_guided_retrieval = settings.pose_guided;
   options.check();
   return options;
 }
@@ -122,11 +123,30 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
 
   LocalizationResult result;
   std::optional<PnpResult> second;
-  predict(rgb, sized, name, options, result, second);
+  PoseGuidedMatching pose_guided;
+  predict(rgb, sized, name, options, result, second, pose_guided);
   stopIfRequested(options, "before PnP");
+  estimateAndJudge(result, second, options);
+  if (pose_guided && options.pose_guided_retrieval && !result.localized() && result.pnp.ok()) {
+    stopIfRequested(options, "before the pose-guided matching");
+    LocalizationResult again = result;
+    const size_t before = again.correspondences.size();
+    const auto start = std::chrono::steady_clock::now();
+    pose_guided(result.pnp.camera_to_world, again);
+    again.timings.matching += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (again.correspondences.size() > before) {
+      estimateAndJudge(again, std::nullopt, options);
+      if (again.pnp.ok()) result = std::move(again);
+    }
+  }
+  return result;
+}
+
+void Localizer::estimateAndJudge(LocalizationResult& result, std::optional<PnpResult> second,
+                                 const LocalizeOptions& options) const {
   const bool independent = second.has_value();
   result.pnp = estimatePose(result.correspondences, result.camera, options.pnp);
-  result.timings.pnp = result.pnp.seconds;
+  result.timings.pnp += result.pnp.seconds;
   if (!second && result.pnp.ok()) {
     const auto start = std::chrono::steady_clock::now();
     second = halfSampleEstimate(result.correspondences, result.camera, options.pnp);
@@ -136,7 +156,6 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
       measureEvidence(result.correspondences, result.camera, result.pnp, options.pnp, second ? &*second : nullptr);
   evidence.independent_second_estimate = independent;
   result.verdict = judgePose(evidence, result.pnp, metric(), options.verdict);
-  return result;
 }
 
 }  // namespace ffloc

@@ -50,6 +50,10 @@ struct LocalizeOptions {
   // FastForward: predict a second time with the second-ranked image as the reference frame and
   // compare the poses (the verdict's agreement test). Doubles the network time.
   bool verify_with_second_reference = true;
+  // Classical: when the first pose is not `localized`, also match the top_k mapping images that
+  // pose sees (beyond those retrieval chose) and estimate again. Far and opposite views, which
+  // retrieval ranks poorly, gain most (docs/classical.md); a localized query pays nothing.
+  bool pose_guided_retrieval = true;
   // Asked between the stages of a query (after the query's features, after a network pass,
   // before PnP); when it answers true, localize() stops there with QueryStopped. The server asks
   // whether the query's client is still connected. Empty: a query always runs to its end.
@@ -74,6 +78,7 @@ struct QuerySettings {
   std::string retrieval = "token-vlad";
   std::string solver = "lo-ransac";
   bool verify = true;  // LocalizeOptions::verify_with_second_reference
+  bool pose_guided = true;  // LocalizeOptions::pose_guided_retrieval
 };
 // The checked options. InputError naming the field (preset, top_k, selection, retrieval, ...).
 LocalizeOptions localizeOptions(const QuerySettings& settings);
@@ -110,6 +115,10 @@ struct LocalizationResult {
   bool localized() const { return verdict.status == PoseStatus::kLocalized; }
 };
 
+// A method's second look, given the first pose: appends the correspondences of the mapping images
+// that pose sees (and adds them to `selected`). Empty for a method without one.
+using PoseGuidedMatching = std::function<void(const Pose& first_pose, LocalizationResult& result)>;
+
 // The queries' side of a map, whatever the method. `localize` checks the options and the
 // query's intrinsics against the image (InputError naming the field), runs the method, then
 // PnP-RANSAC and the verdict.
@@ -130,10 +139,18 @@ class Localizer {
  protected:
   // Fills the correspondences, camera, selection and timings. `second_estimate` receives the
   // method's own second estimate for the verdict's agreement test; left empty, a half-sample
-  // estimate (halfSampleEstimate) stands in.
+  // estimate (halfSampleEstimate) stands in. `pose_guided` may receive the method's second look,
+  // which localize() calls when the first pose is not `localized` (LocalizeOptions::
+  // pose_guided_retrieval); it must stay valid until localize() returns.
   virtual void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                        const LocalizeOptions& options, LocalizationResult& result,
-                       std::optional<PnpResult>& second_estimate) const = 0;
+                       std::optional<PnpResult>& second_estimate, PoseGuidedMatching& pose_guided) const = 0;
+
+ private:
+  // PnP on the result's correspondences, then the evidence (with `second`, else a half-sample
+  // estimate) and the verdict. Adds to the result's PnP and verification times.
+  void estimateAndJudge(LocalizationResult& result, std::optional<PnpResult> second,
+                        const LocalizeOptions& options) const;
 };
 
 // The checks a query's intrinsics must pass for a `width` x `height` image: the size they give
