@@ -109,6 +109,10 @@ def test_query_options_are_the_cli_flags(cli_map, query):
     cli = localize_with_cli(cli_map, query, "--top-k", 3, "--seed", 7)
     result = ffloc.Localizer(str(cli_map), top_k=3, seed=7, threads=1).localize(query.image_path, intrinsics)
     assert without_timings(result.to_dict()) == without_timings(cli)
+    cli = localize_with_cli(cli_map, query, "--top-k", 1, "--no-pose-guided")
+    result = ffloc.Localizer(str(cli_map), top_k=1, pose_guided=False, threads=1).localize(query.image_path, intrinsics)
+    assert without_timings(result.to_dict()) == without_timings(cli)
+    assert len(cli["selected"]) == 1
     with pytest.raises(ffloc.Error, match="top_k"):
         ffloc.Localizer(str(cli_map), top_k=0)
     with pytest.raises(ffloc.Error, match="no_such_option"):

@@ -155,6 +155,7 @@ void Localizer::estimateAndJudge(LocalizationResult& result, std::optional<PnpRe
   PoseEvidence evidence =
       measureEvidence(result.correspondences, result.camera, result.pnp, options.pnp, second ? &*second : nullptr);
   evidence.independent_second_estimate = independent;
+  scalePredictedUncertainty(evidence, uncertaintyScale());
   result.verdict = judgePose(evidence, result.pnp, metric(), options.verdict);
 }
 

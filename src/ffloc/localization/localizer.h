@@ -129,6 +129,9 @@ class Localizer {
   virtual std::string modelId() const { return ""; }  // empty for methods without a network
   virtual bool metric() const = 0;
   virtual const std::vector<MapCamera>& cameras() const = 0;
+  // How much larger this method's errors run than its inliers predict: the evidence's predicted
+  // uncertainties are the inliers' covariance times this (scalePredictedUncertainty).
+  virtual double uncertaintyScale() const { return 1.0; }
   // At most `max_points` of the map's world points, taken evenly over the map (what the server's
   // viewer draws); none for a method whose map holds no points.
   virtual std::vector<Eigen::Vector3d> mapPoints(size_t /*max_points*/) const { return {}; }

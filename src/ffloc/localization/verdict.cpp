@@ -108,6 +108,12 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   return evidence;
 }
 
+void scalePredictedUncertainty(PoseEvidence& evidence, double scale) {
+  for (double* sigma : {&evidence.predicted_centre_sigma, &evidence.predicted_centre_sigma_relative,
+                        &evidence.predicted_rotation_sigma_deg})
+    if (*sigma >= 0) *sigma *= scale;
+}
+
 PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool metric, const VerdictOptions& options) {
   PoseVerdict verdict;
   verdict.evidence = evidence;

@@ -84,6 +84,24 @@ TEST(Verdict, PredictedUncertaintyTestsRejectWhenSet) {
   EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.2; }, false).status, PoseStatus::kLocalized);
 }
 
+// A method whose errors run larger than its inliers predict (FastForward) has its prediction
+// scaled before the rule reads it: a centre predicted at 4 cm passes at scale 1 and not at 3.5.
+TEST(Verdict, ScaledUncertaintyIsJudgedAsScaled) {
+  PoseEvidence e = strong();
+  e.predicted_centre_sigma = 0.04;
+  EXPECT_EQ(judgePose(e, success(), true, VerdictOptions{}).status, PoseStatus::kLocalized);
+  scalePredictedUncertainty(e, 3.5);
+  EXPECT_DOUBLE_EQ(e.predicted_centre_sigma, 0.14);
+  EXPECT_DOUBLE_EQ(e.predicted_centre_sigma_relative, 0.004 * 3.5);
+  EXPECT_DOUBLE_EQ(e.predicted_rotation_sigma_deg, 0.3 * 3.5);
+  EXPECT_EQ(judgePose(e, success(), true, VerdictOptions{}).reason, "the inliers leave the pose too uncertain");
+  // Without a pose there is nothing to scale: "none" stays negative.
+  PoseEvidence none;
+  scalePredictedUncertainty(none, 3.5);
+  EXPECT_EQ(none.predicted_centre_sigma, -1);
+  EXPECT_EQ(none.predicted_rotation_sigma_deg, -1);
+}
+
 // A half-sample estimate that fails says the pairs are few, not that they disagree; the method's
 // own second estimate (FastForward's second reference frame) failing does count.
 TEST(Verdict, AFailedSecondEstimateCountsOnlyWhenIndependent) {
