@@ -134,9 +134,12 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
     const auto start = std::chrono::steady_clock::now();
     pose_guided(result.pnp.camera_to_world, again);
     again.timings.matching += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (again.correspondences.size() > before) {
-      estimateAndJudge(again, std::nullopt, options);
-      if (again.pnp.ok()) result = std::move(again);
+    const bool added = again.correspondences.size() > before;
+    if (added) estimateAndJudge(again, std::nullopt, options);
+    if (added && again.pnp.ok()) {
+      result = std::move(again);
+    } else {
+      result.timings = again.timings;  // the first answer stands; the look still took its time
     }
   }
   return result;
