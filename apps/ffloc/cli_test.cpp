@@ -188,6 +188,22 @@ TEST_F(Cli, LocalizeJsonRefusesANameThatIsNotUtf8BeforeLoadingTheMap) {
   EXPECT_TRUE(contains(run.output, "--json: the query name is not UTF-8")) << run.output;
 }
 
+// The library names its own option as the remedy; the CLI names the command and flag that set it.
+TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
+  const fs::path scenes = dir_ / "synth";
+  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--seed", "3", "--mapping-frames", "8", "--query-frames", "1",
+                    "--quiet"}).exit_code, 0);
+  const fs::path scene = scenes / "scene_000_indoor";
+  const fs::path map = dir_ / "m.ffmap";
+  const CliRun mapped = runCli({"map", "--dataset", scene.string(), "--method", "fastforward", "-o", map.string(), "--quiet"});
+  ASSERT_EQ(mapped.exit_code, 0) << mapped.output;
+  const CliRun run = runCli({"localize", "--map", map.string(), "--image", (scene / "images" / "query_0000_near.png").string(),
+                             "--intrinsics", "200,200,128,96", "--retrieval", "vlad"});
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_TRUE(contains(run.output, "--retrieval: the map has no VLAD descriptors (build it with 'ffloc map --vlad')"))
+      << run.output;
+}
+
 TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {
   for (const std::string stem : {"caf\xE9", "plain"}) {
     const fs::path root = dir_ / "data" / "train";

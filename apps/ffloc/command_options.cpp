@@ -30,10 +30,15 @@ std::string withFlagName(const std::string& message) {
       {"depth_noise", "--depth-noise"},
       {"format", "--format"},
       {"protocol", "--protocol"}};
-  const size_t colon = message.find(':');
-  if (colon == std::string::npos) return message;
-  const auto flag = flags.find(message.substr(0, colon));
-  return flag == flags.end() ? message : flag->second + message.substr(colon);
+  // Library options a message points to as the remedy, and the command that sets them.
+  static const std::map<std::string, std::string> remedies = {{"MappingOptions::vlad", "'ffloc map --vlad'"}};
+  std::string translated = message;
+  for (const auto& [option, command] : remedies)
+    if (const size_t at = translated.find(option); at != std::string::npos) translated.replace(at, option.size(), command);
+  const size_t colon = translated.find(':');
+  if (colon == std::string::npos) return translated;
+  const auto flag = flags.find(translated.substr(0, colon));
+  return flag == flags.end() ? translated : flag->second + translated.substr(colon);
 }
 
 void addQueryOptions(CLI::App& command, QueryArguments& args) {

@@ -24,7 +24,7 @@ constexpr double kMaxViewingAngleDeg = 60;
 }  // namespace
 
 ClassicalLocalizer::ClassicalLocalizer(ClassicalMap map) : map_(std::move(map)) {
-  if (map_.images.empty()) throw InputError("map: holds no images (build one with 'ffloc map --method classical')");
+  if (map_.images.empty()) throw InputError("map: holds no images");
   for (const ClassicalMapImage& image : map_.images) {
     cameras_.push_back({image.name, image.camera_to_world, image.camera});
     globals_.push_back(image.global_descriptor);

@@ -181,7 +181,7 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   const std::string spec = requested == "default" ? defaultModelPath() : requested;
   std::error_code ignored;  // a default path that cannot be read is as missing as an absent one
   if (requested == "default" && !std::filesystem::is_regular_file(spec, ignored)) {
-    throwInputError(spec, 0, "the default model is missing (set FFLOC_MODEL, or pass --model; docs/training.md trains one)");
+    throwInputError(spec, 0, "the default model is missing (set FFLOC_MODEL or name a model file; docs/training.md trains one)");
   }
   if (options.dtype != at::kFloat && options.dtype != at::kBFloat16)
     throwInputError("model", 0, "network dtype must be float32 or bfloat16");

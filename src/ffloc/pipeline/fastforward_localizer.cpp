@@ -93,7 +93,7 @@ EncodedQuery FastForwardLocalizer::encode(const cv::Mat& rgb, const Intrinsics& 
   start = Clock::now();
   const std::vector<float> descriptor = encodingDescriptor(query.encoding, options.descriptor);
   if (options.retrieval == FastForwardRetrieval::kVlad) {
-    if (vlad_.empty()) throw InputError("retrieval: the map has no VLAD descriptors (build it with 'ffloc map --vlad')");
+    if (vlad_.empty()) throw InputError("retrieval: the map has no VLAD descriptors (build it with MappingOptions::vlad)");
     const std::vector<size_t> ranking =
         rankBySimilarity(vlad_descriptors_, vlad_.describe(extractSiftFeatures(rgb, intrinsics, name).descriptors));
     query.ranked = selectImages(descriptor, options, &ranking);
