@@ -339,8 +339,20 @@ PYBIND11_MODULE(_ffloc, m) {
   using namespace ffloc;
   using namespace ffloc::python;
   m.doc() = "ffloc: visual relocalization (docs/python.md)";
-  // The library's InputError: a ValueError whose message names the file or field at fault.
-  py::register_exception<InputError>(m, "Error", PyExc_ValueError);
+  // The library's InputError: a ValueError whose message names the file or field at fault, and
+  // the library option it points to as the remedy by its name here.
+  static py::exception<InputError> error(m, "Error", PyExc_ValueError);
+  py::register_exception_translator([](std::exception_ptr raised) {
+    try {
+      if (raised) std::rethrow_exception(raised);
+    } catch (const InputError& e) {
+      std::string message = e.what();
+      const std::string option = "MappingOptions::vlad";
+      if (const size_t at = message.find(option); at != std::string::npos)
+        message.replace(at, option.size(), "build_map(vlad=True)");
+      error(message.c_str());
+    }
+  });
 
   py::class_<Frame>(m, "Frame", "One posed image of a dataset")
       .def_readonly("name", &Frame::name)

@@ -109,10 +109,17 @@ def test_query_options_are_the_cli_flags(cli_map, query):
     cli = localize_with_cli(cli_map, query, "--top-k", 3, "--seed", 7)
     result = ffloc.Localizer(str(cli_map), top_k=3, seed=7, threads=1).localize(query.image_path, intrinsics)
     assert without_timings(result.to_dict()) == without_timings(cli)
-    cli = localize_with_cli(cli_map, query, "--top-k", 1, "--no-pose-guided")
-    result = ffloc.Localizer(str(cli_map), top_k=1, pose_guided=False, threads=1).localize(query.image_path, intrinsics)
-    assert without_timings(result.to_dict()) == without_timings(cli)
-    assert len(cli["selected"]) == 1
+    # The opposite view, which one retrieved image leaves uncertain: the second look adds an image.
+    scene = ffloc.load_dataset(str(pathlib.Path(query.image_path).parents[1]))
+    opposite = scene.frames[scene.query_indices()[2]]
+    k = opposite.intrinsics
+    opposite_intrinsics = (k[0, 0], k[1, 1], k[0, 2], k[1, 2])
+    for pose_guided, flags, images in ((True, (), 2), (False, ("--no-pose-guided",), 1)):
+        cli = localize_with_cli(cli_map, opposite, "--top-k", 1, *flags)
+        result = ffloc.Localizer(str(cli_map), top_k=1, pose_guided=pose_guided, threads=1).localize(
+            opposite.image_path, opposite_intrinsics)
+        assert without_timings(result.to_dict()) == without_timings(cli)
+        assert len(cli["selected"]) == images
     with pytest.raises(ffloc.Error, match="top_k"):
         ffloc.Localizer(str(cli_map), top_k=0)
     with pytest.raises(ffloc.Error, match="no_such_option"):

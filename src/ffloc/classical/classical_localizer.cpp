@@ -107,9 +107,11 @@ std::vector<size_t> ClassicalLocalizer::imagesSeenFrom(const Pose& pose, const I
                                                        const std::vector<size_t>& exclude) const {
   const Pose world_to_query = pose.inverse();
   const double min_cos = std::cos(kMaxViewingAngleDeg * M_PI / 180.0);
+  std::vector<bool> excluded(map_.images.size(), false);
+  for (size_t i : exclude) excluded[i] = true;
   std::vector<std::pair<size_t, size_t>> seen;  // (points seen, image)
   for (size_t i = 0; i < map_.images.size(); ++i) {
-    if (std::find(exclude.begin(), exclude.end(), i) != exclude.end()) continue;
+    if (excluded[i]) continue;
     const ClassicalMapImage& image = map_.images[i];
     size_t points = 0;
     for (uint32_t k : searched_keypoints_[i]) {

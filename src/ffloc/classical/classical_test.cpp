@@ -288,6 +288,11 @@ TEST_F(ClassicalTest, PoseGuidedRetrievalLocalizesWhatRetrievalAloneLeavesUncert
       EXPECT_EQ(second.pnp.inliers, first.pnp.inliers);
       continue;
     }
+    if (second.selected.size() == 1u) {
+      // The look found no pose of its own: the first answer stands.
+      EXPECT_EQ(second.pnp.inliers, first.pnp.inliers);
+      continue;
+    }
     // Retrieval's image first, then one the first pose sees, never the same twice.
     ASSERT_EQ(second.selected.size(), 2u);
     EXPECT_EQ(second.selected[0], first.selected[0]);

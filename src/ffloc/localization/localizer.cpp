@@ -135,7 +135,10 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
     pose_guided(result.pnp.camera_to_world, again);
     again.timings.matching += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     const bool added = again.correspondences.size() > before;
-    if (added) estimateAndJudge(again, std::nullopt, options);
+    if (added) {
+      stopIfRequested(options, "before the second PnP");
+      estimateAndJudge(again, std::nullopt, options);
+    }
     if (added && again.pnp.ok()) {
       result = std::move(again);
     } else {

@@ -55,7 +55,8 @@ struct LocalizeOptions {
   // retrieval ranks poorly, gain most (docs/classical.md); a localized query pays nothing.
   bool pose_guided_retrieval = true;
   // Asked between the stages of a query (after the query's features, after a network pass,
-  // before PnP); when it answers true, localize() stops there with QueryStopped. The server asks
+  // before PnP, before and after a second look); when it answers true, localize() stops there
+  // with QueryStopped. The server asks
   // whether the query's client is still connected. Empty: a query always runs to its end.
   std::function<bool()> stop_requested;
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
@@ -109,6 +110,9 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
 }
 
 void scalePredictedUncertainty(PoseEvidence& evidence, double scale) {
+  // A zero, negative or NaN scale would turn a measured uncertainty into "certain" or "no pose".
+  if (!(scale > 0 && std::isfinite(scale)))
+    throw std::invalid_argument("scalePredictedUncertainty: scale must be positive and finite");
   for (double* sigma : {&evidence.predicted_centre_sigma, &evidence.predicted_centre_sigma_relative,
                         &evidence.predicted_rotation_sigma_deg})
     if (*sigma >= 0) *sigma *= scale;

@@ -82,7 +82,8 @@ struct PoseVerdict {
 PoseEvidence measureEvidence(const Correspondences& correspondences, const Intrinsics& camera, const PnpResult& pose,
                              const PnpOptions& pnp, const PnpResult* second_estimate);
 PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool metric, const VerdictOptions& options);
-// Multiplies the predicted uncertainties (those measured: not the negative "no pose") by `scale`.
+// Multiplies the predicted uncertainties (those measured: not the negative "no pose") by `scale`;
+// std::invalid_argument unless it is positive and finite.
 void scalePredictedUncertainty(PoseEvidence& evidence, double scale);
 
 // A second estimate made from a disjoint random half of the pairs with another RANSAC seed.

@@ -100,6 +100,9 @@ TEST(Verdict, ScaledUncertaintyIsJudgedAsScaled) {
   scalePredictedUncertainty(none, 3.5);
   EXPECT_EQ(none.predicted_centre_sigma, -1);
   EXPECT_EQ(none.predicted_rotation_sigma_deg, -1);
+  // A scale that would make a measured uncertainty vanish or flip is refused.
+  for (double bad : {0.0, -1.0, std::nan(""), std::numeric_limits<double>::infinity()})
+    EXPECT_THROW(scalePredictedUncertainty(e, bad), std::invalid_argument) << bad;
 }
 
 // A half-sample estimate that fails says the pairs are few, not that they disagree; the method's

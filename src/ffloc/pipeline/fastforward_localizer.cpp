@@ -36,7 +36,7 @@ struct EncodedQuery {
 };
 
 FastForwardLocalizer::FastForwardLocalizer(const FastForwardModel& model, MapFile map) : model_(model), map_(std::move(map)) {
-  if (map_.images.empty()) throw InputError("map: holds no images (build one with 'ffloc map')");
+  if (map_.images.empty()) throw InputError("map: holds no images");
   const int64_t dim = model_.config().dust3r.enc_dim;
   if (map_.token_dim != dim)
     throw InputError("map: token width " + std::to_string(map_.token_dim) + " differs from the model's " +

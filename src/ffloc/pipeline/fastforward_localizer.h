@@ -50,8 +50,9 @@ class FastForwardLocalizer : public Localizer {
   bool metric() const override { return map_.metric; }
   // A network's predicted coordinates err together, not independently as the covariance assumes:
   // the smallest scale (of 1, 2, 2.5, 3, 3.5) at which the verdict kept 99 % precision on the
-  // tuning sets pooled and 97 % on each (docs/verdict.md). The shipped model's actual centre
-  // errors run 2.1x the unscaled prediction at the median, 4.5x at the 90th percentile.
+  // tuning sets pooled and 97 % on each (docs/verdict.md). Measured with the shipped default
+  // model, whose actual centre errors run 2.1x the unscaled prediction at the median and 4.5x at
+  // the 90th percentile; other models (the ViT, a retrained one) get the same scale unmeasured.
   double uncertaintyScale() const override { return 3.5; }
   const std::vector<MapCamera>& cameras() const override { return cameras_; }
   const MapFile& map() const { return map_; }

@@ -139,7 +139,7 @@ void addVladRetrieval(MapFile& map, const Scene& scene, bool quiet) {
     if (map.images[i].vlad_descriptor.empty()) missing.push_back(i);
   if (appending && missing.size() == map.images.size()) return;
   if (!appending && missing.size() != map.images.size())
-    throw InputError("map: was built without VLAD descriptors (MappingOptions::vlad); rebuild it with them to add VLAD retrieval");
+    throw InputError("map: was built without VLAD descriptors; rebuild it with MappingOptions::vlad to add VLAD retrieval");
 
   std::map<std::string, const Frame*> frames;
   for (const Frame& frame : scene.frames) frames[frame.name] = &frame;

@@ -1,0 +1,146 @@
+#include "ffloc/localization/localizer.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <random>
+#include <thread>
+
+#include "ffloc/geometry/pose.h"
+
+namespace ffloc {
+namespace {
+
+Intrinsics camera() {
+  Intrinsics k;
+  k.fx = k.fy = 500;
+  k.cx = 320;
+  k.cy = 240;
+  k.width = 640;
+  k.height = 480;
+  return k;
+}
+
+Pose truePose() {
+  Pose pose;
+  pose.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix();
+  pose.t = Eigen::Vector3d(0.5, -0.2, 1.0);
+  return pose;
+}
+
+// `count` pairs seen by the camera at truePose(), spread over the image, 0.5 px of noise.
+Correspondences exactPairs(size_t count, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 640), v(0, 480), depth(2, 6);
+  std::normal_distribution<double> noise(0, 0.5);
+  const Intrinsics k = camera();
+  const Pose pose = truePose();
+  Correspondences pairs;
+  for (size_t i = 0; i < count; ++i) {
+    const Eigen::Vector2d pixel(u(rng), v(rng));
+    const Eigen::Vector3d world = pose * k.backproject(pixel, depth(rng));
+    pairs.add(pixel + Eigen::Vector2d(noise(rng), noise(rng)), world, 2.0f);
+  }
+  return pairs;
+}
+
+// Pairs of nothing: random pixels and random points.
+Correspondences randomPairs(size_t count, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(0, 640), v(0, 480), x(-5, 5);
+  Correspondences pairs;
+  for (size_t i = 0; i < count; ++i) pairs.add({u(rng), v(rng)}, {x(rng), x(rng), x(rng)}, 2.0f);
+  return pairs;
+}
+
+// A method whose first pairs and second look are given: image 0 first, image 1 on the second look.
+class ScriptedLocalizer : public Localizer {
+ public:
+  ScriptedLocalizer(Correspondences first, Correspondences second_look)
+      : first_(std::move(first)), second_look_(std::move(second_look)) {}
+  LocalizationMethod method() const override { return LocalizationMethod::kClassical; }
+  bool metric() const override { return true; }
+  const std::vector<MapCamera>& cameras() const override { return cameras_; }
+  int looks() const { return looks_; }
+
+ protected:
+  void predict(const cv::Mat&, const Intrinsics& intrinsics, const std::string&, const LocalizeOptions&,
+               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedMatching& pose_guided) const override {
+    result.camera = intrinsics;
+    result.correspondences = first_;
+    result.selected = {0};
+    pose_guided = [this](const Pose&, LocalizationResult& again) {
+      ++looks_;
+      for (size_t i = 0; i < second_look_.size(); ++i)
+        again.correspondences.add(second_look_.pixels[i], second_look_.points[i], second_look_.confidences[i]);
+      again.selected.push_back(1);
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));  // a look that takes its time
+    };
+  }
+
+ private:
+  std::vector<MapCamera> cameras_;
+  Correspondences first_, second_look_;
+  mutable std::atomic<int> looks_{0};
+};
+
+LocalizationResult localizeWith(const ScriptedLocalizer& localizer, const LocalizeOptions& options = {}) {
+  return localizer.localize(cv::Mat(480, 640, CV_8UC3, cv::Scalar::all(0)), camera(), "q", options);
+}
+
+// 14 right pairs give a pose, but too few for its half-sample twin: `uncertain`, so a second look.
+TEST(PoseGuidedMatching, ASecondLookWithPairsGivesTheNewAnswer) {
+  const ScriptedLocalizer localizer(exactPairs(14, 1), exactPairs(300, 2));
+  const LocalizationResult result = localizeWith(localizer);
+  EXPECT_EQ(localizer.looks(), 1);
+  EXPECT_TRUE(result.localized()) << result.verdict.reason;
+  EXPECT_EQ(result.selected, (std::vector<size_t>{0, 1}));
+  EXPECT_EQ(result.correspondences.size(), 314u);
+  EXPECT_LT(translationError(result.pnp.camera_to_world, truePose()), 0.05);
+}
+
+TEST(PoseGuidedMatching, ALookThatAddsNothingOrNoPoseKeepsTheFirstAnswerAndItsTime) {
+  const ScriptedLocalizer alone(exactPairs(14, 1), Correspondences{});
+  LocalizeOptions no_look;
+  no_look.pose_guided_retrieval = false;
+  const LocalizationResult first = localizeWith(alone, no_look);
+  EXPECT_EQ(alone.looks(), 0);
+  ASSERT_TRUE(first.pnp.ok());
+  ASSERT_EQ(first.verdict.status, PoseStatus::kUncertain);
+
+  for (const Correspondences& look : {Correspondences{}, randomPairs(3000, 3)}) {
+    const ScriptedLocalizer localizer(exactPairs(14, 1), look);
+    const LocalizationResult result = localizeWith(localizer);
+    EXPECT_EQ(localizer.looks(), 1);
+    EXPECT_EQ(result.verdict.status, PoseStatus::kUncertain);
+    EXPECT_EQ(result.selected, first.selected);
+    EXPECT_EQ(result.correspondences.size(), first.correspondences.size());
+    EXPECT_EQ(result.pnp.inliers, first.pnp.inliers);
+    EXPECT_TRUE(result.pnp.camera_to_world.matrix().isApprox(first.pnp.camera_to_world.matrix()));
+    EXPECT_GE(result.timings.matching, 0.02);  // the look's time is still counted
+  }
+}
+
+TEST(PoseGuidedMatching, ALocalizedPoseTakesNoSecondLook) {
+  const ScriptedLocalizer localizer(exactPairs(300, 4), exactPairs(300, 5));
+  const LocalizationResult result = localizeWith(localizer);
+  EXPECT_TRUE(result.localized()) << result.verdict.reason;
+  EXPECT_EQ(localizer.looks(), 0);
+  EXPECT_EQ(result.selected, (std::vector<size_t>{0}));
+}
+
+TEST(PoseGuidedMatching, AStopRequestedDuringTheLookStopsBeforeTheSecondPnp) {
+  const ScriptedLocalizer localizer(exactPairs(14, 1), exactPairs(300, 2));
+  LocalizeOptions options;
+  options.stop_requested = [&localizer] { return localizer.looks() > 0; };
+  try {
+    localizeWith(localizer, options);
+    FAIL() << "the query ran to its end";
+  } catch (const QueryStopped& stopped) {
+    EXPECT_STREQ(stopped.what(), "stopped before the second PnP");
+  }
+}
+
+}  // namespace
+}  // namespace ffloc
