@@ -12,15 +12,7 @@
 namespace ffloc {
 namespace {
 
-Intrinsics camera() {
-  Intrinsics k;
-  k.fx = k.fy = 500;
-  k.cx = 320;
-  k.cy = 240;
-  k.width = 640;
-  k.height = 480;
-  return k;
-}
+Intrinsics camera() { return Intrinsics{500, 500, 320, 240, 640, 480, {}}; }  // fx, fy, cx, cy, width, height
 
 Pose truePose() {
   Pose pose;
