@@ -24,6 +24,7 @@ TEST(QuerySettings, ThePresetHoldsUnlessAnOverrideIsGiven) {
   EXPECT_EQ(outdoor.top_k, 20u);
   EXPECT_EQ(outdoor.num_features, 3000);
   EXPECT_TRUE(outdoor.verify_with_second_reference);
+  EXPECT_TRUE(outdoor.pose_guided_retrieval);
 
   settings.top_k = 3;
   settings.features = 200;
@@ -32,6 +33,7 @@ TEST(QuerySettings, ThePresetHoldsUnlessAnOverrideIsGiven) {
   settings.retrieval = "vlad";
   settings.solver = "opencv-usac";
   settings.verify = false;
+  settings.pose_guided = false;
   const LocalizeOptions options = localizeOptions(settings);
   EXPECT_EQ(options.top_k, 3u);
   EXPECT_EQ(options.num_features, 200);
@@ -41,6 +43,7 @@ TEST(QuerySettings, ThePresetHoldsUnlessAnOverrideIsGiven) {
   EXPECT_EQ(options.retrieval, FastForwardRetrieval::kVlad);
   EXPECT_EQ(options.pnp.solver, PnpSolver::kOpenCvUsac);
   EXPECT_FALSE(options.verify_with_second_reference);
+  EXPECT_FALSE(options.pose_guided_retrieval);
 }
 
 TEST(QuerySettings, ErrorsNameTheField) {
