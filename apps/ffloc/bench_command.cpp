@@ -18,6 +18,7 @@
 #include "bench_report.h"
 #include "bench_sgemm.h"
 #include "commands.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
@@ -97,7 +98,7 @@ void runBenchModel(const BenchModelArguments& args) {
   if (!args.json) printHeader(args, report, blas);
   const auto start = std::chrono::steady_clock::now();
   const double sgemm = measureSgemmGflops(5);
-  report.sgemm(sgemm, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  report.sgemm(sgemm, secondsSince(start));
   if (!args.json) std::printf("\n");
   report.header();
   for (const auto& dtype : args.dtypes) {

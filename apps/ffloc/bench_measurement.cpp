@@ -9,6 +9,7 @@
 #include <optional>
 
 #include "ffloc/core/allocator.h"
+#include "ffloc/core/clock.h"
 
 namespace ffloc::cli {
 namespace {
@@ -47,7 +48,7 @@ Timing timeCalls(int warmup, int repeats, const std::function<void()>& call) {
   for (int i = 0; i < repeats; ++i) {
     const auto start = std::chrono::steady_clock::now();
     call();
-    timing.seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    timing.seconds.push_back(secondsSince(start));
   }
   return timing;
 }

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "ffloc/core/clock.h"
 #include "ffloc/model/fastforward_model.h"
 #include "ffloc/model/map_assembly.h"
 #include "ffloc/model/model_loader.h"
@@ -27,7 +28,7 @@ void profileCall(const BenchReport& report, const std::string& dtype, const std:
   startOpProfile();
   const auto start = std::chrono::steady_clock::now();
   call();
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds = secondsSince(start);
   report.profile(dtype, what, seconds, stopOpProfile());
 }
 

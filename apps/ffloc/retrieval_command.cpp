@@ -14,6 +14,7 @@
 #include "commands.h"
 #include "ffloc/classical/sift_features.h"
 #include "ffloc/classical/vlad.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/core/text_file_writer.h"
@@ -152,7 +153,7 @@ void runRetrieval(const RetrievalArguments& args) {
       query_descriptors.push_back(queryDescriptor(*model.model, rgb, frame.intrinsics, frame.name,
                                                   mapping_options.long_side, mapping_options.descriptor));
     }
-    encoding_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    encoding_seconds += secondsSince(start);
     query_poses.push_back(frame.camera_to_world);
     progress.update(i + 1);
   }

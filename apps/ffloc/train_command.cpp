@@ -17,6 +17,7 @@
 
 #include "command_options.h"
 #include "commands.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/splits.h"
@@ -173,7 +174,7 @@ void runTrain(const TrainArguments& args) {
   const Clock::time_point started = Clock::now();
   // Each rank asks on its own clock; the stop takes effect on all of them at the same step.
   const auto trainStep = [&] {
-    if (args.max_seconds > 0 && std::chrono::duration<double>(Clock::now() - started).count() > args.max_seconds) {
+    if (args.max_seconds > 0 && secondsSince(started) > args.max_seconds) {
       trainer.requestStop();
     }
     return trainer.step();
@@ -228,7 +229,7 @@ void runTrain(const TrainArguments& args) {
     const bool log_now = stats.step % config.log_every == 0 || stats.step == config.steps || stats.stop_requested;
     const bool validate_now = config.validation_every > 0 && stats.step % config.validation_every == 0;
     if (!log_now && !validate_now) continue;
-    const double seconds = std::chrono::duration<double>(Clock::now() - window_start).count();
+    const double seconds = secondsSince(window_start);
     const double rate = seconds > 0 ? static_cast<double>(window_steps) / seconds : 0.0;
     const double sample_rate = rate * static_cast<double>(trainer.globalBatch());
     const double steps_in_window = static_cast<double>(window_steps);

@@ -5,14 +5,13 @@
 #include <cmath>
 #include <memory>
 
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 
 namespace ffloc {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) { return std::chrono::duration<double>(Clock::now() - start).count(); }
 
 constexpr uint8_t kMinPointViews = 2;
 

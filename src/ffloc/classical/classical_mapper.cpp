@@ -6,6 +6,7 @@
 #include <map>
 #include <set>
 
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/data/depth.h"
@@ -220,7 +221,7 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
     progress.update(i - first_new + 1);
   }
   progress.finish();
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  report.seconds = secondsSince(start);
   return report;
 }
 

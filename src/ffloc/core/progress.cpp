@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <unistd.h>
 
+#include "ffloc/core/clock.h"
+
 namespace ffloc {
 
 ProgressBar::ProgressBar(std::string label, std::size_t total, bool quiet)
@@ -10,7 +12,7 @@ ProgressBar::ProgressBar(std::string label, std::size_t total, bool quiet)
       start_(std::chrono::steady_clock::now()), last_draw_(start_) {}
 
 double ProgressBar::elapsedSeconds() const {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  return secondsSince(start_);
 }
 
 void ProgressBar::update(std::size_t done) {

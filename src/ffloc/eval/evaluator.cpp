@@ -3,6 +3,7 @@
 #include <chrono>
 #include <limits>
 
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/data/dataset.h"
@@ -10,10 +11,6 @@
 
 namespace ffloc {
 namespace {
-
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 std::vector<size_t> selectQueries(const Scene& scene, size_t max_queries) {
   const std::vector<size_t> all = scene.queryIndices();

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 
 namespace ffloc {
@@ -133,7 +134,7 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
     const size_t before = again.correspondences.size();
     const auto start = std::chrono::steady_clock::now();
     pose_guided(result.pnp.camera_to_world, again);
-    again.timings.matching += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    again.timings.matching += secondsSince(start);
     const bool added = again.correspondences.size() > before;
     if (added) {
       stopIfRequested(options, "before the second PnP");
@@ -156,7 +157,7 @@ void Localizer::estimateAndJudge(LocalizationResult& result, std::optional<PnpRe
   if (!second && result.pnp.ok()) {
     const auto start = std::chrono::steady_clock::now();
     second = halfSampleEstimate(result.correspondences, result.camera, options.pnp);
-    result.timings.verification += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    result.timings.verification += secondsSince(start);
   }
   PoseEvidence evidence =
       measureEvidence(result.correspondences, result.camera, result.pnp, options.pnp, second ? &*second : nullptr);

@@ -12,6 +12,7 @@
 #include <future>
 
 #include "ffloc/classical/sift_features.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/map_assembly.h"
 #include "ffloc/model/torch_threads.h"
@@ -22,10 +23,6 @@ namespace ffloc {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 }  // namespace
 

@@ -11,6 +11,7 @@
 
 #include "ffloc/classical/sift_features.h"
 #include "ffloc/classical/vlad.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/ordered_parallel.h"
 #include "ffloc/core/progress.h"
@@ -126,7 +127,7 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
   one_thread_per_frame.reset();
   progress.finish();
   if (options.vlad || !map.vlad_centres.empty()) addVladRetrieval(map, scene, options.quiet);
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  report.seconds = secondsSince(start);
   return report;
 }
 

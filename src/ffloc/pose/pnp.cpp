@@ -7,6 +7,7 @@
 #include <optional>
 #include <sstream>
 
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/pose/lo_ransac.h"
 #include "ffloc/pose/opencv_usac.h"
@@ -92,7 +93,7 @@ PnpResult estimatePose(const Correspondences& correspondences, const Intrinsics&
   PnpResult result;
   const auto finish = [&](PnpStatus status) {
     result.status = status;
-    result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    result.seconds = secondsSince(start);
     return result;
   };
 

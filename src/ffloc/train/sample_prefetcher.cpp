@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 
+#include "ffloc/core/clock.h"
+
 namespace ffloc {
 
 SamplePrefetcher::SamplePrefetcher(Draw draw, int threads, int depth)
@@ -47,7 +49,7 @@ TrainingSample SamplePrefetcher::next() {
   const auto start = std::chrono::steady_clock::now();
   std::unique_lock<std::mutex> lock(mutex_);
   ready_.wait(lock, [&] { return done_.count(next_to_take_) > 0; });
-  waited_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  waited_seconds_ += secondsSince(start);
   Slot slot = std::move(done_.at(next_to_take_));
   done_.erase(next_to_take_);
   ++next_to_take_;

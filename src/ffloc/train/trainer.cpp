@@ -12,6 +12,7 @@
 #include <limits>
 #include <set>
 
+#include "ffloc/core/clock.h"
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
@@ -70,10 +71,6 @@ void shrinkOutputLayers(FastForwardModel& model) {
     const bool output_layer = entry.name.rfind("downstream_head1.dpt.head.4.", 0) == 0 || entry.name.rfind("map_head.", 0) == 0;
     if (output_layer) entry.tensor->mul_(0.01);
   }
-}
-
-double secondsSince(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
 // Infinite values (failed poses) sort last; the median of an empty list is infinite.
