@@ -126,7 +126,7 @@ void DataParallel::allReduceSum(const std::vector<at::Tensor>& tensors, int64_t 
     size_t end = begin;
     int64_t bytes = 0;
     std::vector<at::Tensor> flat;
-    while (end < tensors.size() && (end == begin || bytes + tensors[end].nbytes() <= bucket_bytes)) {
+    while (end < tensors.size() && (end == begin || bytes + static_cast<int64_t>(tensors[end].nbytes()) <= bucket_bytes)) {
       bytes += static_cast<int64_t>(tensors[end].nbytes());
       flat.push_back(tensors[end].reshape({-1}));
       ++end;
