@@ -17,6 +17,7 @@
 #include "bench_reference.h"
 #include "bench_report.h"
 #include "bench_sgemm.h"
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/clock.h"
 #include "ffloc/core/cpu_features.h"
@@ -32,7 +33,6 @@ namespace {
 void validate(const BenchModelArguments& args) {
   if (args.repeats < 1) throw InputError("--repeats: must be at least 1");
   if (args.warmup < 0) throw InputError("--warmup: must not be negative");
-  if (args.threads < 0) throw InputError("--threads: must not be negative (0 = all hardware threads)");
   if (args.dtypes.empty()) throw InputError("--dtype: give at least one of fp32, bf16");
   for (const auto& dtype : args.dtypes) parseNetworkDtype(dtype);
   for (const int64_t count : args.map_tokens) {
@@ -123,6 +123,7 @@ void registerBenchCommand(CLI::App& app, CommandRun& run) {
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "Intra-op and BLAS threads (0 = all hardware threads)")
+      ->check(threadCountRange())
       ->capture_default_str();
   cmd->add_option("--repeats", args->repeats, "Timed calls per row (the median is reported)")
       ->capture_default_str();

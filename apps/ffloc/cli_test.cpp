@@ -217,5 +217,35 @@ TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {
   EXPECT_FALSE(fs::exists(dir_ / "out.ffmap"));
 }
 
+// Unbounded before: 65537 crashed inside TBB (OpenCV's pool), 1000 made a one-image map 25 times
+// slower, and -1 passed without a word. Refused while parsing, before any map or model loads.
+TEST_F(Cli, ThreadCountsOutsideTheirRangeAreRefusedNamingTheFlag) {
+  const std::string map = (dir_ / "no.ffmap").string();
+  const std::vector<std::vector<std::string>> commands = {
+      {"localize", "--map", map, "--image", "q.png", "--intrinsics", "50,50,31.5,23.5"},
+      {"map", "--dataset", dir_.string(), "-o", map},
+      {"eval", "--dataset", dir_.string()},
+      {"serve", "--map", map},
+      {"synth", "--out", (dir_ / "synth").string()},
+      {"bench", "model"},
+      {"train", "--data", dir_.string(), "--out", (dir_ / "run").string()}};
+  for (const std::vector<std::string>& command : commands) {
+    for (const std::string threads : {"65537", "257", "-1"}) {
+      std::vector<std::string> arguments = command;
+      arguments.insert(arguments.end(), {"--threads", threads});
+      const CliRun run = runCli(arguments);
+      EXPECT_EQ(run.exit_code, 2) << command[0] << " --threads " << threads << ": " << run.output;
+      EXPECT_TRUE(contains(run.output, "--threads: must be 0 (all hardware threads) to 256, got " + threads))
+          << command[0] << ": " << run.output;
+    }
+  }
+  // The bound itself passes the check and reaches the next one: the missing map.
+  const CliRun at_bound = runCli({"localize", "--map", map, "--image", "q.png", "--intrinsics", "50,50,31.5,23.5",
+                                  "--threads", "256"});
+  EXPECT_EQ(at_bound.exit_code, 2) << at_bound.output;
+  EXPECT_TRUE(contains(at_bound.output, "no.ffmap")) << at_bound.output;
+  EXPECT_FALSE(contains(at_bound.output, "--threads")) << at_bound.output;
+}
+
 }  // namespace
 }  // namespace ffloc

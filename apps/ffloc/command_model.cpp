@@ -2,6 +2,7 @@
 
 #include <iostream>
 
+#include "command_options.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/model_options.h"
 #include "ffloc/model/torch_threads.h"
@@ -12,7 +13,9 @@ void addModelOptions(CLI::App& command, ModelArguments& args, const std::string&
   command.add_option("--model", args.model, model_help)->capture_default_str();
   command.add_option("--dtype", args.dtype, "Network precision: f32, or bf16 (encoder, decoder and DPT head)")
       ->capture_default_str();
-  command.add_option("--threads", args.threads, "libtorch threads (0 = all cores)")->capture_default_str();
+  command.add_option("--threads", args.threads, "libtorch, BLAS and OpenCV threads (0 = all cores)")
+      ->check(threadCountRange())
+      ->capture_default_str();
 }
 
 LoadedModel loadCommandModel(const ModelArguments& args) {

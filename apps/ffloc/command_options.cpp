@@ -41,6 +41,16 @@ std::string withFlagName(const std::string& message) {
   return flag == flags.end() ? translated : flag->second + translated.substr(colon);
 }
 
+CLI::Validator threadCountRange() {
+  return CLI::Validator(
+      [](const std::string& input) -> std::string {
+        int threads = 0;
+        if (CLI::detail::lexical_cast(input, threads) && threads >= 0 && threads <= kMaxThreads) return "";
+        return "must be 0 (all hardware threads) to " + std::to_string(kMaxThreads) + ", got " + input;
+      },
+      "0 to " + std::to_string(kMaxThreads));
+}
+
 void addQueryOptions(CLI::App& command, QueryArguments& args) {
   command.add_option("--preset", args.preset, "indoor (K=10, N=1500) or outdoor (K=20, N=3000)")->capture_default_str();
   args.top_k_option = command.add_option("--top-k", args.top_k, "Mapping images per query (overrides the preset)");

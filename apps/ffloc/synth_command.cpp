@@ -2,6 +2,7 @@
 #include <iostream>
 #include <string>
 
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/synthetic/synthetic.h"
@@ -93,6 +94,7 @@ void registerSynthCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--threads", args->options.threads,
                   "Render threads (0: all cores); output does not depend on it")
+      ->check(threadCountRange())
       ->capture_default_str();
   cmd->add_flag("--quiet", args->options.quiet, "No progress output");
   cmd->callback([args, &run] {

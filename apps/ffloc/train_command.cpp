@@ -298,7 +298,8 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--seed", args->seed, "Run seed (overrides the config)");
   cmd->add_option("--device", args->device, "cpu or cuda (overrides the config)");
   cmd->add_option("--model", args->model, "Initial weights (overrides the config): checkpoint or random:<preset>");
-  cmd->add_option("--threads", args->threads, "libtorch threads, 0 = all cores (overrides the config)");
+  cmd->add_option("--threads", args->threads, "libtorch threads, 0 = all cores (overrides the config)")
+      ->check(threadCountRange());
   cmd->add_option("--precision", args->precision, "fp32, or bf16 mixed precision (overrides the config)")
       ->check(CLI::IsMember({"fp32", "bf16"}));
   cmd->add_option("--batch-size", args->batch_size, "Samples in one forward pass of each rank (overrides the config)")
