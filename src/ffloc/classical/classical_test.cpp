@@ -329,6 +329,23 @@ TEST_F(ClassicalTest, QueryWithoutMatchesFailsWithoutAPose) {
   EXPECT_FALSE(result.verdict.reason.empty());
 }
 
+// Shrinking a 2100 x 1 image to the working size asked OpenCV for a 1024 x 0 image, which it
+// refused with an assertion: the CLI reported an internal error and the server a 500.
+TEST_F(ClassicalTest, ASliverOfAnImageFailsLikeATinyOne) {
+  const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
+  for (const cv::Size size : {cv::Size(2100, 1), cv::Size(1, 2100), cv::Size(20000, 3)}) {
+    SCOPED_TRACE(std::to_string(size.width) + "x" + std::to_string(size.height));
+    const cv::Mat sliver(size, CV_8UC3, cv::Scalar(90, 120, 200));
+    Intrinsics k;
+    k.fx = k.fy = 100;
+    k.cx = size.width / 2.0;
+    k.cy = size.height / 2.0;
+    const LocalizationResult result = localizer.localize(sliver, k, "sliver", {});
+    EXPECT_EQ(result.verdict.status, PoseStatus::kFailed);
+    EXPECT_EQ(result.correspondences.size(), 0);
+  }
+}
+
 TEST_F(ClassicalTest, BadQueriesAndOptionsNameTheField) {
   const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
   const Frame& frame = scene_->frames[scene_->queryIndices()[0]];

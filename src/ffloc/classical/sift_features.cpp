@@ -36,8 +36,11 @@ SiftFeatures extractSiftFeatures(const cv::Mat& rgb, const Intrinsics& intrinsic
   const int long_side = std::max(gray.cols, gray.rows);
   if (long_side > options.max_image_size) {
     features.working_scale = static_cast<double>(options.max_image_size) / long_side;
+    // At least one pixel across: a sliver of an image (2100 x 1) has no features, as a tiny one has none.
+    const cv::Size working(std::max(1, static_cast<int>(std::lround(gray.cols * features.working_scale))),
+                           std::max(1, static_cast<int>(std::lround(gray.rows * features.working_scale))));
     cv::Mat small;
-    cv::resize(gray, small, cv::Size(), features.working_scale, features.working_scale, cv::INTER_AREA);
+    cv::resize(gray, small, working, 0, 0, cv::INTER_AREA);
     gray = small;
   }
 

@@ -100,7 +100,7 @@ TEST(BadInput, BadIntrinsicsFile) {
 
 TEST(BadInput, SequenceLayoutSplitNamesMissingSequence) {
   const auto dir = testing::makeTempDir("ffloc-bad-seq");
-  writeImage(dir / "seq-01/frame-000000.color.png", 8, 6);
+  writeImage(dir / "seq-01/frame-000000.color.png", 640, 480);  // the size 7-Scenes intrinsics are for
   writeTextFile(dir / "seq-01/frame-000000.pose.txt", kIdentityPose);
   writeTextFile(dir / "TrainSplit.txt", "sequence1\r\n");
   writeTextFile(dir / "TestSplit.txt", "sequence1\r\n");

@@ -5,6 +5,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/data/manifest.h"
+#include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
 
 namespace ffloc {
@@ -45,6 +46,26 @@ void requireUniqueNames(const Scene& scene) {
   for (const Frame& frame : scene.frames)
     if (!names.insert(frame.name).second)
       throwInputError(scene.root.string(), 0, "two frames share the image name '" + frame.name + "'");
+}
+
+// Every frame, mapping or query, passes what a query given on the command line passes, and every
+// camera centre what a parsed pose matrix passes (some formats give centres, not matrices): a
+// mapping frame that fails would otherwise give a map that refuses every query, or one that cannot
+// be read back.
+void requirePlausibleFrames(const Scene& scene) {
+  for (const Frame& frame : scene.frames) {
+    const std::string where = "frame '" + frame.name + "': ";
+    try {
+      checkIntrinsicsFitImage(frame.intrinsics, frame.intrinsics.width, frame.intrinsics.height);
+    } catch (const InputError& error) {
+      throwInputError(scene.root.string(), 0, where + "intrinsics: " + error.what());
+    }
+    const double distance = frame.camera_to_world.t.stableNorm();
+    if (!(distance <= kMaxCameraDistance))
+      throwInputError(scene.root.string(), 0,
+                      where + "camera centre is " + std::to_string(distance) + " from the origin, beyond the " +
+                          std::to_string(kMaxCameraDistance) + " that any scene fits in");
+  }
 }
 
 }  // namespace
@@ -91,6 +112,7 @@ Scene loadKnownFormat(const fs::path& dataset_dir, const std::string& format) {
     if (!fs::is_directory(dir)) throwInputError(dir.string(), 0, "dataset folder not found");
     Scene scene = candidate.read(dir);
     requireUniqueNames(scene);
+    requirePlausibleFrames(scene);
     applySplitFiles(scene);
     return scene;
   }

@@ -131,6 +131,7 @@ TEST(Manifest, RejectsBadFieldsNamingThem) {
       {"[0,0,0,1]]", "[0,0,1,1]]", "frames[0].camera_to_world"},
       {"[1,0,0,1],", "[1,0,0],", "frames[0].camera_to_world"},
       {"[1,0,0,1],", "[2,0,0,1],", "not orthonormal"},
+      {"[1,0,0,1],", "[1,0,0,1e300],", "camera centre is 1e+300 from the origin"},
       {"\"image\": \"a.png\",", "", "frames[0].image"},
       {"\"metric\": true", "\"metric\": true,", "invalid JSON"},
   };
@@ -165,6 +166,26 @@ TEST(Manifest, MissingBrokenOrMissizedImagesAreRefusedNamingTheFrame) {
                    {"manifest.json", "frames[0].image", "a.png is 5x3, but camera '0' is 4x3"});
   writeImage(dir / "a.png", 4, 3);
   EXPECT_EQ(readManifest(dir / "manifest.json").frames.size(), 1u);
+}
+
+// A mapping frame with intrinsics a query would be refused gave a map that refused every query.
+TEST(Manifest, EveryFrameGetsTheChecksOfAQuery) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeImage(dir / "a.png", 4, 3);
+  const std::string good = R"({"format": "ffloc-manifest", "version": 1,
+    "cameras": {"0": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": [{"image": "a.png", "camera": "0", "split": "mapping",
+                "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})";
+  writeTextFile(dir / "manifest.json", good);
+  EXPECT_EQ(loadDataset(dir).frames.size(), 1u);
+  std::string outside = good;
+  outside.replace(outside.find("\"cx\": 1.5"), 9, "\"cx\": 5000");
+  writeTextFile(dir / "manifest.json", outside);
+  expectInputError([&] { loadDataset(dir); }, {dir.string(), "frame 'a.png'", "cx, cy", "outside the 4x3 image"});
+  std::string absurd = good;
+  absurd.replace(absurd.find("\"fx\": 2"), 7, "\"fx\": 1e300");
+  writeTextFile(dir / "manifest.json", absurd);
+  expectInputError([&] { loadDataset(dir); }, {dir.string(), "frame 'a.png'", "fx: focal length"});
 }
 
 TEST(Manifest, OverflowingNumberIsRejected) {

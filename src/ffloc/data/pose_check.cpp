@@ -24,6 +24,13 @@ std::string poseMatrixProblem(const Eigen::Matrix4d& T) {
     what << "pose's last row is (" << last << "), expected (0 0 0 1)";
     return what.str();
   }
+  const double distance = T.topRightCorner<3, 1>().stableNorm();
+  if (distance > kMaxCameraDistance) {
+    std::ostringstream what;
+    what << "camera centre is " << distance << " from the origin, beyond the " << kMaxCameraDistance
+         << " that any scene fits in";
+    return what.str();
+  }
   return rotationProblem(T.topLeftCorner<3, 3>());
 }
 

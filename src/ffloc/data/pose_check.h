@@ -9,8 +9,13 @@
 // The checks every reader applies to a pose it parses.
 namespace ffloc {
 
-// What is wrong with a 4x4 camera-to-world matrix (non-finite, last row not 0 0 0 1, rotation
-// not orthonormal within 1e-2), or an empty string when nothing is.
+// Scene units from the origin beyond which a camera centre is refused: geocentric coordinates in
+// metres stay below 1e7, while centres near 1e300 overflow the maps' points to infinity.
+inline constexpr double kMaxCameraDistance = 1e9;
+
+// What is wrong with a 4x4 camera-to-world matrix (non-finite, last row not 0 0 0 1, camera centre
+// beyond kMaxCameraDistance, rotation not orthonormal within 1e-2), or an empty string when
+// nothing is.
 std::string poseMatrixProblem(const Eigen::Matrix4d& T);
 std::string rotationProblem(const Eigen::Matrix3d& R);
 

@@ -1,8 +1,12 @@
 #include "ffloc/geometry/camera.h"
 
+#include <algorithm>
 #include <cmath>
+#include <sstream>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
+
+#include "ffloc/core/error.h"
 
 namespace ffloc {
 
@@ -89,6 +93,32 @@ cv::Mat undistortImage(const cv::Mat& image, const Intrinsics& camera) {
   cv::Mat out;
   cv::undistort(image, out, camera.cvK(), camera.cvDistortion(), camera.cvK());
   return out;
+}
+
+void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
+  if ((k.width != 0 || k.height != 0) && (k.width != width || k.height != height))
+    throw InputError("width, height: the intrinsics are for a " + std::to_string(k.width) + "x" +
+                     std::to_string(k.height) + " image, but the image is " + std::to_string(width) + "x" +
+                     std::to_string(height));
+  const double absurd = 1000.0 * std::max(width, height);
+  auto focal = [&](const char* field, double value) {
+    if (!(std::isfinite(value) && value > 0 && value <= absurd)) {
+      std::ostringstream what;
+      what << field << ": focal length " << value << " px is not in (0, " << absurd << "] for a " << width << "x"
+           << height << " image";
+      throw InputError(what.str());
+    }
+  };
+  focal("fx", k.fx);
+  focal("fy", k.fy);
+  if (!(std::isfinite(k.cx) && std::isfinite(k.cy) && k.cx >= 0 && k.cx <= width && k.cy >= 0 && k.cy <= height)) {
+    std::ostringstream what;
+    what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << width << "x" << height
+         << " image (intrinsics must be in pixels of the image given)";
+    throw InputError(what.str());
+  }
+  for (double c : k.distortion)
+    if (!std::isfinite(c)) throw InputError("distortion: coefficients must be finite");
 }
 
 }  // namespace ffloc

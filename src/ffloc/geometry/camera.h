@@ -38,6 +38,12 @@ struct Intrinsics {
 std::vector<Eigen::Vector2d> undistortPixels(const Intrinsics& camera,
                                              const std::vector<Eigen::Vector2d>& pixels);
 
+// The checks intrinsics must pass for a `width` x `height` image, a query's or a mapping frame's:
+// the size they give (when they give one) is the image's, finite focal lengths in
+// (0, 1000 * long side], the principal point inside the image, finite distortion. InputError
+// naming width, fx, fy, cx, cy or distortion.
+void checkIntrinsicsFitImage(const Intrinsics& intrinsics, int width, int height);
+
 // Resamples an image so it follows camera.undistorted(). Returns the input when not distorted.
 cv::Mat undistortImage(const cv::Mat& image, const Intrinsics& camera);
 

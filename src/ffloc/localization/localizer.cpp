@@ -83,32 +83,6 @@ LocalizeOptions localizeOptions(const QuerySettings& settings) {
   return options;
 }
 
-void checkQueryIntrinsics(const Intrinsics& k, int width, int height) {
-  if ((k.width != 0 || k.height != 0) && (k.width != width || k.height != height))
-    throw InputError("width, height: the intrinsics are for a " + std::to_string(k.width) + "x" +
-                     std::to_string(k.height) + " image, but the image is " + std::to_string(width) + "x" +
-                     std::to_string(height));
-  const double absurd = 1000.0 * std::max(width, height);
-  auto focal = [&](const char* field, double value) {
-    if (!(std::isfinite(value) && value > 0 && value <= absurd)) {
-      std::ostringstream what;
-      what << field << ": focal length " << value << " px is not in (0, " << absurd << "] for a " << width << "x"
-           << height << " image";
-      throw InputError(what.str());
-    }
-  };
-  focal("fx", k.fx);
-  focal("fy", k.fy);
-  if (!(std::isfinite(k.cx) && std::isfinite(k.cy) && k.cx >= 0 && k.cx <= width && k.cy >= 0 && k.cy <= height)) {
-    std::ostringstream what;
-    what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << width << "x" << height
-         << " image (intrinsics must be in pixels of the image given)";
-    throw InputError(what.str());
-  }
-  for (double c : k.distortion)
-    if (!std::isfinite(c)) throw InputError("distortion: coefficients must be finite");
-}
-
 void stopIfRequested(const LocalizeOptions& options, const std::string& stage) {
   if (options.stop_requested && options.stop_requested()) throw QueryStopped("stopped " + stage);
 }
@@ -117,7 +91,7 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
                                        const LocalizeOptions& options) const {
   options.check();
   if (rgb.empty()) throw InputError(name + ": the image is empty");
-  checkQueryIntrinsics(intrinsics, rgb.cols, rgb.rows);
+  checkIntrinsicsFitImage(intrinsics, rgb.cols, rgb.rows);
   Intrinsics sized = intrinsics;
   sized.width = rgb.cols;
   sized.height = rgb.rows;

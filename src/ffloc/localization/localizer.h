@@ -157,10 +157,5 @@ class Localizer {
                         const LocalizeOptions& options) const;
 };
 
-// The checks a query's intrinsics must pass for a `width` x `height` image: the size they give
-// (when they give one) is the image's, finite focal lengths
-// in (0, 1000 * long side], the principal point inside the image, finite distortion.
-// InputError naming width, fx, fy, cx, cy or distortion.
-void checkQueryIntrinsics(const Intrinsics& intrinsics, int width, int height);
 
 }  // namespace ffloc

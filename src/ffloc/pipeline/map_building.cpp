@@ -18,6 +18,18 @@ bool appendsTo(const std::filesystem::path& output, const MapBuildOptions& optio
   return true;
 }
 
+// Only a map is replaced: an output path typed by mistake must not overwrite a dataset's
+// manifest or one of its images.
+void requireReplaceable(const std::filesystem::path& output) {
+  if (!std::filesystem::exists(output)) return;
+  try {
+    readMapHeader(output);
+  } catch (const InputError&) {
+    throwInputError(output.string(), 0, "exists and is not an ffloc map, so it is not replaced: write the map to "
+                                        "another path, or remove the file first");
+  }
+}
+
 }  // namespace
 
 MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output, const MapBuildOptions& options,
@@ -33,6 +45,7 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output,
       throwInputError(frame.image_path.string(), 0,
                       "image name '" + frame.name + "' is not UTF-8, which a map file (JSON) cannot hold; rename the file");
   }
+  requireReplaceable(output);
   MapBuildReport report;
   if (options.method == LocalizationMethod::kClassical) {
     options.classical.check();

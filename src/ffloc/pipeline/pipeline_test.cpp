@@ -22,6 +22,7 @@
 #include "ffloc/io/image.h"
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
+#include "ffloc/pipeline/map_building.h"
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/prepared_image.h"
@@ -371,6 +372,30 @@ Scene renderedScene(uint64_t seed, int mapping_frames, const std::string& name) 
   options.mapping_frames = mapping_frames;
   options.query_frames = 1;
   return generateSyntheticScene(options, testing::makeTempDir(name));
+}
+
+// `ffloc map -o` replaced whatever the path held: a dataset's manifest.json, an image.
+TEST(Pipeline, BuildMapReplacesOnlyAMap) {
+  const Scene scene = renderedScene(4, 3, "ffloc_pipeline_replace");
+  const fs::path manifest = scene.root / "manifest.json";
+  std::ifstream before_stream(manifest);
+  const std::string before{std::istreambuf_iterator<char>(before_stream), {}};
+  MapBuildOptions options;
+  options.classical.quiet = true;
+  const auto no_model = []() -> LoadedModel { throw std::logic_error("the classical method loads no model"); };
+  try {
+    buildMap(scene, manifest, options, no_model);
+    ADD_FAILURE() << "the manifest was replaced";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(manifest.string() + ": exists and is not an ffloc map"), std::string::npos)
+        << e.what();
+  }
+  std::ifstream after_stream(manifest);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(after_stream), {}), before);
+
+  const fs::path map = scene.root / "scene.ffmap";
+  EXPECT_EQ(buildMap(scene, map, options, no_model).images, 3u);
+  EXPECT_EQ(buildMap(scene, map, options, no_model).images, 3u);  // a map is replaced
 }
 
 // The matching family maps with the points of its tokens, which come from depth: they survive the

@@ -24,7 +24,11 @@ PreparedImage prepareImage(const cv::Mat& rgb, const Intrinsics& intrinsics, con
   PreparedImage out;
   out.camera = sized.undistorted();
   const cv::Mat undistorted = sized.hasDistortion() ? undistortImage(rgb, sized) : rgb;
-  out.preprocessed = preprocessImage(undistorted, out.camera, options);
+  try {
+    out.preprocessed = preprocessImage(undistorted, out.camera, options);
+  } catch (const InputError& error) {
+    throwInputError(name, 0, error.what());
+  }
   return out;
 }
 

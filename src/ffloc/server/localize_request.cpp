@@ -145,7 +145,7 @@ LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& f
   request.rgb = decodeRgb(image_bytes, limits.max_image_pixels);
   request.intrinsics.width = request.rgb.cols;
   request.intrinsics.height = request.rgb.rows;
-  checkQueryIntrinsics(request.intrinsics, request.rgb.cols, request.rgb.rows);
+  checkIntrinsicsFitImage(request.intrinsics, request.rgb.cols, request.rgb.rows);
   request.options.check();
   return request;
 }
