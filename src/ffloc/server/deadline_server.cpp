@@ -68,6 +68,8 @@ class DeadlineStream : public httplib::Stream {
     return text;
   }
   bool answered() const { return written_ > 0; }
+  void closeAfterAnswer() { close_after_answer_ = true; }
+  bool closingAfterAnswer() const { return close_after_answer_; }
 
   // Waits for the next request of a kept-alive connection: true when bytes (or the end of the
   // stream, which the library then reads as such) arrive within `idle`, false when the server
@@ -158,6 +160,7 @@ class DeadlineStream : public httplib::Stream {
   Clock::time_point deadline_ = Clock::time_point::max();
   mutable bool timed_out_ = false;
   size_t written_ = 0;
+  bool close_after_answer_ = false;
   char buffer_[16384];
   size_t begin_ = 0;
   size_t end_ = 0;
@@ -212,6 +215,19 @@ void writeTooManyConnectionsAnswer(socket_t socket) {
   [[maybe_unused]] const ssize_t sent = send(socket, answer.data(), answer.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
 }
 
+// Closing a socket that holds unread bytes resets the connection, and the reset can destroy
+// an answer the client has not read yet. So the client is first told the answer is complete
+// (our FIN), and what it still sends is read and dropped, for at most a second.
+void closeLeavingUnreadBody(socket_t socket) {
+  shutdown(socket, SHUT_WR);
+  const Clock::time_point until = Clock::now() + std::chrono::seconds(1);
+  char dropped[16384];
+  while (Clock::now() < until && pollFor(socket, POLLIN, until - Clock::now()) > 0 &&
+         recv(socket, dropped, sizeof(dropped), 0) > 0) {
+  }
+  close(socket);
+}
+
 }  // namespace
 
 void DeadlineServer::setConnectionLimits(size_t threads, size_t max_pending) {
@@ -223,6 +239,11 @@ std::string DeadlineServer::timeoutMessage() {
 }
 
 bool DeadlineServer::clientDisconnected() { return current_connection && current_connection->peerClosed(); }
+
+void DeadlineServer::closeAfterAnswer(httplib::Response& response) {
+  response.set_header("Connection", "close");
+  if (current_connection) current_connection->closeAfterAnswer();
+}
 
 bool DeadlineServer::process_and_close_socket(socket_t sock) {
   if (refusing_connection) {
@@ -251,9 +272,13 @@ bool DeadlineServer::process_and_close_socket(socket_t sock) {
       ok = false;
       break;
     }
-    if (!ok || closed) break;
+    if (!ok || closed || stream.closingAfterAnswer()) break;
   }
   current_connection = nullptr;
+  if (stream.closingAfterAnswer()) {
+    closeLeavingUnreadBody(sock);
+    return ok;
+  }
   shutdown(sock, SHUT_RDWR);
   close(sock);
   return ok;

@@ -35,6 +35,10 @@ class DeadlineServer : public httplib::Server {
   // Whether the current request's client has closed its side of the connection (a query whose
   // client left need not run). A client that half-closes after sending counts as gone.
   static bool clientDisconnected();
+  // For handlers that answer before the request's body is read: the answer says
+  // `Connection: close` and the connection ends after it, as the body left in the socket would
+  // otherwise be read as the next request (a PNG's bytes logged as a dozen malformed requests).
+  static void closeAfterAnswer(httplib::Response& response);
 
  private:
   bool process_and_close_socket(socket_t sock) override;

@@ -4,8 +4,10 @@
 #include <chrono>
 #include <deque>
 #include <map>
+#include <regex>
 #include <stdexcept>
 #include <thread>
+#include <vector>
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
@@ -23,6 +25,9 @@ namespace ffloc {
 struct LocalizationServer::Http {
   explicit Http(const ServerOptions& options) : server(options.header_timeout, options.body_timeout) {}
   DeadlineServer server;
+  // Every route with its method ("GET" also answers HEAD), for telling a wrong method (405) from
+  // a wrong path (404) before the library reads a body.
+  std::vector<std::pair<std::string, std::regex>> routes;
   std::mutex log_mutex;
   // The last answers of each map, oldest first, each with the query's intrinsics (the viewer
   // draws the query camera with them).
@@ -57,36 +62,67 @@ std::map<std::string, std::string> requestFields(const httplib::Request& request
   return fields;
 }
 
-// curl --data-binary without -H sends this type, and the HTTP library then reads the image as
-// URL-encoded form fields (refusing it as too large past 8 KiB).
-bool isUrlEncodedForm(const httplib::Request& request) {
-  return request.get_header_value("Content-Type").rfind("application/x-www-form-urlencoded", 0) == 0;
+std::string notFoundMessage(const httplib::Request& request) {
+  return "not found: " + request.method + " " + request.path +
+         " (known: GET /, GET /health, GET /maps, GET /maps/NAME, GET /maps/NAME/scene, POST /maps/NAME/localize, "
+         "and GET /map, GET /map/scene, POST /localize on a server of one map)";
 }
 
-const std::string kUrlEncodedFormError =
-    "image: body is a URL-encoded form; send the image as the body with Content-Type image/jpeg, image/png or "
-    "application/octet-stream (curl: -H 'Content-Type: image/jpeg' --data-binary @query.jpg), or as the 'image' "
-    "part of a multipart form (curl: -F image=@query.jpg)";
-
 // The message for an error status the HTTP library set itself, with no body.
-std::string libraryErrorMessage(const httplib::Request& request, int status, size_t max_body_bytes) {
+std::string libraryErrorMessage(int status, size_t max_body_bytes) {
   switch (status) {
     case 400: return "bad request: the HTTP library could not parse the request (malformed headers or multipart form)";
-    case 404:
-      return "not found: " + request.method + " " + request.path +
-             " (known: GET /, GET /health, GET /maps, GET /maps/NAME, GET /maps/NAME/scene, POST /maps/NAME/localize, "
-             "and GET /map, GET /map/scene, POST /localize on a server of one map)";
     case 413:
-      if (isUrlEncodedForm(request)) return "payload too large: " + kUrlEncodedFormError;
       return "payload too large: the body is over the server's limit of " + std::to_string(max_body_bytes) + " bytes";
     default: return "HTTP " + std::to_string(status);
   }
 }
 
 struct Refusal {
+  Refusal() = default;
+  Refusal(int status, std::string message, std::string allow = "")
+      : status(status), message(std::move(message)), allow(std::move(allow)) {}
   int status = 0;  // 0: none
   std::string message;
+  std::string allow;  // 405: the methods the path answers, for the Allow header
 };
+
+// How long a client's text (a path, a name, an error quoting a field) may run in a log line: a
+// 5000-byte name was logged whole, filling the log at the client's will.
+constexpr size_t kMaxLoggedNameBytes = 200;
+constexpr size_t kMaxLoggedMessageBytes = 600;
+
+std::string cutForLog(const std::string& text, size_t max_bytes) {
+  if (text.size() <= max_bytes) return text;
+  size_t cut = max_bytes;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
+  return text.substr(0, cut) + "... (" + std::to_string(text.size()) + " bytes, cut)";
+}
+
+// A log line as one line: a client's newline would start a forged line and a NUL ends the line
+// for many readers, so control characters and DEL are written as \n, \r, \t or \xHH.
+std::string escapeControlCharacters(const std::string& line) {
+  std::string escaped;
+  escaped.reserve(line.size());
+  for (const char c : line) {
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte >= 0x20 && byte != 0x7F) {
+      escaped += c;
+    } else if (c == '\n') {
+      escaped += "\\n";
+    } else if (c == '\r') {
+      escaped += "\\r";
+    } else if (c == '\t') {
+      escaped += "\\t";
+    } else {
+      static constexpr char kHex[] = "0123456789abcdef";
+      escaped += "\\x";
+      escaped += kHex[byte >> 4];
+      escaped += kHex[byte & 0xF];
+    }
+  }
+  return escaped;
+}
 
 // Why a POST's headers cannot make a query: exactly one Content-Length of decimal digits, and a
 // body type that can hold an image.
@@ -100,8 +136,15 @@ Refusal postRefusal(const httplib::Request& request) {
   }
   const std::string type = request.get_header_value("Content-Type");
   const auto starts = [&](const char* prefix) { return type.rfind(prefix, 0) == 0; };
-  if (!type.empty() && !starts("image/") && !starts("application/octet-stream") && !starts("multipart/form-data") &&
-      !starts("application/x-www-form-urlencoded")) {
+  // What curl --data-binary sends without -H: the library would read the image as form fields
+  // and, past 8 KiB, refuse it as too large (413), which sent users hunting for a size limit.
+  if (starts("application/x-www-form-urlencoded")) {
+    return {400,
+            "Content-Type: the body is a URL-encoded form; send the image as the body with Content-Type image/jpeg, "
+            "image/png or application/octet-stream (curl: -H 'Content-Type: image/jpeg' --data-binary @query.jpg), "
+            "or as the 'image' part of a multipart form (curl: -F image=@query.jpg)"};
+  }
+  if (!type.empty() && !starts("image/") && !starts("application/octet-stream") && !starts("multipart/form-data")) {
     return {415, "Content-Type '" + type +
                      "': send an encoded image (image/jpeg, image/png, application/octet-stream) or a multipart form"};
   }
@@ -194,10 +237,21 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
   });
 
-  auto log = [this](const std::string& line) {
+  // One line a request: its method, its path and what came of it.
+  auto log = [this](const httplib::Request& request, const std::string& outcome) {
     if (!options_.log) return;
+    const std::string line = request.method + " " + cutForLog(request.path, kMaxLoggedNameBytes) + " " + outcome;
     std::lock_guard<std::mutex> lock(http_->log_mutex);
-    *options_.log << line << std::endl;
+    *options_.log << escapeControlCharacters(line) << std::endl;
+  };
+
+  const auto get = [this](const std::string& pattern, httplib::Server::Handler handler) {
+    http_->server.Get(pattern, std::move(handler));
+    http_->routes.emplace_back("GET", std::regex(pattern));
+  };
+  const auto post = [this](const std::string& pattern, httplib::Server::Handler handler) {
+    http_->server.Post(pattern, std::move(handler));
+    http_->routes.emplace_back("POST", std::regex(pattern));
   };
 
   // The map of a request, when the client may use it; null with the refusal set otherwise.
@@ -222,12 +276,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   };
 
   // Open to every client, for load balancers: says nothing a key would protect beyond the count.
-  server.Get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
+  get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
     response.set_content(jsonText({{"status", "ok"}, {"maps", maps_.names().size()}}), kJson);
-    log(request.method + " " + request.path + " 200");
+    log(request, "200");
   });
 
-  server.Get("/maps", [this, log](const httplib::Request& request, httplib::Response& response) {
+  get("/maps", [this, log](const httplib::Request& request, httplib::Response& response) {
     std::vector<std::string> names = maps_.names();
     if (options_.keys) {
       const std::string authorization = request.get_header_value("Authorization");
@@ -240,7 +294,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     nlohmann::json list = nlohmann::json::array();
     for (const std::string& name : names) list.push_back(mapSummary(name, *maps_.get(name)));
     response.set_content(jsonText({{"maps", list}}), kJson);
-    log(request.method + " " + request.path + " 200");
+    log(request, "200");
   });
 
   const auto describeMap = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
@@ -258,10 +312,10 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
                         {"seed", options_.localize.seed},
                         {"selection", toString(options_.localize.selection)}};
     response.set_content(jsonText(body), kJson);
-    log(request.method + " " + request.path + " 200");
+    log(request, "200");
   };
-  server.Get("/map", describeMap);
-  server.Get(R"(/maps/([^/]+))", describeMap);
+  get("/map", describeMap);
+  get(R"(/maps/([^/]+))", describeMap);
 
   const auto describeScene = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
     const std::shared_ptr<const ServedMap> map = authorizedMap(request, response);
@@ -274,13 +328,13 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       if (found != http_->recent.end()) recent = found->second;
     }
     response.set_content(jsonText(sceneJson(name, *map->localizer, options_.max_scene_points, recent)), kJson);
-    log(request.method + " " + request.path + " 200");
+    log(request, "200");
   };
-  server.Get("/map/scene", describeScene);
-  server.Get(R"(/maps/([^/]+)/scene)", describeScene);
+  get("/map/scene", describeScene);
+  get(R"(/maps/([^/]+)/scene)", describeScene);
 
   for (const ViewerAsset& asset : viewerAssets()) {
-    server.Get(asset.route, [asset](const httplib::Request&, httplib::Response& response) {
+    get(asset.route, [asset](const httplib::Request&, httplib::Response& response) {
       response.set_content(reinterpret_cast<const char*>(asset.bytes), asset.size, asset.content_type);
     });
   }
@@ -289,23 +343,42 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   // chunked upload or one without Content-Length is refused before it is read.
   // Checked before the body is read: a request whose length is ambiguous (two headers, which a
   // proxy in front may read differently: request smuggling) or not a number is refused, and
-  // so is a body that cannot be an image.
-  server.set_pre_routing_handler([](const httplib::Request& request, httplib::Response& response) {
-    if (request.method != "POST") return httplib::Server::HandlerResponse::Unhandled;
-    const Refusal refusal = postRefusal(request);
-    if (refusal.status == 0) return httplib::Server::HandlerResponse::Unhandled;
+  // so is a body that cannot be an image. So are a path no route serves (404) and a method its
+  // route does not answer (405): the library would read a PUT's body first, and refuse a form
+  // body as too large (413).
+  const auto refusalBeforeBody = [this](const httplib::Request& request) -> Refusal {
+    std::string allow;
+    for (const auto& [method, pattern] : http_->routes) {
+      if (!std::regex_match(request.path, pattern)) continue;
+      if (method == request.method || (method == "GET" && request.method == "HEAD"))
+        return request.method == "POST" ? postRefusal(request) : Refusal{};
+      allow += (allow.empty() ? "" : ", ") + (method == "GET" ? std::string("GET, HEAD") : method);
+    }
+    if (allow.empty()) return {404, notFoundMessage(request)};
+    return {405, "method not allowed: " + request.method + " " + request.path + "; this route answers " + allow, allow};
+  };
+  const auto reply = [](httplib::Response& response, const Refusal& refusal) {
     replyError(response, refusal.status, refusal.message);
+    if (!refusal.allow.empty()) response.set_header("Allow", refusal.allow);
+    DeadlineServer::closeAfterAnswer(response);
+  };
+  server.set_pre_routing_handler([refusalBeforeBody, reply](const httplib::Request& request, httplib::Response& response) {
+    const Refusal refusal = refusalBeforeBody(request);
+    if (refusal.status == 0) return httplib::Server::HandlerResponse::Unhandled;
+    reply(response, refusal);
     return httplib::Server::HandlerResponse::Handled;
   });
   // A client that asks before sending its body is told 413 at once rather than invited to send
   // a body that will be refused.
-  server.set_expect_100_continue_handler([this](const httplib::Request& request, httplib::Response& response) {
-    const Refusal refusal = postRefusal(request);
+  server.set_expect_100_continue_handler([this, refusalBeforeBody, reply](const httplib::Request& request,
+                                                                           httplib::Response& response) {
+    const Refusal refusal = refusalBeforeBody(request);
     if (refusal.status != 0) {
-      replyError(response, refusal.status, refusal.message);
+      reply(response, refusal);
       return refusal.status;
     }
-    if (std::stoull(request.get_header_value("Content-Length")) > options_.max_body_bytes) {
+    // Only a POST's Content-Length has been checked to be a byte count.
+    if (request.method == "POST" && std::stoull(request.get_header_value("Content-Length")) > options_.max_body_bytes) {
       replyError(response, 413,
                  "payload too large: the body is over the server's limit of " + std::to_string(options_.max_body_bytes) +
                      " bytes");
@@ -331,7 +404,6 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     }
     LocalizeRequest query;
     try {
-      if (isUrlEncodedForm(request)) throw InputError(kUrlEncodedFormError);
       query = parseLocalizeRequest(requestFields(request), imageBytes(request), options_.localize, options_.limits);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
@@ -368,21 +440,21 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       while (recent.size() > options_.recent_answers) recent.pop_front();
     }
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    log(request.method + " " + request.path + " 200 " + query.name + " " + body["status"].get<std::string>() + " " +
+    log(request, "200 " + cutForLog(query.name, kMaxLoggedNameBytes) + " " + body["status"].get<std::string>() + " " +
         std::to_string(body["inliers"].get<int>()) + " inliers, " + std::to_string(static_cast<int>(ms)) + " ms");
   };
-  server.Post("/localize", localize);
-  server.Post(R"(/maps/([^/]+)/localize)", localize);
+  post("/localize", localize);
+  post(R"(/maps/([^/]+)/localize)", localize);
 
   // Every status >= 400, ours and the library's (404, 413, ...), answers JSON and is logged.
   server.set_error_handler([this, log](const httplib::Request& request, httplib::Response& response) {
     // The library reports a request cut at its deadline as malformed (400).
     if (const std::string timeout = DeadlineServer::timeoutMessage(); !timeout.empty()) replyError(response, 408, timeout);
     if (response.body.empty())
-      replyError(response, response.status, libraryErrorMessage(request, response.status, options_.max_body_bytes));
+      replyError(response, response.status, libraryErrorMessage(response.status, options_.max_body_bytes));
     const nlohmann::json body = nlohmann::json::parse(response.body, nullptr, false);
     const std::string message = body.is_object() && body.contains("error") ? body["error"].get<std::string>() : "";
-    log(request.method + " " + request.path + " " + std::to_string(response.status) + " " + message);
+    log(request, std::to_string(response.status) + " " + cutForLog(message, kMaxLoggedMessageBytes));
   });
 
   server.set_exception_handler([](const httplib::Request&, httplib::Response& response, std::exception_ptr exception) {

@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 #include <thread>
 
 #include "ffloc/classical/classical_localizer.h"
@@ -437,16 +438,18 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   EXPECT_EQ(garbage->status, 400);
   EXPECT_EQ(body(garbage)["error"].get<std::string>().rfind("image:", 0), 0u) << garbage->body;
 
-  // What curl --data-binary sends without -H: small bodies reach the handler, large ones stop at
-  // the library's form limit; both say how to send an image instead.
-  for (const auto& [size, status] : {std::pair<size_t, int>{100, 400}, {100000, 413}}) {
+  // What curl --data-binary sends without -H, refused before the body is read, whatever its size:
+  // past the library's 8 KiB form limit it was 413 "payload too large", which it is not. The
+  // message says how to send an image instead.
+  for (const size_t size : {100, 100000}) {
     const auto form_encoded = client_->Post(("/localize?" + intrinsicsParameters()).c_str(),
                                             std::string(queryFileBytes() + std::string(size, 'x')).substr(0, size),
                                             "application/x-www-form-urlencoded");
     ASSERT_TRUE(form_encoded);
-    EXPECT_EQ(form_encoded->status, status);
-    EXPECT_NE(body(form_encoded)["error"].get<std::string>().find("Content-Type: image/jpeg"), std::string::npos)
-        << form_encoded->body;
+    EXPECT_EQ(form_encoded->status, 400) << size << " bytes: " << form_encoded->body;
+    const std::string error = body(form_encoded)["error"];
+    EXPECT_EQ(error.rfind("Content-Type: the body is a URL-encoded form", 0), 0u) << error;
+    EXPECT_NE(error.find("Content-Type: image/jpeg"), std::string::npos) << error;
   }
 
   const httplib::MultipartFormDataItems no_image = {{"fx", "100", "", ""}};
@@ -564,6 +567,95 @@ TEST_F(ServerTest, ServesAClassicalMapAsTheLibraryLocalizesIt) {
   EXPECT_EQ(body(outside)["error"].get<std::string>().rfind("cx, cy:", 0), 0u);
   server.stop();
   serving.join();
+}
+
+// PUT /localize was read as a form and answered 413 "payload too large"; GET /localize and
+// DELETE /map were 404, as if the route did not exist.
+TEST_F(ServerTest, AMethodTheRouteDoesNotAnswerIs405NamingTheMethodsItDoes) {
+  const std::string image = queryFileBytes() + std::string(100000, 'x');
+  const auto put = client_->Put(("/localize?" + intrinsicsParameters()).c_str(), image,
+                                "application/x-www-form-urlencoded");
+  ASSERT_TRUE(put);
+  EXPECT_EQ(put->status, 405) << put->body;
+  EXPECT_EQ(put->get_header_value("Allow"), "POST");
+  EXPECT_EQ(body(put)["error"], "method not allowed: PUT /localize; this route answers POST");
+  const auto get = client_->Get("/maps/scene/localize");
+  ASSERT_TRUE(get);
+  EXPECT_EQ(get->status, 405) << get->body;
+  EXPECT_EQ(get->get_header_value("Allow"), "POST");
+  const auto remove = client_->Delete("/map");
+  ASSERT_TRUE(remove);
+  EXPECT_EQ(remove->status, 405) << remove->body;
+  EXPECT_EQ(remove->get_header_value("Allow"), "GET, HEAD");
+  EXPECT_EQ(body(remove)["error"], "method not allowed: DELETE /map; this route answers GET, HEAD");
+  // No route at all stays 404, whatever the method, and its body is not read either.
+  const auto nowhere = client_->Put("/nowhere", image, "application/x-www-form-urlencoded");
+  ASSERT_TRUE(nowhere);
+  EXPECT_EQ(nowhere->status, 404) << nowhere->body;
+  EXPECT_EQ(body(nowhere)["error"].get<std::string>().rfind("not found: PUT /nowhere", 0), 0u) << nowhere->body;
+  const auto head = client_->Head("/health");
+  ASSERT_TRUE(head);
+  EXPECT_EQ(head->status, 200);
+}
+
+// The body of a request refused before it is read was left in the socket, and the kept-alive
+// connection read it as the next requests: a PNG logged as a dozen malformed ones.
+TEST_F(ServerTest, ARefusedBodyIsNotReadAsTheNextRequest) {
+  std::ostringstream log;
+  ServerOptions options = options_;
+  options.log = &log;
+  LocalizationServer server(*catalog_, options);
+  const int port = server.bind();
+  std::thread serving([&] { server.serve(); });
+  const std::string body = "\r\n\r\nGET /health HTTP/1.1\r\nHost: x\r\n\r\n" + std::string(5000, 'x');
+  const std::string answer = rawExchange(port, "PUT /localize HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: image/png\r\n"
+                                               "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body);
+  server.stop();
+  serving.join();
+  EXPECT_EQ(answer.rfind("HTTP/1.1 405", 0), 0u) << answer;
+  EXPECT_NE(answer.find("Connection: close"), std::string::npos) << answer;
+  EXPECT_EQ(answer.find("HTTP/1.1", 1), std::string::npos) << "answered more than one request: " << answer;
+  EXPECT_EQ(log.str(), "PUT /localize 405 method not allowed: PUT /localize; this route answers POST\n");
+}
+
+// A client's name or path was logged as sent: a newline in it wrote a forged log line, a NUL a
+// raw NUL, and a 5000-byte name 5000 bytes. The answer's JSON was, and is, escaped.
+TEST_F(ServerTest, TheLogHoldsOneLineARequestWithControlCharactersEscapedAndLongNamesCut) {
+  std::ostringstream log;
+  ServerOptions options = options_;
+  options.log = &log;
+  LocalizationServer server(*catalog_, options);
+  const int port = server.bind();
+  std::thread serving([&] { server.serve(); });
+  httplib::Client client("127.0.0.1", port);
+  client.set_read_timeout(120);
+  const std::string forged = "x%0APOST%20/maps/f/localize%20200%20q%20localized%209999%20inliers%0D%00%09%7F%1B%5C";
+  const auto named = client.Post(("/localize?name=" + forged + "&" + intrinsicsParameters()).c_str(), queryFileBytes(),
+                                 "image/png");
+  ASSERT_TRUE(named);
+  EXPECT_EQ(named->status, 200) << named->body;
+  EXPECT_EQ(body(named)["name"], std::string("x\nPOST /maps/f/localize 200 q localized 9999 inliers\r") + '\0' + "\t\x7f\x1b\\");
+  const auto long_name = client.Post(("/localize?name=" + std::string(5000, 'n') + "&" + intrinsicsParameters()).c_str(),
+                                     queryFileBytes(), "image/png");
+  ASSERT_TRUE(long_name);
+  EXPECT_EQ(long_name->status, 200) << long_name->body;
+  const auto path = client.Get("/x%0Aforged%20line%00");
+  ASSERT_TRUE(path);
+  EXPECT_EQ(path->status, 404);
+  server.stop();
+  serving.join();
+
+  std::vector<std::string> lines;
+  std::istringstream text(log.str());
+  for (std::string line; std::getline(text, line);) lines.push_back(line);
+  ASSERT_EQ(lines.size(), 3u) << log.str();
+  EXPECT_EQ(lines[0].rfind("POST /localize 200 x\\nPOST /maps/f/localize 200 q localized 9999 inliers\\r\\x00\\t\\x7f\\x1b\\ ", 0),
+            0u)
+      << lines[0];
+  EXPECT_EQ(lines[1].rfind("POST /localize 200 " + std::string(200, 'n') + "... (5000 bytes, cut) ", 0), 0u) << lines[1];
+  EXPECT_EQ(lines[2].rfind("GET /x\\nforged line\\x00 404 not found: GET /x\\nforged line\\x00 (known:", 0), 0u) << lines[2];
+  for (const std::string& line : lines)
+    for (const char c : line) EXPECT_TRUE(static_cast<unsigned char>(c) >= 0x20 && c != 0x7F) << line;
 }
 
 TEST_F(ServerTest, SecondServerOnTheSamePortIsAnInputError) {
