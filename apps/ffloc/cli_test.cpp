@@ -6,8 +6,10 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <opencv2/imgcodecs.hpp>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include <torch/cuda.h>
@@ -245,6 +247,28 @@ TEST_F(Cli, ThreadCountsOutsideTheirRangeAreRefusedNamingTheFlag) {
   EXPECT_EQ(at_bound.exit_code, 2) << at_bound.output;
   EXPECT_TRUE(contains(at_bound.output, "no.ffmap")) << at_bound.output;
   EXPECT_FALSE(contains(at_bound.output, "--threads")) << at_bound.output;
+}
+
+// Classical mapped the empty split and blamed the features ("no mapping image has usable
+// features"), fastforward the depth; a dataset without queries was mapped in full first.
+TEST_F(Cli, EvalOfADatasetWithAnEmptySplitSaysWhichAndNamesTheDataset) {
+  const fs::path data = manifestDataset(dir_ / "data", "q.png");
+  std::ifstream read(data / "manifest.json");
+  const std::string manifest((std::istreambuf_iterator<char>(read)), {});
+  for (const auto& [from, to, empty] : {std::tuple<std::string, std::string, std::string>{"mapping", "query", "mapping"},
+                                        {"query", "mapping", "query"}}) {
+    std::string edited = manifest;
+    for (size_t at; (at = edited.find("\"split\": \"" + from + "\"")) != std::string::npos;)
+      edited.replace(at, from.size() + 11, "\"split\": \"" + to + "\"");
+    writeText(data / "manifest.json", edited);
+    for (const std::string methods : {"classical", "fastforward", "oracle-depth"}) {
+      const CliRun run = runCli({"eval", "--dataset", data.string(), "--methods", methods});
+      EXPECT_EQ(run.exit_code, 2) << methods << ": " << run.output;
+      EXPECT_TRUE(contains(run.output, "error: " + data.string() + ": split '" + empty + "' is empty"))
+          << methods << ": " << run.output;
+      EXPECT_FALSE(contains(run.output, "features [")) << methods << " mapped first: " << run.output;
+    }
+  }
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
+#include "ffloc/data/splits.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/html_report.h"
@@ -134,6 +135,9 @@ int runEval(const EvalArguments& args) {
   std::vector<ReportDataset> report_datasets;
   for (const std::string& dataset : args.datasets) {
     Scene scene = loadDataset(dataset, args.format);
+    // Up front: classical would map an empty split and blame the features ("no mapping image has
+    // usable features"), and map a full one before finding no query to evaluate.
+    if (!methods.empty()) requireSplits(scene);
     if (!args.poses_path.empty()) {
       for (const size_t index : scene.indices(Split::kQuery)) {
         const Frame& frame = scene.frames[index];
