@@ -271,5 +271,33 @@ TEST_F(Cli, EvalOfADatasetWithAnEmptySplitSaysWhichAndNamesTheDataset) {
   }
 }
 
+// "error: : Invalid argument" before, naming neither the flag nor what was wrong; --stride 0 gave
+// "Value 0 not in range 0.000000 to 1797...", the largest double in full.
+TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {
+  const std::string data = manifestDataset(dir_ / "data", "q.png").string();
+  const std::string map = (dir_ / "m.ffmap").string();
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"map", "--dataset", "", "-o", map}, "--dataset"},
+      {{"map", "--dataset", data, "-o", ""}, "--output"},
+      {{"eval", "--dataset", ""}, "--dataset"},
+      {{"eval", "--dataset", data, "--map", ""}, "--map"},
+      {{"eval", "--dataset", data, "--json", ""}, "--json"},
+      {{"localize", "--map", "", "--image", "q.png", "--intrinsics", "50,50,31.5,23.5"}, "--map"},
+      {{"serve", "--map", ""}, "--map"},
+      {{"retrieval", "--map", map, "--dataset", ""}, "--dataset"}};
+  for (const auto& [arguments, flag] : cases) {
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << arguments[0] << " " << flag << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, flag + ": the path is empty")) << arguments[0] << ": " << run.output;
+    EXPECT_FALSE(contains(run.output, "features [")) << arguments[0] << " mapped first: " << run.output;
+  }
+  EXPECT_FALSE(fs::exists(map));
+  for (const std::string stride : {"0", "-3"}) {
+    const CliRun run = runCli({"eval", "--dataset", data, "--methods", "oracle-depth", "--stride", stride});
+    EXPECT_EQ(run.exit_code, 2) << run.output;
+    EXPECT_TRUE(contains(run.output, "--stride: must be an integer of at least 1, got " + stride)) << run.output;
+  }
+}
+
 }  // namespace
 }  // namespace ffloc

@@ -51,6 +51,20 @@ CLI::Validator threadCountRange() {
       "0 to " + std::to_string(kMaxThreads));
 }
 
+CLI::Validator nonEmptyPath() {
+  return CLI::Validator([](const std::string& input) { return input.empty() ? "the path is empty" : ""; }, "PATH");
+}
+
+CLI::Validator atLeast(int64_t minimum) {
+  return CLI::Validator(
+      [minimum](const std::string& input) -> std::string {
+        int64_t value = 0;
+        if (CLI::detail::lexical_cast(input, value) && value >= minimum) return "";
+        return "must be an integer of at least " + std::to_string(minimum) + ", got " + input;
+      },
+      ">= " + std::to_string(minimum));
+}
+
 void addQueryOptions(CLI::App& command, QueryArguments& args) {
   command.add_option("--preset", args.preset, "indoor (K=10, N=1500) or outdoor (K=20, N=3000)")->capture_default_str();
   args.top_k_option = command.add_option("--top-k", args.top_k, "Mapping images per query (overrides the preset)");

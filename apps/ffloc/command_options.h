@@ -36,6 +36,14 @@ LocalizeOptions localizeOptions(const QueryArguments& args);
 constexpr int kMaxThreads = 256;
 CLI::Validator threadCountRange();
 
+// For a flag that names a file or folder: an empty value reached the file system as "", whose
+// error named nothing ("error: : Invalid argument").
+CLI::Validator nonEmptyPath();
+
+// For an integer count: "must be at least 1, got 0", where CLI11's PositiveNumber said "Value 0
+// not in range 0.000000 to 1797...", the largest double in full.
+CLI::Validator atLeast(int64_t minimum);
+
 // An error message that starts with a library option field ("top_k: ...") with the field
 // replaced by its flag ("--top-k: ..."): main() says every InputError this way.
 std::string withFlagName(const std::string& message);

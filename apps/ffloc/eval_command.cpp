@@ -236,6 +236,7 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
               "accuracy (medians; % within 5cm/5deg, 10cm/10deg, 20cm/20deg, 10cm/1deg, 25cm/5deg) and latency.");
   cmd->add_option("--dataset", args->datasets, "Dataset folder(s); the format is detected (comma-separated for several)")
       ->required()
+      ->check(nonEmptyPath())
       ->delimiter(',');
   cmd->add_option("--format", args->format, "Dataset format: auto, " + [] {
         std::string s;
@@ -267,7 +268,7 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--stride", args->stride, "oracle-depth: use every n-th pixel of the depth map")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(atLeast(1));
   cmd->add_option("--inlier-threshold", args->inlier_threshold_px, "RANSAC inlier threshold (px)")
       ->capture_default_str();
   cmd->add_option("--confidence-threshold", args->confidence_threshold,
@@ -295,6 +296,7 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
                   "The paper's setting for a benchmark (wayspots, indoor6, rio10, cambridge, 7scenes): top-K, N and "
                   "7-Scenes' mapping-frame thinning; --top-k/--features override it (docs/protocols.md)");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
+  for (const char* path_flag : {"--map", "--json", "--csv", "--markdown", "--html", "--poses", "--ply"}) cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, &run] { run = [args] { return runEval(*args); }; });
 }
 

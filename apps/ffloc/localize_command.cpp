@@ -219,6 +219,7 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
                   "Write a PLY: mapping cameras (grey), estimated query cameras (blue), the first query's "
                   "correspondences' points with confidence >= 1.5 (red)");
   cmd->add_flag("--json", args->json, "Print JSON (an object for one query, an array for a list)");
+  for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"}) cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, &run] { run = [args] { return runLocalize(*args); }; });
 }
 

@@ -72,14 +72,16 @@ void registerMapCommand(CLI::App& app, CommandRun& run) {
       "keypoints and descriptors, links between the images, a 3D point per keypoint (lifted with the frame's depth "
       "where it has depth, triangulated elsewhere), a VLAD vocabulary. fastforward (experimental): encoder tokens "
       "(fp16) and global descriptors of every image for the network.");
-  cmd->add_option("--dataset", args->dataset, "Dataset folder (its mapping split is mapped)")->required();
+  cmd->add_option("--dataset", args->dataset, "Dataset folder (its mapping split is mapped)")
+      ->required()
+      ->check(nonEmptyPath());
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
   cmd->add_option("--method", args->method, "classical or fastforward")->capture_default_str();
   addModelOptions(*cmd, args->model,
                   "fastforward: 'default' (the shipped model, models/MODEL_CARD.md; FFLOC_MODEL overrides), a "
                   "FastForward checkpoint, a DUSt3R checkpoint (.pth or safetensors; initialises FastForward, whose "
                   "ray MLP and map head are then untrained) or random:<tiny|small|large>[:seed] for tests");
-  cmd->add_option("-o,--output", args->output, "Map file to write (atomically)")->required();
+  cmd->add_option("-o,--output", args->output, "Map file to write (atomically)")->required()->check(nonEmptyPath());
   cmd->add_flag("--append", args->append,
                 "Add the dataset's images to an existing map of the same method (and model); images already in it "
                 "(by name) are skipped and the earlier ones kept as they are");

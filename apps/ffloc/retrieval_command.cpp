@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "command_model.h"
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/classical/sift_features.h"
 #include "ffloc/classical/vlad.h"
@@ -224,6 +225,7 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--json", args->json_path, "Write the recall table and per-query ranks as JSON here");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
+  for (const char* path_flag : {"--map", "--dataset", "--json"}) cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, &run] {
     run = [args] {
       runRetrieval(*args);

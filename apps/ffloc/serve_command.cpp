@@ -204,6 +204,7 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
                   "Seconds a request's body may take to arrive after its headers, in all (408 past it)")
       ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
+  for (const char* path_flag : {"--map", "--maps", "--keys"}) cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, &run] { run = [args] { return runServe(*args); }; });
 }
 

@@ -303,15 +303,15 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--precision", args->precision, "fp32, or bf16 mixed precision (overrides the config)")
       ->check(CLI::IsMember({"fp32", "bf16"}));
   cmd->add_option("--batch-size", args->batch_size, "Samples in one forward pass of each rank (overrides the config)")
-      ->check(CLI::PositiveNumber);
+      ->check(atLeast(1));
   cmd->add_option("--accumulate", args->accumulate, "Forward passes per optimiser step (overrides the config)")
-      ->check(CLI::PositiveNumber);
+      ->check(atLeast(1));
   cmd->add_option("--loader-threads", args->loader_threads,
                   "Background threads preparing samples (overrides the config)")
-      ->check(CLI::PositiveNumber);
+      ->check(atLeast(1));
   cmd->add_option("--nproc-per-node", args->nproc_per_node,
                   "Start this many ranks on this machine, as torchrun does (RANK, WORLD_SIZE, ... set for each)")
-      ->check(CLI::PositiveNumber);
+      ->check(atLeast(1));
   cmd->add_option("--max-seconds", args->max_seconds,
                   "Stop after this many seconds of training with a checkpoint (0: run all steps)")
       ->check(CLI::NonNegativeNumber);
