@@ -299,5 +299,37 @@ TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {
   }
 }
 
+// Accepted before: an empty method list ran classical, a method named twice ran twice, NaN
+// outliers and negative noise passed, and an output in a missing folder or onto a folder was
+// found only after every query had run.
+TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
+  const std::string data = manifestDataset(dir_ / "data", "q.png").string();
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--methods", ""}, "--methods: names no method"},
+      {{"--methods", ","}, "--methods: names no method"},
+      {{"--methods", "oracle-depth,classical,oracle-depth"}, "--methods: 'oracle-depth' is given twice"},
+      {{"--methods", "oracle-depth", "--outliers", "nan"}, "--outliers: must be in [0, 1]"},
+      {{"--methods", "oracle-depth", "--noise-px", "-1"}, "--noise-px: must be a finite number of pixels, 0 or more"},
+      {{"--methods", "oracle-depth", "--noise-px", "inf"}, "--noise-px: must be a finite number of pixels, 0 or more"},
+      {{"--methods", "oracle-depth", "--point-noise", "nan"}, "--point-noise: must be a finite distance, 0 or more"},
+      {{"--methods", "oracle-depth", "--json", (dir_ / "missing" / "r.json").string()},
+       "--json: '" + (dir_ / "missing" / "r.json").string() + "': folder '" + (dir_ / "missing").string() +
+           "' does not exist"},
+      {{"--methods", "oracle-depth", "--poses", dir_.string()}, "--poses: '" + dir_.string() + "' is a folder"}};
+  for (const auto& [options, message] : cases) {
+    std::vector<std::string> arguments = {"eval", "--dataset", data};
+    arguments.insert(arguments.end(), options.begin(), options.end());
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << message << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, message)) << run.output;
+    EXPECT_FALSE(contains(run.output, "median")) << "evaluated first: " << run.output;
+  }
+  const CliRun localize = runCli({"localize", "--map", (dir_ / "no.ffmap").string(), "--image", data + "/q.png",
+                                  "--intrinsics", "50,50,31.5,23.5", "--ply", (dir_ / "missing" / "p.ply").string()});
+  EXPECT_EQ(localize.exit_code, 2) << localize.output;
+  EXPECT_TRUE(contains(localize.output, "--ply: '" + (dir_ / "missing" / "p.ply").string() + "': folder"))
+      << localize.output;
+}
+
 }  // namespace
 }  // namespace ffloc

@@ -1,5 +1,7 @@
 #include "command_options.h"
 
+#include <unistd.h>
+
 #include <map>
 
 #include "ffloc/core/error.h"
@@ -63,6 +65,17 @@ CLI::Validator atLeast(int64_t minimum) {
         return "must be an integer of at least " + std::to_string(minimum) + ", got " + input;
       },
       ">= " + std::to_string(minimum));
+}
+
+void checkOutputPath(const std::string& flag, const std::string& path) {
+  if (path.empty()) return;
+  const std::filesystem::path target(path);
+  if (std::filesystem::is_directory(target)) throw InputError(flag + ": '" + path + "' is a folder; give a file name");
+  const std::filesystem::path folder = target.has_parent_path() ? target.parent_path() : ".";
+  if (!std::filesystem::is_directory(folder))
+    throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' does not exist");
+  if (access(folder.c_str(), W_OK) != 0)
+    throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' is not writable");
 }
 
 void addQueryOptions(CLI::App& command, QueryArguments& args) {

@@ -40,6 +40,11 @@ CLI::Validator threadCountRange();
 // error named nothing ("error: : Invalid argument").
 CLI::Validator nonEmptyPath();
 
+// For a file the run writes at its end (`flag` names it in the error): its folder must exist and
+// be writable, and the path must not be a folder, checked before the run, which found either only after every
+// query had run. Empty: not asked for, nothing to check.
+void checkOutputPath(const std::string& flag, const std::string& path);
+
 // For an integer count: "must be at least 1, got 0", where CLI11's PositiveNumber said "Value 0
 // not in range 0.000000 to 1797...", the largest double in full.
 CLI::Validator atLeast(int64_t minimum);

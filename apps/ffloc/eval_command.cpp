@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <cmath>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -75,7 +76,19 @@ int runEval(const EvalArguments& args) {
 #endif
   std::vector<std::string> methods = splitList(args.methods);
   if (methods.empty() && args.map_path.empty()) methods = {"classical"};
-  if (args.outliers < 0 || args.outliers > 1) throw InputError("--outliers: must be in [0, 1]");
+  // Written as "not in range" so that NaN, which fails every comparison, is refused too.
+  if (!(args.outliers >= 0 && args.outliers <= 1)) throw InputError("--outliers: must be in [0, 1]");
+  if (!(args.noise_px >= 0 && std::isfinite(args.noise_px)))
+    throw InputError("--noise-px: must be a finite number of pixels, 0 or more");
+  if (!(args.point_noise >= 0 && std::isfinite(args.point_noise)))
+    throw InputError("--point-noise: must be a finite distance, 0 or more");
+  for (const auto& [flag, path] : {std::pair<const char*, const std::string&>{"--json", args.json_path},
+                                   {"--csv", args.csv_path},
+                                   {"--markdown", args.markdown_path},
+                                   {"--html", args.html_path},
+                                   {"--poses", args.poses_path},
+                                   {"--ply", args.ply_path}})
+    checkOutputPath(flag, path);
   if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
   for (size_t i = 0; i < args.datasets.size(); ++i)
     for (size_t j = 0; j < i; ++j)
@@ -248,7 +261,17 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
 #ifdef FFLOC_WITH_TORCH
                  ", fastforward"
 #endif
-                 "; classical and fastforward build their map of the mapping split in memory");
+                 "; classical and fastforward build their map of the mapping split in memory")
+      ->check(CLI::Validator(
+          [](const std::string& input) -> std::string {
+            // An empty list ran classical, and a method named twice ran twice, without a word.
+            const std::vector<std::string> methods = splitList(input);
+            if (methods.empty()) return "names no method";
+            for (auto method = methods.begin(); method != methods.end(); ++method)
+              if (std::find(methods.begin(), method, *method) != method) return "'" + *method + "' is given twice";
+            return "";
+          },
+          "LIST"));
   cmd->add_option("--map", args->map_path,
                   "Also evaluate this map file from 'ffloc map' (any method), exactly as 'ffloc localize' runs it; "
                   "its row is named <method>@map");
@@ -296,7 +319,8 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
                   "The paper's setting for a benchmark (wayspots, indoor6, rio10, cambridge, 7scenes): top-K, N and "
                   "7-Scenes' mapping-frame thinning; --top-k/--features override it (docs/protocols.md)");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
-  for (const char* path_flag : {"--map", "--json", "--csv", "--markdown", "--html", "--poses", "--ply"}) cmd->get_option(path_flag)->check(nonEmptyPath());
+  for (const char* path_flag : {"--map", "--json", "--csv", "--markdown", "--html", "--poses", "--ply"})
+    cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, &run] { run = [args] { return runEval(*args); }; });
 }
 

@@ -120,6 +120,8 @@ void printText(const nlohmann::json& r) {
 int runLocalize(const LocalizeArguments& args) {
   setLibraryThreadCount(args.model.threads);
   if (args.image.empty() == args.image_list.empty()) throw InputError("give exactly one of --image and --images");
+  checkOutputPath("--poses", args.poses_path);
+  checkOutputPath("--ply", args.ply_path);
   const LocalizeOptions options = localizeOptions(args.query);
 
   const Intrinsics fallback = args.intrinsics.empty() ? Intrinsics{} : parseIntrinsics(args.intrinsics, "--intrinsics");
@@ -219,7 +221,8 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
                   "Write a PLY: mapping cameras (grey), estimated query cameras (blue), the first query's "
                   "correspondences' points with confidence >= 1.5 (red)");
   cmd->add_flag("--json", args->json, "Print JSON (an object for one query, an array for a list)");
-  for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"}) cmd->get_option(path_flag)->check(nonEmptyPath());
+  for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"})
+    cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, &run] { run = [args] { return runLocalize(*args); }; });
 }
 
