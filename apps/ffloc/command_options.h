@@ -6,6 +6,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "ffloc/core/threads.h"
+
 #include "ffloc/localization/localizer.h"
 
 namespace ffloc::cli {
@@ -29,11 +31,8 @@ struct QueryArguments {
 void addQueryOptions(CLI::App& command, QueryArguments& args);
 LocalizeOptions localizeOptions(const QueryArguments& args);
 
-// Every --threads flag: 0 (all hardware threads) to kMaxThreads. Past 65536 TBB (OpenCV's pool)
-// crashed, and long before that the pools' start-up and hand-offs swamped the work: a fastforward
-// map of one image took 1.4 s with 2 threads, 33 s with 1000. 0 reaches every core of a larger
-// machine.
-constexpr int kMaxThreads = 256;
+// Every --threads flag: 0 (all hardware threads) to kMaxThreads (core/threads.h), checked while
+// the command line is parsed.
 CLI::Validator threadCountRange();
 
 // For a flag that names a file or folder: an empty value reached the file system as "", whose

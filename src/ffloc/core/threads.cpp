@@ -4,6 +4,8 @@
 #include <opencv2/core/utility.hpp>
 #include <thread>
 
+#include "ffloc/core/error.h"
+
 // Weak, so builds against another BLAS still link and simply skip the calls.
 extern "C" void openblas_set_num_threads(int threads) __attribute__((weak));
 extern "C" int openblas_get_num_threads(void) __attribute__((weak));
@@ -12,6 +14,9 @@ extern "C" char* openblas_get_corename(void) __attribute__((weak));
 namespace ffloc {
 
 int resolveThreadCount(int requested) {
+  if (requested < 0 || requested > kMaxThreads)
+    throw InputError("threads: must be 0 (all hardware threads) to " + std::to_string(kMaxThreads) + ", got " +
+                     std::to_string(requested));
   if (requested > 0) return requested;
   return std::max(1u, std::thread::hardware_concurrency());
 }

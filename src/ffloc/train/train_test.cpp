@@ -59,6 +59,8 @@ TEST(TrainingConfig, ReadsJsonAndNamesBadFields) {
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"alpha", -1}}, "cfg.json"); }), "field 'alpha'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"max_overlap", 1.5}}, "cfg.json"); }), "max_overlap"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"point_weight", -0.5}}, "cfg.json"); }), "field 'point_weight'"));
+  // Past 65536 threads OpenCV's pool crashed; the command line's bound holds for a config too.
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"threads", 65537}}, "cfg.json"); }), "field 'threads'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"trained_parameters", {""}}}, "cfg.json"); }),
                        "field 'trained_parameters'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"trained_parameters", "match_head."}}, "cfg.json"); }),

@@ -6,6 +6,7 @@
 #include <torch/cuda.h>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/threads.h"
 #include "ffloc/io/json_fields.h"
 
 namespace ffloc {
@@ -113,7 +114,8 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (accumulate < 1) fail("accumulate", "must be at least 1");
   if (loader_threads < 1 || loader_threads > 256) fail("loader_threads", "must be in [1, 256]");
   if (prefetch_samples < 1 || prefetch_samples > 1024) fail("prefetch_samples", "must be in [1, 1024]");
-  if (threads < 0) fail("threads", "must be non-negative");
+  if (threads < 0 || threads > kMaxThreads)
+    fail("threads", "must be 0 (all hardware threads) to " + std::to_string(kMaxThreads));
   if (device != "cpu" && device != "cuda") fail("device", "must be cpu or cuda");
   // Here, before any tensor: libtorch's own refusal is a stack trace from deep inside the run.
   if (device == "cuda" && !torch::cuda::is_available()) {
