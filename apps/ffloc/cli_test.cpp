@@ -271,6 +271,29 @@ TEST_F(Cli, EvalOfADatasetWithAnEmptySplitSaysWhichAndNamesTheDataset) {
   }
 }
 
+// Flags the run would ignore were taken without a word: --model on a classical map (the docs'
+// retrieval example built a classical map that way), --max-features with --append (the map keeps
+// its own SIFT settings).
+TEST_F(Cli, MapRefusesFlagsItWouldIgnore) {
+  const std::string data = manifestDataset(dir_ / "data", "q.png").string();
+  const std::string map = (dir_ / "ignored.ffmap").string();
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--model", "default"}, "--model: the classical method uses no network"},
+      {{"--dtype", "bf16"}, "--dtype: the classical method uses no network"},
+      {{"--vlad"}, "--vlad: a classical map always holds its VLAD descriptors"},
+      {{"--method", "fastforward", "--max-features", "100"}, "--max-features: applies to the classical method only"},
+      {{"--method", "fastforward", "--no-depth"}, "--no-depth: applies to the classical method only"},
+      {{"--append", "--max-image-size", "640"}, "--max-image-size: a map appended to keeps the SIFT settings"}};
+  for (const auto& [flags, expected] : cases) {
+    std::vector<std::string> arguments = {"map", "--dataset", data, "-o", map, "--quiet"};
+    arguments.insert(arguments.end(), flags.begin(), flags.end());
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << flags[0] << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, expected)) << run.output;
+  }
+  EXPECT_FALSE(fs::exists(map));
+}
+
 // "error: : Invalid argument" before, naming neither the flag nor what was wrong; --stride 0 gave
 // "Value 0 not in range 0.000000 to 1797...", the largest double in full.
 TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {

@@ -1,11 +1,15 @@
+#include <algorithm>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include "command_model.h"
 #include "command_options.h"
 #include "commands.h"
+#include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/pipeline/map_building.h"
@@ -25,7 +29,27 @@ struct MapArguments {
   int max_features = SiftOptions().max_features;
   bool vlad = false;
   bool quiet = false;
+  std::vector<std::string> flags_given;  // of those that apply to one method only, or not with --append
 };
+
+// A flag that the run would ignore is refused: the user expects it to act.
+void refuseIgnoredFlags(const MapArguments& args) {
+  auto given = [&](const std::string& flag) {
+    return std::find(args.flags_given.begin(), args.flags_given.end(), flag) != args.flags_given.end();
+  };
+  const bool classical = parseLocalizationMethod(args.method) == LocalizationMethod::kClassical;
+  for (const char* flag : {"--model", "--dtype"})
+    if (classical && given(flag))
+      throw InputError(std::string(flag) + ": the classical method uses no network; give --method fastforward");
+  for (const char* flag : {"--no-depth", "--max-image-size", "--max-features"}) {
+    if (!classical && given(flag))
+      throw InputError(std::string(flag) + ": applies to the classical method only, not --method " + args.method);
+    if (args.append && given(flag) && std::string(flag) != "--no-depth")
+      throw InputError(std::string(flag) + ": a map appended to keeps the SIFT settings it was built with");
+  }
+  if (classical && given("--vlad"))
+    throw InputError("--vlad: a classical map always holds its VLAD descriptors; --vlad is for --method fastforward");
+}
 
 void printSummary(size_t added, size_t duplicates, double seconds, size_t images, const std::string& output) {
   std::cout << "mapped " << added << " images";
@@ -37,6 +61,7 @@ void printSummary(size_t added, size_t duplicates, double seconds, size_t images
 }
 
 int runMap(const MapArguments& args) {
+  refuseIgnoredFlags(args);
   setLibraryThreadCount(args.model.threads);
   MapBuildOptions options;
   options.method = parseLocalizationMethod(args.method);
@@ -94,7 +119,11 @@ void registerMapCommand(CLI::App& app, CommandRun& run) {
   cmd->add_flag("--vlad", args->vlad,
                 "fastforward: also store the classical VLAD descriptor of every image, for 'localize --retrieval vlad'");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
-  cmd->callback([args, &run] { run = [args] { return runMap(*args); }; });
+  cmd->callback([args, cmd, &run] {
+    for (const char* flag : {"--model", "--dtype", "--no-depth", "--max-image-size", "--max-features", "--vlad"})
+      if (cmd->count(flag) > 0) args->flags_given.push_back(flag);
+    run = [args] { return runMap(*args); };
+  });
 }
 
 }  // namespace ffloc::cli
