@@ -264,6 +264,26 @@ TEST_F(ClassicalTest, LocalizesQueriesThroughTheInterface) {
   EXPECT_GE(localized, 3);
 }
 
+// A query given a focal length 0.6 or 1.7 times its own still matched hundreds of pairs, and six of
+// fifteen came back `localized` 0.7-1.5 m off: the verdict now sees that the inliers fit another
+// focal length.
+TEST_F(ClassicalTest, AWrongFocalLengthIsNeverLocalized) {
+  const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
+  int flagged = 0;
+  for (const double scale : {0.6, 1.7}) {
+    for (size_t q : scene_->queryIndices()) {
+      const Frame& frame = scene_->frames[q];
+      Intrinsics wrong = frame.intrinsics;
+      wrong.fx *= scale;
+      wrong.fy *= scale;
+      const LocalizationResult result = localizer.localize(readImageRgb(frame.image_path), wrong, frame.name, {});
+      EXPECT_FALSE(result.localized()) << frame.name << " at " << scale << "x its focal length";
+      flagged += result.verdict.reason.find("focal length") != std::string::npos;
+    }
+  }
+  EXPECT_GE(flagged, 1);
+}
+
 // Retrieval given too few images leaves poses uncertain; the mapping images the first pose sees
 // bring the pairs that settle them, and what they settle is right.
 TEST_F(ClassicalTest, PoseGuidedRetrievalLocalizesWhatRetrievalAloneLeavesUncertain) {

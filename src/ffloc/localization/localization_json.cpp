@@ -43,7 +43,9 @@ nlohmann::json localizationJson(const std::string& name, const LocalizationResul
                      {"residual_sigma_px", measuredOrNull(e.residual_sigma_px)},
                      {"predicted_centre_sigma", measuredOrNull(e.predicted_centre_sigma)},
                      {"predicted_centre_sigma_relative", measuredOrNull(e.predicted_centre_sigma_relative)},
-                     {"predicted_rotation_sigma_deg", measuredOrNull(e.predicted_rotation_sigma_deg)}};
+                     {"predicted_rotation_sigma_deg", measuredOrNull(e.predicted_rotation_sigma_deg)},
+                     {"focal_scale", measuredOrNull(e.focal_scale)},
+                     {"focal_scale_log_sigma", measuredOrNull(e.focal_scale_log_sigma)}};
   nlohmann::json selected = nlohmann::json::array();
   for (size_t index : result.selected) selected.push_back(localizer.cameras().at(index).name);
   out["selected"] = selected;

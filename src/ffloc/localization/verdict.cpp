@@ -7,6 +7,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
+#include "ffloc/pose/focal_fit.h"
 #include "ffloc/pose/pose_covariance.h"
 #include "ffloc/pose/reprojection.h"
 #include "ffloc/pose/select_correspondences.h"
@@ -41,6 +42,7 @@ void VerdictOptions::check() const {
   requireAtLeast("max_centre_sigma_relative", max_centre_sigma_relative, 0);
   requireAtLeast("max_centre_sigma_m", max_centre_sigma_m, 0);
   requireAtLeast("max_rotation_sigma_deg", max_rotation_sigma_deg, 0);
+  requireAtLeast("max_focal_deviation", max_focal_deviation, 0);
   requireAtLeast("max_agreement_translation", max_agreement_translation, 0);
   requireAtLeast("max_agreement_rotation_deg", max_agreement_rotation_deg, 0);
   requireAtLeast("max_agreement_distance_m", max_agreement_distance_m, 0);
@@ -96,6 +98,10 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
         evidence.predicted_rotation_sigma_deg = std::numeric_limits<double>::infinity();
   }
 
+  const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera);
+  evidence.focal_scale = focal.valid ? focal.scale : 1;
+  evidence.focal_scale_log_sigma = focal.valid ? focal.log_scale_sigma : std::numeric_limits<double>::infinity();
+
   if (second_estimate) {
     if (second_estimate->ok()) {
       evidence.agreement_distance = translationError(second_estimate->camera_to_world, pose.camera_to_world);
@@ -137,6 +143,11 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
              evidence.predicted_rotation_sigma_deg <= options.max_rotation_sigma_deg &&
              (!metric || evidence.predicted_centre_sigma <= options.max_centre_sigma_m)))
     verdict.reason = "the inliers leave the pose too uncertain";
+  else if (const double deviation = std::abs(std::log(evidence.focal_scale));
+           evidence.focal_scale > 0 && deviation > std::log1p(options.max_focal_deviation) &&
+           deviation > VerdictOptions::kFocalSignificance * evidence.focal_scale_log_sigma)
+    verdict.reason = "the inliers fit a focal length " + std::to_string(evidence.focal_scale) +
+                     " times the one given: check the query's intrinsics";
   else if (!std::isfinite(evidence.agreement_translation) || evidence.agreement_translation < 0) {
     if (evidence.independent_second_estimate)
       verdict.reason = "the second reference frame gives no pose";

@@ -31,6 +31,11 @@ struct PoseEvidence {
   double predicted_centre_sigma = -1;
   double predicted_centre_sigma_relative = -1;
   double predicted_rotation_sigma_deg = -1;
+  // The focal length the inliers fit best, over the one given (fitFocalScale), and the predicted
+  // standard deviation of its logarithm. Negative without a pose, +inf sigma when the inliers
+  // do not determine it.
+  double focal_scale = -1;
+  double focal_scale_log_sigma = -1;
   // A second, independent estimate (another reference image, another half of the pairs): the
   // distance between the two camera centres over the median inlier depth, and the angle
   // between the two rotations. Negative when no second estimate was made or it failed.
@@ -58,6 +63,15 @@ struct VerdictOptions {
   double max_centre_sigma_relative = std::numeric_limits<double>::infinity();  // of the median inlier depth
   double max_centre_sigma_m = 0.10;                                            // in metric maps only
   double max_rotation_sigma_deg = std::numeric_limits<double>::infinity();
+  // A query given the wrong focal length still gets hundreds of inliers, its pose slid metres
+  // along the optical axis. When the inliers fit a focal length more than this fraction away from
+  // the one given, and more than kFocalSignificance predicted standard deviations away, the pose
+  // is kUncertain (docs/verdict.md). The prediction runs small, as the pose's does (its errors
+  // run up to 3 times what it predicts): at 3 sigma, six right poses of the tuning scenes with a
+  // few dozen inliers were thrown out (3.3-8.6 sigma), at 6 two; queries given 0.6 times their
+  // focal length fit 7.6-51 sigma away, at 10 sigma two of them stayed `localized`.
+  double max_focal_deviation = 0.2;
+  static constexpr double kFocalSignificance = 6;
   // A second estimate that lands farther than this makes the pose kUncertain; so does an
   // independent one that fails, and a half-sample one that fails when require_agreement.
   double max_agreement_translation = 0.05;  // of the median inlier depth

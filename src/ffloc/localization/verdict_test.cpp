@@ -60,6 +60,30 @@ TEST(Verdict, EachTestCanMakeAPoseUncertain) {
   EXPECT_EQ(judged([](PoseEvidence& e) { e.predicted_centre_sigma = 0.12; }, false).status, PoseStatus::kLocalized);
 }
 
+// Inliers that fit another focal length than the one given: the query's intrinsics are wrong, and
+// its pose slid along the optical axis. Only a deviation past 20 % and 3 standard deviations counts.
+TEST(Verdict, AFocalLengthTheInliersDoNotFitMakesThePoseUncertain) {
+  auto judged = [](double scale, double log_sigma) {
+    PoseEvidence e = strong();
+    e.focal_scale = scale;
+    e.focal_scale_log_sigma = log_sigma;
+    return judgePose(e, success(), true, VerdictOptions{});
+  };
+  EXPECT_EQ(judged(1.0, 0.001).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged(1.15, 0.001).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged(1.6, 0.02).reason, "the inliers fit a focal length 1.600000 times the one given: check the "
+                                      "query's intrinsics");
+  EXPECT_EQ(judged(0.6, 0.02).status, PoseStatus::kUncertain);
+  EXPECT_EQ(judged(1.6, 0.5).status, PoseStatus::kLocalized);  // a far plane: the focal length is not determined
+  EXPECT_EQ(judged(1.6, std::numeric_limits<double>::infinity()).status, PoseStatus::kLocalized);
+  VerdictOptions off;
+  off.max_focal_deviation = std::numeric_limits<double>::infinity();
+  PoseEvidence e = strong();
+  e.focal_scale = 3;
+  e.focal_scale_log_sigma = 0.01;
+  EXPECT_EQ(judgePose(e, success(), true, off).status, PoseStatus::kLocalized);
+}
+
 // The predicted-uncertainty tests (by default only the centre's in metres) each reject a pose when set.
 TEST(Verdict, PredictedUncertaintyTestsRejectWhenSet) {
   EXPECT_EQ(judgePose(strong(), success(), true, VerdictOptions{}).status, PoseStatus::kLocalized);

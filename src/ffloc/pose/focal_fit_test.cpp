@@ -1,0 +1,80 @@
+#include "ffloc/pose/focal_fit.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <numeric>
+#include <random>
+
+namespace ffloc {
+namespace {
+
+Intrinsics givenCamera() { return {500, 500, 320, 240, 640, 480, {}}; }
+
+Pose worldToCamera() {
+  Pose pose;
+  pose.R = Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, -2, 1).normalized()).toRotationMatrix();
+  pose.t = Eigen::Vector3d(0.2, 0.1, 0.5);
+  return pose;
+}
+
+struct Pairs {
+  std::vector<Eigen::Vector2d> pixels;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<int> indices;
+};
+
+// Pixels seen by a camera with `true_scale` times the given focal length, with 0.5 px noise, of
+// points `near` to `far` deep.
+Pairs observe(double true_scale, double near, double far, uint64_t seed) {
+  Intrinsics truth = givenCamera();
+  truth.fx *= true_scale;
+  truth.fy *= true_scale;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 640), v(0, 480), depth(near, far);
+  std::normal_distribution<double> noise(0, 0.5);
+  const Pose camera_to_world = worldToCamera().inverse();
+  Pairs pairs;
+  for (int i = 0; i < 300; ++i) {
+    const Eigen::Vector2d pixel(u(rng), v(rng));
+    pairs.points.push_back(camera_to_world * truth.backproject(pixel, depth(rng)));
+    pairs.pixels.push_back(pixel + Eigen::Vector2d(noise(rng), noise(rng)));
+  }
+  pairs.indices.resize(pairs.pixels.size());
+  std::iota(pairs.indices.begin(), pairs.indices.end(), 0);
+  return pairs;
+}
+
+// Started at the pose and focal length given, the fit finds the focal length the pixels were
+// seen with, and says how well the depth relief determines it.
+TEST(FocalFit, RecoversTheFocalLengthThePixelsWereSeenWith) {
+  for (const double true_scale : {1.0, 0.6, 1.7}) {
+    SCOPED_TRACE(true_scale);
+    const Pairs pairs = observe(true_scale, 1, 6, 7);
+    const FocalFit fit = fitFocalScale(pairs.pixels, pairs.points, pairs.indices, givenCamera(), worldToCamera());
+    ASSERT_TRUE(fit.valid);
+    EXPECT_NEAR(fit.scale, true_scale, 0.01 * true_scale);
+    EXPECT_GT(fit.log_scale_sigma, 0);
+    EXPECT_LT(fit.log_scale_sigma, 0.01);
+  }
+}
+
+// Points of a thin, far slab: a longer focal length and a camera moved back see nearly the same
+// pixels, so the fit's predicted uncertainty is large, and the verdict cannot blame the focal length.
+TEST(FocalFit, AFarThinSlabLeavesTheFocalLengthUndetermined) {
+  const Pairs far = observe(1.0, 50, 50.05, 8);
+  const FocalFit fit = fitFocalScale(far.pixels, far.points, far.indices, givenCamera(), worldToCamera());
+  const Pairs deep = observe(1.0, 1, 6, 8);
+  const FocalFit deep_fit = fitFocalScale(deep.pixels, deep.points, deep.indices, givenCamera(), worldToCamera());
+  ASSERT_TRUE(deep_fit.valid);
+  EXPECT_TRUE(!fit.valid || fit.log_scale_sigma > 50 * deep_fit.log_scale_sigma);
+}
+
+TEST(FocalFit, TooFewPairsGiveNoFit) {
+  Pairs pairs = observe(1.0, 1, 6, 9);
+  pairs.indices.resize(4);
+  EXPECT_FALSE(fitFocalScale(pairs.pixels, pairs.points, pairs.indices, givenCamera(), worldToCamera()).valid);
+}
+
+}  // namespace
+}  // namespace ffloc
