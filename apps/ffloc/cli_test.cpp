@@ -338,7 +338,10 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
       {{"--methods", "oracle-depth", "--json", (dir_ / "missing" / "r.json").string()},
        "--json: '" + (dir_ / "missing" / "r.json").string() + "': folder '" + (dir_ / "missing").string() +
            "' does not exist"},
-      {{"--methods", "oracle-depth", "--poses", dir_.string()}, "--poses: '" + dir_.string() + "' is a folder"}};
+      {{"--methods", "oracle-depth", "--poses", dir_.string()}, "--poses: '" + dir_.string() + "' is a folder"},
+      // A name the file system cannot look up was an uncaught filesystem_error: "internal error", exit 3.
+      {{"--methods", "oracle-depth", "--csv", (dir_ / std::string(300, 'a') / "r.csv").string()},
+       "' cannot be reached: File name too long"}};
   for (const auto& [options, message] : cases) {
     std::vector<std::string> arguments = {"eval", "--dataset", data};
     arguments.insert(arguments.end(), options.begin(), options.end());

@@ -70,10 +70,15 @@ CLI::Validator atLeast(int64_t minimum) {
 void checkOutputPath(const std::string& flag, const std::string& path) {
   if (path.empty()) return;
   const std::filesystem::path target(path);
-  if (std::filesystem::is_directory(target)) throw InputError(flag + ": '" + path + "' is a folder; give a file name");
+  // The error_code overloads: a folder on the way that may not be searched, or a name too long,
+  // is the user's input, not an internal error.
+  std::error_code error;
+  if (std::filesystem::is_directory(target, error)) throw InputError(flag + ": '" + path + "' is a folder; give a file name");
   const std::filesystem::path folder = target.has_parent_path() ? target.parent_path() : ".";
-  if (!std::filesystem::is_directory(folder))
-    throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' does not exist");
+  if (!std::filesystem::is_directory(folder, error))
+    throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' " +
+                     (error && error != std::errc::no_such_file_or_directory ? "cannot be reached: " + error.message()
+                                                                             : std::string("does not exist")));
   if (access(folder.c_str(), W_OK) != 0)
     throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' is not writable");
 }

@@ -36,7 +36,10 @@ SiftFeatures extractSiftFeatures(const cv::Mat& rgb, const Intrinsics& intrinsic
   const int long_side = std::max(gray.cols, gray.rows);
   if (long_side > options.max_image_size) {
     features.working_scale = static_cast<double>(options.max_image_size) / long_side;
-    // At least one pixel across: a sliver of an image (2100 x 1) has no features, as a tiny one has none.
+    // The size given, not the factor: OpenCV then samples each axis at exactly the ratio of the
+    // sizes, the one keypoints are mapped back with below (given the factor, it samples at the
+    // factor and rounds the size, up to 0.65 px apart at the edge of a Strecha image). At least
+    // one pixel across: a sliver of an image (2100 x 1) has no features, as a tiny one has none.
     const cv::Size working(std::max(1, static_cast<int>(std::lround(gray.cols * features.working_scale))),
                            std::max(1, static_cast<int>(std::lround(gray.rows * features.working_scale))));
     cv::Mat small;

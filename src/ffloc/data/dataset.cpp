@@ -48,10 +48,11 @@ void requireUniqueNames(const Scene& scene) {
       throwInputError(scene.root.string(), 0, "two frames share the image name '" + frame.name + "'");
 }
 
-// Every frame, mapping or query, passes what a query given on the command line passes, and every
-// camera centre what a parsed pose matrix passes (some formats give centres, not matrices): a
-// mapping frame that fails would otherwise give a map that refuses every query, or one that cannot
-// be read back.
+// Every frame's intrinsics, mapping or query, pass the focal length and principal point checks a
+// query given on the command line passes, for the image size the intrinsics give (the image is
+// held to that size when it is read), and every camera centre what a parsed pose matrix passes
+// (some formats give centres, not matrices): a mapping frame that fails would otherwise give a map
+// that refuses every query, or one that cannot be read back.
 void requirePlausibleFrames(const Scene& scene) {
   for (const Frame& frame : scene.frames) {
     const std::string where = "frame '" + frame.name + "': ";

@@ -64,8 +64,9 @@ struct VerdictOptions {
   double max_centre_sigma_m = 0.10;                                            // in metric maps only
   double max_rotation_sigma_deg = std::numeric_limits<double>::infinity();
   // A query given the wrong focal length still gets hundreds of inliers, its pose slid metres
-  // along the optical axis. When the inliers fit a focal length more than this fraction away from
-  // the one given, and more than kFocalSignificance predicted standard deviations away, the pose
+  // along the optical axis. When the inliers fit a focal length more than this fraction above the
+  // one given, or below it by the same ratio (1.2x or 1/1.2x), and more than kFocalSignificance
+  // predicted standard deviations of its logarithm away, the pose
   // is kUncertain (docs/verdict.md). The prediction runs small, as the pose's does (its errors
   // run up to 3 times what it predicts): at 3 sigma, six right poses of the tuning scenes with a
   // few dozen inliers were thrown out (3.3-8.6 sigma), at 6 two; queries given 0.6 times their
@@ -96,7 +97,8 @@ struct PoseVerdict {
 PoseEvidence measureEvidence(const Correspondences& correspondences, const Intrinsics& camera, const PnpResult& pose,
                              const PnpOptions& pnp, const PnpResult* second_estimate);
 PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool metric, const VerdictOptions& options);
-// Multiplies the predicted uncertainties (those measured: not the negative "no pose") by `scale`;
+// Multiplies the pose's predicted uncertainties (centre, centre over depth, rotation; those
+// measured, not the negative "no pose") by `scale`, not the focal fit's (verdict.cpp says why);
 // std::invalid_argument unless it is positive and finite.
 void scalePredictedUncertainty(PoseEvidence& evidence, double scale);
 

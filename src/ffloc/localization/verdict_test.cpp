@@ -61,7 +61,8 @@ TEST(Verdict, EachTestCanMakeAPoseUncertain) {
 }
 
 // Inliers that fit another focal length than the one given: the query's intrinsics are wrong, and
-// its pose slid along the optical axis. Only a deviation past 20 % and 3 standard deviations counts.
+// its pose slid along the optical axis. Only a deviation past 1.2x (or 1/1.2x) and 6 predicted
+// standard deviations counts.
 TEST(Verdict, AFocalLengthTheInliersDoNotFitMakesThePoseUncertain) {
   auto judged = [](double scale, double log_sigma) {
     PoseEvidence e = strong();
@@ -71,6 +72,10 @@ TEST(Verdict, AFocalLengthTheInliersDoNotFitMakesThePoseUncertain) {
   };
   EXPECT_EQ(judged(1.0, 0.001).status, PoseStatus::kLocalized);
   EXPECT_EQ(judged(1.15, 0.001).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged(0.85, 0.001).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged(0.8, 0.001).status, PoseStatus::kUncertain);   // below 1/1.2
+  EXPECT_EQ(judged(1.3, 0.05).status, PoseStatus::kLocalized);    // 5.2 sigma
+  EXPECT_EQ(judged(1.3, 0.04).status, PoseStatus::kUncertain);    // 6.6 sigma
   EXPECT_EQ(judged(1.6, 0.02).reason, "the inliers fit a focal length 1.600000 times the one given: check the "
                                       "query's intrinsics");
   EXPECT_EQ(judged(0.6, 0.02).status, PoseStatus::kUncertain);
@@ -113,11 +118,14 @@ TEST(Verdict, PredictedUncertaintyTestsRejectWhenSet) {
 TEST(Verdict, ScaledUncertaintyIsJudgedAsScaled) {
   PoseEvidence e = strong();
   e.predicted_centre_sigma = 0.04;
+  e.focal_scale = 1.05;
+  e.focal_scale_log_sigma = 0.01;
   EXPECT_EQ(judgePose(e, success(), true, VerdictOptions{}).status, PoseStatus::kLocalized);
   scalePredictedUncertainty(e, 3.5);
   EXPECT_DOUBLE_EQ(e.predicted_centre_sigma, 0.14);
   EXPECT_DOUBLE_EQ(e.predicted_centre_sigma_relative, 0.004 * 3.5);
   EXPECT_DOUBLE_EQ(e.predicted_rotation_sigma_deg, 0.3 * 3.5);
+  EXPECT_DOUBLE_EQ(e.focal_scale_log_sigma, 0.01);  // the focal test's sigma is judged as measured
   EXPECT_EQ(judgePose(e, success(), true, VerdictOptions{}).reason, "the inliers leave the pose too uncertain");
   // Without a pose there is nothing to scale: "none" stays negative.
   PoseEvidence none;

@@ -24,9 +24,10 @@ void requireReplaceable(const std::filesystem::path& output) {
   if (!std::filesystem::exists(output)) return;
   try {
     readMapHeader(output);
-  } catch (const InputError&) {
-    throwInputError(output.string(), 0, "exists and is not an ffloc map, so it is not replaced: write the map to "
-                                        "another path, or remove the file first");
+  } catch (const InputError& error) {
+    throwInputError(output.string(), 0, std::string("exists and is not an ffloc map, so it is not replaced: write the "
+                                                    "map to another path, or remove the file first (") +
+                                            error.what() + ")");
   }
 }
 

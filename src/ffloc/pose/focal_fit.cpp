@@ -97,6 +97,7 @@ FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::ve
       pose = candidate;
       log_scale = candidate_log_scale;
       cost = candidate_cost;
+      in_front = candidate_in_front;
       damping = std::max(damping * 0.1, 1e-12);
       if (converged) break;
     } else {
