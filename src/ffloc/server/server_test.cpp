@@ -598,36 +598,52 @@ TEST_F(ServerTest, AMethodTheRouteDoesNotAnswerIs405NamingTheMethodsItDoes) {
   EXPECT_EQ(head->status, 200);
 }
 
+// A server over `catalog` that logs to a string, serving on its own thread until stopped.
+class LoggingServer {
+ public:
+  LoggingServer(const MapCatalog& catalog, const ServerOptions& options)
+      : server_(catalog, logTo(options, &log_)), port_(server_.bind()), serving_([this] { server_.serve(); }) {}
+  ~LoggingServer() {
+    if (serving_.joinable()) stopAndReadLog();
+  }
+  int port() const { return port_; }
+  std::string stopAndReadLog() {
+    server_.stop();
+    serving_.join();
+    return log_.str();
+  }
+
+ private:
+  static ServerOptions logTo(ServerOptions options, std::ostream* log) {
+    options.log = log;
+    return options;
+  }
+  std::ostringstream log_;
+  LocalizationServer server_;
+  const int port_;
+  std::thread serving_;
+};
+
 // The body of a request refused before it is read was left in the socket, and the kept-alive
 // connection read it as the next requests: a PNG logged as a dozen malformed ones.
 TEST_F(ServerTest, ARefusedBodyIsNotReadAsTheNextRequest) {
-  std::ostringstream log;
-  ServerOptions options = options_;
-  options.log = &log;
-  LocalizationServer server(*catalog_, options);
-  const int port = server.bind();
-  std::thread serving([&] { server.serve(); });
+  LoggingServer server(*catalog_, options_);
   const std::string body = "\r\n\r\nGET /health HTTP/1.1\r\nHost: x\r\n\r\n" + std::string(5000, 'x');
-  const std::string answer = rawExchange(port, "PUT /localize HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: image/png\r\n"
-                                               "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body);
-  server.stop();
-  serving.join();
+  const std::string answer =
+      rawExchange(server.port(), "PUT /localize HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: image/png\r\n"
+                                 "Content-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body);
+  const std::string log = server.stopAndReadLog();
   EXPECT_EQ(answer.rfind("HTTP/1.1 405", 0), 0u) << answer;
   EXPECT_NE(answer.find("Connection: close"), std::string::npos) << answer;
   EXPECT_EQ(answer.find("HTTP/1.1", 1), std::string::npos) << "answered more than one request: " << answer;
-  EXPECT_EQ(log.str(), "PUT /localize 405 method not allowed: PUT /localize; this route answers POST\n");
+  EXPECT_EQ(log, "PUT /localize 405 method not allowed: PUT /localize; this route answers POST\n");
 }
 
 // A client's name or path was logged as sent: a newline in it wrote a forged log line, a NUL a
 // raw NUL, and a 5000-byte name 5000 bytes. The answer's JSON was, and is, escaped.
 TEST_F(ServerTest, TheLogHoldsOneLineARequestWithControlCharactersEscapedAndLongNamesCut) {
-  std::ostringstream log;
-  ServerOptions options = options_;
-  options.log = &log;
-  LocalizationServer server(*catalog_, options);
-  const int port = server.bind();
-  std::thread serving([&] { server.serve(); });
-  httplib::Client client("127.0.0.1", port);
+  LoggingServer server(*catalog_, options_);
+  httplib::Client client("127.0.0.1", server.port());
   client.set_read_timeout(120);
   const std::string forged = "x%0APOST%20/maps/f/localize%20200%20q%20localized%209999%20inliers%0D%00%09%7F%1B%5C";
   const auto named = client.Post(("/localize?name=" + forged + "&" + intrinsicsParameters()).c_str(), queryFileBytes(),
@@ -642,13 +658,12 @@ TEST_F(ServerTest, TheLogHoldsOneLineARequestWithControlCharactersEscapedAndLong
   const auto path = client.Get("/x%0Aforged%20line%00");
   ASSERT_TRUE(path);
   EXPECT_EQ(path->status, 404);
-  server.stop();
-  serving.join();
+  const std::string log = server.stopAndReadLog();
 
   std::vector<std::string> lines;
-  std::istringstream text(log.str());
+  std::istringstream text(log);
   for (std::string line; std::getline(text, line);) lines.push_back(line);
-  ASSERT_EQ(lines.size(), 3u) << log.str();
+  ASSERT_EQ(lines.size(), 3u) << log;
   EXPECT_EQ(lines[0].rfind("POST /localize 200 x\\nPOST /maps/f/localize 200 q localized 9999 inliers\\r\\x00\\t\\x7f\\x1b\\ ", 0),
             0u)
       << lines[0];
