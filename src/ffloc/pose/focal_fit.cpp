@@ -1,7 +1,6 @@
 #include "ffloc/pose/focal_fit.h"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Geometry>
 #include <cmath>
 
 #include "ffloc/pose/reprojection.h"
@@ -58,17 +57,6 @@ struct FocalProblem {
   }
 };
 
-Pose stepped(const Pose& pose, const Vector7d& step) {
-  const Eigen::Vector3d omega = step.head<3>();
-  const double angle = omega.norm();
-  const Eigen::Matrix3d rotation =
-      angle > 0 ? Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix() : Eigen::Matrix3d::Identity();
-  Pose updated;
-  updated.R = rotation * pose.R;
-  updated.t = rotation * pose.t + step.segment<3>(3);
-  return updated;
-}
-
 }  // namespace
 
 FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
@@ -89,7 +77,7 @@ FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::ve
     damped.diagonal() += damping * H.diagonal().cwiseMax(1e-12);
     const Vector7d step = -damped.ldlt().solve(g);
     if (!step.allFinite()) break;
-    const Pose candidate = stepped(pose, step);
+    const Pose candidate = perturbedLeft(pose, step.head<6>());
     const double candidate_log_scale = log_scale + step(6);
     const auto [candidate_cost, candidate_in_front] = problem.cost(candidate, std::exp(candidate_log_scale));
     if (candidate_in_front >= in_front && candidate_cost < cost) {

@@ -1,7 +1,6 @@
 #include "ffloc/pose/refine_pose.h"
 
 #include <Eigen/Cholesky>
-#include <Eigen/Geometry>
 #include <cmath>
 
 #include "ffloc/pose/reprojection.h"
@@ -68,17 +67,6 @@ class ReprojectionProblem {
   const double scale_squared_;
 };
 
-Pose applyStep(const Pose& pose, const Eigen::Matrix<double, 6, 1>& step) {
-  const Eigen::Vector3d omega = step.head<3>();
-  const double angle = omega.norm();
-  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
-  if (angle > 0) rotation = Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
-  Pose updated;
-  updated.R = rotation * pose.R;
-  updated.t = rotation * pose.t + step.tail<3>();
-  return updated;
-}
-
 }  // namespace
 
 RefinePoseSummary refinePose(const std::vector<Eigen::Vector2d>& pixels,
@@ -103,7 +91,7 @@ RefinePoseSummary refinePose(const std::vector<Eigen::Vector2d>& pixels,
     damped.diagonal() += damping * H.diagonal().cwiseMax(1e-12);
     const Eigen::Matrix<double, 6, 1> step = -damped.ldlt().solve(g);
     if (!step.allFinite()) break;
-    const Pose candidate = applyStep(pose, step);
+    const Pose candidate = perturbedLeft(pose, step);
     const Evaluation trial = problem.evaluate(candidate);
     if (trial.in_front >= current.in_front && trial.cost < current.cost) {
       pose = candidate;

@@ -1,5 +1,6 @@
 #include "ffloc/pose/reprojection.h"
 
+#include <Eigen/Geometry>
 #include <limits>
 
 namespace ffloc {
@@ -37,6 +38,17 @@ std::vector<int> findInliers(const std::vector<Eigen::Vector2d>& pixels,
     if (squaredReprojectionError(camera, world_to_camera, pixels[i], points[i]) < threshold_squared)
       inliers.push_back(static_cast<int>(i));
   return inliers;
+}
+
+Pose perturbedLeft(const Pose& world_to_camera, const Eigen::Matrix<double, 6, 1>& step) {
+  const Eigen::Vector3d omega = step.head<3>();
+  const double angle = omega.norm();
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  if (angle > 0) rotation = Eigen::AngleAxisd(angle, omega / angle).toRotationMatrix();
+  Pose updated;
+  updated.R = rotation * world_to_camera.R;
+  updated.t = rotation * world_to_camera.t + step.tail<3>();
+  return updated;
 }
 
 }  // namespace ffloc
