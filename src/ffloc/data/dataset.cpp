@@ -61,11 +61,8 @@ void requirePlausibleFrames(const Scene& scene) {
     } catch (const InputError& error) {
       throwInputError(scene.root.string(), 0, where + "intrinsics: " + error.what());
     }
-    const double distance = frame.camera_to_world.t.stableNorm();
-    if (!(distance <= kMaxCameraDistance))
-      throwInputError(scene.root.string(), 0,
-                      where + "camera centre is " + std::to_string(distance) + " from the origin, beyond the " +
-                          std::to_string(kMaxCameraDistance) + " that any scene fits in");
+    const std::string centre = cameraCentreProblem(frame.camera_to_world.t);
+    if (!centre.empty()) throwInputError(scene.root.string(), 0, where + centre);
   }
 }
 

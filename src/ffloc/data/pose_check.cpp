@@ -24,14 +24,18 @@ std::string poseMatrixProblem(const Eigen::Matrix4d& T) {
     what << "pose's last row is (" << last << "), expected (0 0 0 1)";
     return what.str();
   }
-  const double distance = T.topRightCorner<3, 1>().stableNorm();
-  if (distance > kMaxCameraDistance) {
-    std::ostringstream what;
-    what << "camera centre is " << distance << " from the origin, beyond the " << kMaxCameraDistance
-         << " that any scene fits in";
-    return what.str();
-  }
+  const std::string centre = cameraCentreProblem(T.topRightCorner<3, 1>());
+  if (!centre.empty()) return centre;
   return rotationProblem(T.topLeftCorner<3, 3>());
+}
+
+std::string cameraCentreProblem(const Eigen::Vector3d& centre) {
+  const double distance = centre.stableNorm();
+  if (distance <= kMaxCameraDistance) return "";
+  std::ostringstream what;
+  what << "camera centre is " << distance << " from the origin, beyond the " << kMaxCameraDistance
+       << " that any scene fits in";
+  return what.str();
 }
 
 Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, int line) {

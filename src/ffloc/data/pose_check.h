@@ -17,6 +17,8 @@ inline constexpr double kMaxCameraDistance = 1e9;
 // beyond kMaxCameraDistance, rotation not orthonormal within 1e-2), or an empty string when
 // nothing is.
 std::string poseMatrixProblem(const Eigen::Matrix4d& T);
+// What is wrong with a camera centre (beyond kMaxCameraDistance or not finite), or "".
+std::string cameraCentreProblem(const Eigen::Vector3d& centre);
 std::string rotationProblem(const Eigen::Matrix3d& R);
 
 // The checked matrix as a Pose, its rotation re-orthonormalised (parsed text loses digits).
