@@ -2,6 +2,7 @@
 
 #include <array>
 #include <fstream>
+#include <iterator>
 
 #include "ffloc/core/error.h"
 #include "ffloc/io/image_size.h"
@@ -27,6 +28,41 @@ bool hasDecodableImageSignature(std::string_view bytes) {
   return startsWith("\x76\x2F\x31\x01");  // OpenEXR
 }
 
+bool jpegReachesItsEnd(std::string_view bytes) {
+  const auto byteAt = [&](size_t at) { return static_cast<unsigned char>(bytes[at]); };
+  if (!startsLikeJpeg(bytes)) return false;
+  size_t at = 2;
+  while (true) {
+    // A marker: 0xFF, fill bytes 0xFF, its type. Bytes where a marker should start are skipped,
+    // as libjpeg skips them.
+    while (at < bytes.size() && byteAt(at) != 0xFF) ++at;
+    while (at < bytes.size() && byteAt(at) == 0xFF) ++at;
+    if (at >= bytes.size()) return false;
+    const unsigned type = byteAt(at++);
+    if (type == 0xD9) return true;                                  // end of image
+    if (type == 0x00 || type == 0x01 || (type >= 0xD0 && type <= 0xD7)) continue;  // no length
+    if (at + 2 > bytes.size()) return false;
+    const size_t length = (size_t{byteAt(at)} << 8) | byteAt(at + 1);
+    if (length < 2 || at + length > bytes.size()) return false;
+    at += length;
+    if (type != 0xDA) continue;
+    // After a start of scan, the compressed data: 0xFF is followed by 0x00 (a stuffed byte), a
+    // restart marker, or the marker that ends the scan.
+    while (true) {
+      while (at < bytes.size() && byteAt(at) != 0xFF) ++at;
+      if (at + 1 >= bytes.size()) return false;
+      const unsigned next = byteAt(at + 1);
+      if (next == 0x00 || (next >= 0xD0 && next <= 0xD7)) {
+        at += 2;
+      } else if (next == 0xFF) {
+        ++at;
+      } else {
+        break;
+      }
+    }
+  }
+}
+
 void requireDecodableImageFile(const std::filesystem::path& path, const std::string& refusal) {
   std::ifstream in(path, std::ios::binary);
   std::array<char, 12> leading{};
@@ -39,6 +75,12 @@ void requireDecodableImageFile(const std::filesystem::path& path, const std::str
   const bool png = startsLikePng(bytes);
   if ((png || startsLikeJpeg(bytes)) && !fileFrameSize(path)) {
     throwInputError(path.string(), 0, refusal + ": a " + (png ? "PNG" : "JPEG") + " whose header does not give its size");
+  }
+  if (startsLikeJpeg(bytes)) {
+    in.clear();
+    in.seekg(0);
+    const std::string whole((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    if (!jpegReachesItsEnd(whole)) throwInputError(path.string(), 0, refusal + ": " + kJpegCutShort);
   }
 }
 

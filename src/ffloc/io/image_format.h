@@ -18,11 +18,20 @@ bool hasDecodableImageSignature(std::string_view leading_bytes);
 bool startsLikePng(std::string_view bytes);
 bool startsLikeJpeg(std::string_view bytes);
 
+// Whether the bytes are a JPEG whose compressed data runs on to its end-of-image marker (bytes
+// after it, which some cameras append, do not matter). libjpeg decodes a file cut short without
+// an error: it prints "Premature end of JPEG file", naming no file, and paints the rows it lacks
+// grey, so a download cut short became a query or mapping image half grey without a word.
+bool jpegReachesItsEnd(std::string_view bytes);
+inline constexpr const char* kJpegCutShort =
+    "a JPEG cut short: its compressed data ends before the end-of-image marker (a damaged or partial file)";
+
 // Throws InputError naming `path`, "<refusal>: not a PNG, JPEG, ... file", unless its first
 // bytes are those of a format above, and "<refusal>: a JPEG whose header does not give its size"
 // for a PNG or JPEG whose header walk finds no frame: libjpeg skips damaged segments that the
 // walk stops at, and found a 65272 x 13041 frame behind one (2.5 GB; the localize_request
-// fuzzer), where the size a caller checks must come from the header.
+// fuzzer), where the size a caller checks must come from the header; "<refusal>: a JPEG cut
+// short..." for a JPEG that does not reach its end (jpegReachesItsEnd).
 void requireDecodableImageFile(const std::filesystem::path& path, const std::string& refusal);
 
 }  // namespace ffloc

@@ -41,6 +41,31 @@ TEST(ImageFormat, FilesOfOtherFormatsAreRefusedBeforeDecoding) {
   }
 }
 
+// A JPEG cut short decoded without an error, its missing rows grey (libjpeg printed "Premature end
+// of JPEG file", naming no file). Every cut inside the compressed data is refused now, naming the
+// file; a whole file, baseline or progressive (several scans), or with bytes after its end, is not.
+TEST(ImageFormat, JpegsCutShortAreRefused) {
+  cv::Mat3b image(96, 128);
+  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
+  const auto dir = testing::makeTempDir("ffloc-jpeg-cut");
+  for (const std::vector<int>& parameters : {std::vector<int>{}, std::vector<int>{cv::IMWRITE_JPEG_PROGRESSIVE, 1}}) {
+    std::vector<uchar> encoded;
+    ASSERT_TRUE(cv::imencode(".jpg", image, encoded, parameters));
+    const std::string whole(encoded.begin(), encoded.end());
+    EXPECT_TRUE(jpegReachesItsEnd(whole));
+    EXPECT_TRUE(jpegReachesItsEnd(whole + "trailer a camera appended"));
+    for (size_t kept : {whole.size() / 3, whole.size() / 2, whole.size() - 2, whole.size() - 1}) {
+      EXPECT_FALSE(jpegReachesItsEnd(whole.substr(0, kept))) << kept << " of " << whole.size();
+    }
+    testing::writeTextFile(dir / "whole.jpg", whole);
+    EXPECT_EQ(readImageRgb(dir / "whole.jpg").size(), image.size());
+    testing::writeTextFile(dir / "half.jpg", whole.substr(0, whole.size() / 2));
+    testing::expectInputError([&] { readImageRgb(dir / "half.jpg"); },
+                              {"half.jpg", "image: cannot decode: a JPEG cut short"});
+  }
+  EXPECT_FALSE(jpegReachesItsEnd("\x89PNG\r\n\x1a\n"));
+}
+
 TEST(ImageSize, ReadsHeadersOfEveryEncoding) {
   const auto dir = testing::makeTempDir("ffloc-image-size");
   const cv::Mat3b image(7, 13, cv::Vec3b(10, 20, 30));

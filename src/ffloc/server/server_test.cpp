@@ -185,6 +185,18 @@ TEST(LocalizeRequest, OnlyPngAndJpegBodiesOfADeclaredSizeReachADecoder) {
   }
 }
 
+// An upload cut short was decoded with its missing rows grey (libjpeg only warned on stderr).
+TEST(LocalizeRequest, AJpegCutShortIsRefused) {
+  cv::Mat3b pixels(48, 64);
+  cv::randu(pixels, cv::Scalar::all(0), cv::Scalar::all(255));
+  std::vector<uchar> encoded;
+  ASSERT_TRUE(cv::imencode(".jpg", pixels, encoded));
+  const std::string whole(encoded.begin(), encoded.end());
+  EXPECT_EQ(requestErrorOf(pinholeFields(), whole), "");
+  EXPECT_EQ(requestErrorOf(pinholeFields(), whole.substr(0, whole.size() * 2 / 3)),
+            "image: a JPEG cut short: its compressed data ends before the end-of-image marker (a damaged or partial file)");
+}
+
 // Found by the localize_request fuzzer: a JPEG whose quantisation table lost a byte, so that the
 // header walk met no marker where one should start and gave up, while libjpeg skips such bytes,
 // finds a 12040x14895 frame and decodes it (540 MB, more than 10 s). And a JPEG whose EXIF
