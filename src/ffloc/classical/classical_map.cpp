@@ -37,7 +37,7 @@ Pose rigidPose(const JsonFields& fields, const std::string& key) {
   const Eigen::Matrix4d T = fields.matrix4(key);
   if (!T.allFinite()) fields.fail(key, "holds a value that is not a finite number");
   const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 || R.determinant() < 0 ||
+  if (orthogonalityError(R) > kRigidRotationTolerance || R.determinant() < 0 ||
       (T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)
     fields.fail(key, "is not a rigid transform (rotation not orthonormal)");
   return Pose::fromMatrix(T);
@@ -172,12 +172,12 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   const Eigen::Vector3d origin(origin_values[0], origin_values[1], origin_values[2]);
   if (!origin.allFinite()) top.fail("origin", "expected 3 finite numbers");
   const JsonFields sift(top.get("sift"), file, "sift");
-  map.sift.max_image_size = static_cast<int>(sift.integer("max_image_size", 16, 1 << 20));
-  map.sift.max_features = static_cast<int>(sift.integer("max_features", 1, 1 << 24));
+  map.sift.max_image_size = static_cast<int>(sift.integer("max_image_size", 16, SiftOptions::kMaxImageSize));
+  map.sift.max_features = static_cast<int>(sift.integer("max_features", 1, SiftOptions::kMaxFeatures));
   map.sift.contrast_threshold = sift.finiteNumber("contrast_threshold");
   // Maps written before the low-contrast fill-up described every image at contrast_threshold
   // alone; their queries must be described the same way.
-  map.sift.min_features = sift.has("min_features") ? static_cast<int>(sift.integer("min_features", 0, 1 << 24)) : 0;
+  map.sift.min_features = sift.has("min_features") ? static_cast<int>(sift.integer("min_features", 0, SiftOptions::kMaxFeatures)) : 0;
   if (sift.has("low_contrast_threshold")) map.sift.low_contrast_threshold = sift.finiteNumber("low_contrast_threshold");
   map.ratio = static_cast<float>(top.finiteNumber("ratio"));
   try {

@@ -232,6 +232,14 @@ TEST_F(ClassicalTest, AppendKeepsEarlierImagesAndLinksTheNewOnes) {
   EXPECT_GT(links_to_new, 100u);
   // Appending the same frames again adds nothing.
   EXPECT_EQ(addToClassicalMap(map, *scene_, second, quiet()).skipped_duplicates, second.size());
+  // Another image under a mapped name (a second dataset named alike) is refused, not skipped.
+  Scene renamed_alike = *scene_;
+  renamed_alike.frames[second[0]].camera_to_world.t.x() += 0.5;
+  const size_t images_before = map.images.size();
+  EXPECT_NE(inputErrorOf([&] { addToClassicalMap(map, renamed_alike, second, quiet()); })
+                .find("is already in the map with another pose (0.5 apart"),
+            std::string::npos);
+  EXPECT_EQ(map.images.size(), images_before);
 
   const fs::path path = *dir_ / "appended.ffmap";
   writeClassicalMap(map, path);
@@ -399,6 +407,22 @@ TEST_F(ClassicalTest, BadQueriesAndOptionsNameTheField) {
   EXPECT_NE(optionError([](LocalizeOptions& o) { o.verdict.min_inlier_ratio = std::nan(""); }).find("min_inlier_ratio"),
             std::string::npos);
   EXPECT_NE(inputErrorOf([] { LocalizeOptions::preset("underwater"); }).find("preset"), std::string::npos);
+
+  // Mapping options a map file cannot hold are refused before any work (a map was written, over a
+  // good one, that its own loader then refused).
+  for (const auto& [change, field] :
+       std::vector<std::pair<std::function<void(SiftOptions&)>, std::string>>{
+           {[](SiftOptions& o) { o.max_image_size = 1000000000; }, "max_image_size: must be in [16, 1048576]"},
+           {[](SiftOptions& o) { o.max_features = 1000000000; }, "max_features: must be in [1, 16777216]"},
+           {[](SiftOptions& o) { o.min_features = 1 << 25; }, "min_features: must be in [0, 16777216]"}}) {
+    ClassicalMappingOptions options = quiet();
+    change(options.sift);
+    const std::string error = inputErrorOf([&] {
+      ClassicalMap map = emptyClassicalMap(scene_->metric, options);
+      addToClassicalMap(map, *scene_, {scene_->mappingIndices()[0]}, options);
+    });
+    EXPECT_NE(error.find(field), std::string::npos) << error;
+  }
 }
 
 TEST_F(ClassicalTest, BadMapsAreRefusedNamingTheFile) {

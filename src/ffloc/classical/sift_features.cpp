@@ -12,11 +12,17 @@
 namespace ffloc {
 
 void SiftOptions::check() const {
-  if (max_image_size < 16) throw InputError("max_image_size: must be at least 16 pixels, got " + std::to_string(max_image_size));
-  if (max_features <= 0) throw InputError("max_features: must be positive, got " + std::to_string(max_features));
+  if (max_image_size < 16 || max_image_size > kMaxImageSize)
+    throw InputError("max_image_size: must be in [16, " + std::to_string(kMaxImageSize) + "] pixels, got " +
+                     std::to_string(max_image_size));
+  if (max_features <= 0 || max_features > kMaxFeatures)
+    throw InputError("max_features: must be in [1, " + std::to_string(kMaxFeatures) + "], got " +
+                     std::to_string(max_features));
   if (!(contrast_threshold > 0 && contrast_threshold < 1))
     throw InputError("contrast_threshold: must be in (0, 1), got " + std::to_string(contrast_threshold));
-  if (min_features < 0) throw InputError("min_features: must not be negative, got " + std::to_string(min_features));
+  if (min_features < 0 || min_features > kMaxFeatures)
+    throw InputError("min_features: must be in [0, " + std::to_string(kMaxFeatures) + "], got " +
+                     std::to_string(min_features));
   if (!(low_contrast_threshold > 0 && low_contrast_threshold <= contrast_threshold))
     throw InputError("low_contrast_threshold: must be in (0, contrast_threshold], got " +
                      std::to_string(low_contrast_threshold));

@@ -12,6 +12,10 @@ namespace ffloc {
 // How SIFT features are detected. A map records the options it was built with, and its queries
 // are described with the same ones.
 struct SiftOptions {
+  // Beyond any camera and any image's keypoints; a map file holds no larger value.
+  static constexpr int kMaxImageSize = 1 << 20;
+  static constexpr int kMaxFeatures = 1 << 24;
+
   // Images are shrunk (never enlarged) so the long side is at most this many pixels before
   // detection; keypoints are mapped back to the original undistorted grid. On Strecha's 3072 px
   // images 1024 px and 4000 features localise as well as 1600 px and 8000 (1.9 mm against
