@@ -10,6 +10,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/data/depth.h"
+#include "ffloc/data/pose_check.h"
 #include "ffloc/geometry/triangulation.h"
 
 namespace ffloc {
@@ -91,8 +92,8 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
                      " and this dataset is " + (scene.metric ? "metric" : "not metric"));
   map.metric = scene.metric;
 
-  std::set<std::string> names;
-  for (const ClassicalMapImage& image : map.images) names.insert(image.name);
+  std::map<std::string, Pose> mapped;
+  for (const ClassicalMapImage& image : map.images) mapped.emplace(image.name, image.camera_to_world);
   const size_t first_new = map.images.size();
   std::vector<size_t> new_frames;  // scene frame of each new image
   {
@@ -100,7 +101,8 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
     for (size_t f = 0; f < frames.size(); ++f) {
       const Frame& frame = scene.frames.at(frames[f]);
       progress.update(f + 1);
-      if (!names.insert(frame.name).second) {
+      if (const auto [found, added] = mapped.emplace(frame.name, frame.camera_to_world); !added) {
+        requireSamePoseAsMapped(scene.root, frame.name, found->second, frame.camera_to_world);
         ++report.skipped_duplicates;
         continue;
       }

@@ -92,10 +92,12 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
     frame.intrinsics = camera->second;
 
     const Eigen::Matrix4d T = entry.matrix4("camera_to_world");
-    // Checked like every other reader's poses, but stored unprojected so files round-trip.
+    // Checked like every other reader's poses; a rotation as written when it is one to
+    // kRigidRotationTolerance, so files round-trip exactly, projected onto one otherwise.
     const std::string problem = poseMatrixProblem(T);
     if (!problem.empty()) entry.fail("camera_to_world", problem);
     frame.camera_to_world = Pose::fromMatrix(T);
+    if (orthogonalityError(frame.camera_to_world.R) > kRigidRotationTolerance) projectToRotation(frame.camera_to_world.R);
 
     if (entry.has("depth")) {
       DepthSource depth;

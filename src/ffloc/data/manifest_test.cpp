@@ -112,6 +112,23 @@ TEST(Manifest, ReadsDefaults) {
   EXPECT_TRUE(frame.intrinsics.distortion.empty());
 }
 
+// A rotation whose text lost digits (here 1e-3 off orthonormal) was kept as written; a map built
+// from it then refused to load ("not a rigid transform"). It is projected onto the nearest rotation
+// now, while one that is a rotation as written is kept bit for bit (RoundTripsExactly).
+TEST(Manifest, NearlyOrthonormalRotationsAreProjected) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
+    "cameras": {"cam": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": [{"image": "a.png", "camera": "cam",
+                "camera_to_world": [[1,0.001,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  writeImage(dir / "a.png", 4, 3);
+  const Pose pose = readManifest(dir / "manifest.json").frames.at(0).camera_to_world;
+  EXPECT_LT(orthogonalityError(pose.R), 1e-12);
+  EXPECT_NEAR(pose.R.determinant(), 1.0, 1e-12);
+  EXPECT_NEAR(pose.R(0, 1), 0.0005, 1e-6);  // halfway, as the nearest rotation lies
+  EXPECT_EQ(pose.t, Eigen::Vector3d(1, 2, 3));
+}
+
 struct BadManifest {
   std::string edit_from, edit_to, expected;
 };

@@ -1,5 +1,6 @@
 #include "ffloc/data/pose_check.h"
 
+#include <algorithm>
 #include <sstream>
 
 #include "ffloc/core/error.h"
@@ -11,8 +12,8 @@ std::string rotationProblem(const Eigen::Matrix3d& R) {
   Eigen::Matrix3d projected = R;
   if (projectToRotation(projected)) return "";
   std::ostringstream what;
-  what << "rotation is not orthonormal (det " << R.determinant() << ", max |R^T R - I| "
-       << (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() << ")";
+  what << "rotation is not orthonormal (det " << R.determinant() << ", max |R^T R - I| " << orthogonalityError(R)
+       << ")";
   return what.str();
 }
 
@@ -52,6 +53,18 @@ Eigen::Matrix3d validatedRotation(const Eigen::Matrix3d& R, const std::filesyste
   Eigen::Matrix3d projected = R;
   projectToRotation(projected);
   return projected;
+}
+
+void requireSamePoseAsMapped(const std::filesystem::path& dataset, const std::string& name, const Pose& mapped,
+                             const Pose& frame) {
+  // A map stores the reader's pose exactly (JSON keeps every digit); the slack is for rounding.
+  const double distance = translationError(mapped, frame), angle = rotationErrorDeg(mapped, frame);
+  if (distance <= 1e-9 * std::max(1.0, mapped.t.norm()) && angle <= 1e-6) return;
+  std::ostringstream what;
+  what << "frame '" << name << "' is already in the map with another pose (" << distance << " apart, " << angle
+       << " deg): an append adds images by name, so this is another image under a mapped name; rename it, or "
+          "map without appending";
+  throwInputError(dataset.string(), 0, what.str());
 }
 
 }  // namespace ffloc

@@ -26,4 +26,11 @@ std::string rotationProblem(const Eigen::Matrix3d& R);
 Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, int line);
 Eigen::Matrix3d validatedRotation(const Eigen::Matrix3d& R, const std::filesystem::path& file, int line);
 
+// An append skips the frames whose name the map already holds, as the same images again. Under
+// such a name with another pose is another image (a second dataset named alike, whose frames the
+// skip left out without a word): InputError naming the dataset, the frame and how far apart the
+// two poses are.
+void requireSamePoseAsMapped(const std::filesystem::path& dataset, const std::string& name, const Pose& mapped,
+                             const Pose& frame);
+
 }  // namespace ffloc

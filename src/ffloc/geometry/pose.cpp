@@ -44,9 +44,13 @@ Pose Pose::operator*(const Pose& other) const {
 
 bool Pose::isFinite() const { return R.allFinite() && t.allFinite(); }
 
+double orthogonalityError(const Eigen::Matrix3d& R) {
+  return (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+}
+
 bool projectToRotation(Eigen::Matrix3d& R, double tolerance) {
   if (!R.allFinite()) return false;
-  const double orthogonality = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double orthogonality = orthogonalityError(R);
   if (orthogonality > tolerance || std::abs(R.determinant() - 1.0) > tolerance) return false;
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
   R = svd.matrixU() * svd.matrixV().transpose();

@@ -29,6 +29,15 @@ struct Pose {
   bool isFinite() const;
 };
 
+// max |R^T R - I|: how far a matrix is from orthonormal.
+double orthogonalityError(const Eigen::Matrix3d& R);
+
+// A matrix this close to orthonormal is a rotation as written: readers keep it (so files round-trip
+// exactly) and map files accept it. Readers project anything further off, up to the 1e-2 that text
+// with lost digits reaches, so no rotation beyond this reaches a map (a manifest pose 1e-3 off was
+// mapped as written and the map file then refused to load).
+inline constexpr double kRigidRotationTolerance = 1e-6;
+
 // Re-orthonormalises a nearly-orthonormal matrix (parsed text loses digits) with an SVD.
 // Returns false when the input is far from a rotation (|det - 1| or orthogonality > tolerance).
 bool projectToRotation(Eigen::Matrix3d& R, double tolerance = 1e-2);

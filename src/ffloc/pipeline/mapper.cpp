@@ -7,7 +7,6 @@
 #include <cstring>
 #include <map>
 #include <optional>
-#include <set>
 
 #include "ffloc/classical/sift_features.h"
 #include "ffloc/classical/vlad.h"
@@ -16,6 +15,7 @@
 #include "ffloc/core/ordered_parallel.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/data/depth.h"
+#include "ffloc/data/pose_check.h"
 #include "ffloc/geometry/preprocess.h"
 #include "ffloc/geometry/rays.h"
 #include "ffloc/model/torch_threads.h"
@@ -98,15 +98,17 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
                        ") places queries on its map tokens' 3D points, which come from the mapping frames' depth, and "
                        "no mapping frame of this dataset has depth: map it with the classical method");
   }
-  std::set<std::string> names;
-  for (const MapImage& image : map.images) names.insert(image.name);
+  std::map<std::string, Pose> mapped;
+  for (const MapImage& image : map.images) mapped.emplace(image.name, image.camera_to_world);
   MappingReport report;
   std::vector<const Frame*> to_add;
   for (const size_t f : frames) {
     if (f >= scene.frames.size()) throw InputError("mapping: frame index " + std::to_string(f) + " out of range");
-    if (names.insert(scene.frames[f].name).second) {
-      to_add.push_back(&scene.frames[f]);
+    const Frame& frame = scene.frames[f];
+    if (const auto [found, added] = mapped.emplace(frame.name, frame.camera_to_world); added) {
+      to_add.push_back(&frame);
     } else {
+      requireSamePoseAsMapped(scene.root, frame.name, found->second, frame.camera_to_world);
       ++report.skipped_duplicates;
     }
   }

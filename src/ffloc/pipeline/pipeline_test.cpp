@@ -129,6 +129,13 @@ TEST(Pipeline, MapRoundTripAppendAndRefusals) {
   ASSERT_EQ(reread.images.size(), 5u);
   for (size_t i = 0; i < 3; ++i) EXPECT_EQ(reread.images[i].tokens, map.images[i].tokens) << i;
   EXPECT_EQ(reread.images[4].name, "frame4.png");
+  // A mapped name with another pose is another image: refused, not skipped.
+  Scene moved = scene;
+  moved.frames[2].camera_to_world.t.z() += 1;
+  MapFile unchanged = reread;
+  EXPECT_NE(inputErrorOf([&] { addToMap(unchanged, model, moved, range(2, 3), quiet); })
+                .find("frame 'frame2.png' is already in the map with another pose"),
+            std::string::npos);
 
   // Another model is refused by the reader and by the mapper.
   const LoadedModel other = loadModel("random:tiny:4");
