@@ -2,6 +2,7 @@
 #include <memory>
 
 #include "commands.h"
+#include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/dataset_writers.h"
 
@@ -22,6 +23,11 @@ std::string joined(const std::vector<std::string>& names) {
 }
 
 void runConvertDataset(const ConvertDatasetArguments& args) {
+  try {
+    requireNewOutputFolder(args.out);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--out: ") + e.what());
+  }
   const Scene scene = loadDataset(args.dataset, args.input_format);
   writeDataset(scene, args.format, args.out);
   std::cout << "wrote " << args.out << ": " << scene.frames.size() << " frames of " << scene.name << " ("

@@ -32,14 +32,43 @@ std::vector<std::string> datasetWriterFormats() {
   return names;
 }
 
+void requireNewOutputFolder(const fs::path& out_dir) {
+  std::error_code error;
+  if (fs::status(out_dir, error).type() == fs::file_type::none)
+    throwInputError(out_dir.string(), 0, "cannot examine the output folder: " + error.message());
+  requireEmptyOutputFolder(out_dir);
+}
+
+void writeIntoNewFolder(const fs::path& out_dir, const std::function<void(const fs::path& out)>& write) {
+  fs::path out = fs::absolute(out_dir).lexically_normal();
+  if (out.filename().empty()) out = out.parent_path();  // "out/" ends in an empty part
+  requireNewOutputFolder(out);
+  fs::path outermost_created;
+  for (fs::path folder = out; !fs::exists(folder); folder = folder.parent_path()) outermost_created = folder;
+  std::error_code created;
+  fs::create_directories(out, created);
+  if (created) throwInputError(out.string(), 0, "cannot create the output folder: " + created.message());
+  try {
+    write(out);
+  } catch (...) {
+    std::error_code ignored;
+    if (!outermost_created.empty()) {
+      fs::remove_all(outermost_created, ignored);
+    } else {
+      std::vector<fs::path> written;
+      for (const fs::directory_entry& entry : fs::directory_iterator(out, ignored)) written.push_back(entry.path());
+      for (const fs::path& path : written) fs::remove_all(path, ignored);
+    }
+    throw;
+  }
+}
+
 std::vector<std::string> writeDataset(const Scene& scene, const std::string& format, const fs::path& out_dir) {
   for (const auto& writer : writers()) {
     if (format != writer.format) continue;
-    fs::path out = fs::absolute(out_dir).lexically_normal();
-    if (out.filename().empty()) out = out.parent_path();  // "out/" ends in an empty part
-    requireEmptyOutputFolder(out);
-    fs::create_directories(out);
-    return writer.write(scene, out);
+    std::vector<std::string> names;
+    writeIntoNewFolder(out_dir, [&](const fs::path& out) { names = writer.write(scene, out); });
+    return names;
   }
   std::string known;
   for (const auto& name : datasetWriterFormats()) known += (known.empty() ? "" : ", ") + name;

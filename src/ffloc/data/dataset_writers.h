@@ -1,6 +1,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -20,9 +21,21 @@ std::vector<std::string> datasetWriterFormats();
 // its own. Formats with only a mapping and a query side store unassigned frames with the mapping
 // frames. Returns, for each frame of `scene` in order, its Frame::name when `out_dir` is read back.
 // Throws InputError for an unknown format, a non-empty output folder, or a scene the format cannot
-// hold (lens distortion where it has no field for it).
+// hold (lens distortion where it has no field for it); a failed write leaves no files behind
+// (writeIntoNewFolder).
 std::vector<std::string> writeDataset(const Scene& scene, const std::string& format,
                                       const std::filesystem::path& out_dir);
+
+// Refuses, with InputError naming the folder, an `out_dir` that exists and is not an empty folder
+// (requireEmptyOutputFolder), or that cannot be examined (a loop of links).
+void requireNewOutputFolder(const std::filesystem::path& out_dir);
+
+// Creates `out_dir` (checked by requireNewOutputFolder) and runs `write` on it, normalised to an
+// absolute path. When `write` throws, what this run wrote is removed before the exception goes
+// on: the folders it created, or what it put into the empty folder it was given, never what was
+// there before; a partial output would otherwise have blocked the rerun as not empty.
+void writeIntoNewFolder(const std::filesystem::path& out_dir,
+                        const std::function<void(const std::filesystem::path& out)>& write);
 
 // The writers writeDataset dispatches to; each expects an empty `out` folder.
 std::vector<std::string> writeManifestDataset(const Scene& scene, const std::filesystem::path& out);

@@ -1,0 +1,80 @@
+#include "ffloc/data/dataset_writers.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Two frames; the second's image does not exist, so a writer fails after copying the first.
+Scene sceneFailingAtItsSecondFrame(const fs::path& dir) {
+  Scene scene;
+  scene.name = "source";
+  scene.root = dir;
+  scene.format = "manifest";
+  for (const std::string name : {"a.png", "missing.png"}) {
+    Frame frame;
+    frame.name = name;
+    frame.image_path = dir / name;
+    frame.intrinsics = {50, 50, 31.5, 23.5, 64, 48};
+    frame.split = Split::kMapping;
+    scene.frames.push_back(frame);
+  }
+  cv::imwrite((dir / "a.png").string(), cv::Mat(48, 64, CV_8UC3, cv::Scalar(40, 80, 120)));
+  return scene;
+}
+
+std::vector<fs::path> entriesOf(const fs::path& dir) {
+  std::vector<fs::path> entries;
+  for (const fs::directory_entry& entry : fs::recursive_directory_iterator(dir)) entries.push_back(entry.path());
+  std::sort(entries.begin(), entries.end());
+  return entries;
+}
+
+class DatasetWriters : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = testing::makeTempDir("ffloc_dataset_writers"); }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+// A conversion failing at a corrupt frame left the frames before it, and the rerun into the same
+// folder was refused as not empty.
+TEST_F(DatasetWriters, AFailedWriteRemovesWhatItWroteAndNothingElse) {
+  fs::create_directories(dir_ / "source");
+  const Scene scene = sceneFailingAtItsSecondFrame(dir_ / "source");
+  fs::create_directories(dir_ / "empty");
+  std::ofstream(dir_ / "beside.txt") << "kept";
+  const std::vector<fs::path> before = entriesOf(dir_);
+  for (const fs::path& out : {dir_ / "new" / "deeper", dir_ / "empty"}) {
+    for (const std::string& format : datasetWriterFormats()) {
+      EXPECT_THROW(writeDataset(scene, format, out), InputError) << format << " into " << out;
+      EXPECT_EQ(entriesOf(dir_), before) << format << " into " << out;
+    }
+  }
+}
+
+TEST_F(DatasetWriters, AnOutputFolderThatCannotBeExaminedIsRefusedNamingIt) {
+  const fs::path loop = dir_ / "selfloop";
+  fs::create_directory_symlink(loop, loop);
+  try {
+    requireNewOutputFolder(loop);
+    ADD_FAILURE() << "a loop of links accepted";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(loop.string() + ": cannot examine the output folder: ", 0), 0u) << e.what();
+  }
+  EXPECT_THROW(writeDataset(Scene(), "manifest", loop), InputError);
+}
+
+}  // namespace
+}  // namespace ffloc
