@@ -5,6 +5,7 @@
 #include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
+#include "ffloc/data/dataset_writers.h"
 #include "ffloc/synthetic/synthetic.h"
 
 namespace ffloc::cli {
@@ -46,19 +47,26 @@ void runSynth(const SynthArguments& args) {
     }
   }
   validate(options);
-  const auto kinds = allSceneKinds();
-  for (int i = 0; i < args.scenes; ++i) {
-    SyntheticOptions scene_options = options;
-    if (mixed) scene_options.kind = kinds[i % kinds.size()];
-    scene_options.seed = sceneSeed(args.seed, i);
-    char name[64];
-    std::snprintf(name, sizeof(name), "scene_%03d_%s", i, toString(scene_options.kind));
-    const std::filesystem::path dir = std::filesystem::path(args.out) / name;
-    const Scene scene = generateSyntheticScene(scene_options, dir);
-    if (!options.quiet || args.scenes == 1)
-      std::cout << dir.string() << ": " << scene.mappingIndices().size() << " mapping + "
-                << scene.queryIndices().size() << " query frames\n";
+  // A folder of earlier scenes was written over, mixing their stale frames with the new ones.
+  try {
+    requireNewOutputFolder(args.out);
+  } catch (const InputError& e) {
+    throw InputError(std::string("--out: ") + e.what());
   }
+  const auto kinds = allSceneKinds();
+  writeIntoNewFolder(args.out, [&](const std::filesystem::path& out) {
+    for (int i = 0; i < args.scenes; ++i) {
+      SyntheticOptions scene_options = options;
+      if (mixed) scene_options.kind = kinds[i % kinds.size()];
+      scene_options.seed = sceneSeed(args.seed, i);
+      char name[64];
+      std::snprintf(name, sizeof(name), "scene_%03d_%s", i, toString(scene_options.kind));
+      const Scene scene = generateSyntheticScene(scene_options, out / name);
+      if (!options.quiet || args.scenes == 1)
+        std::cout << (std::filesystem::path(args.out) / name).string() << ": " << scene.mappingIndices().size()
+                  << " mapping + " << scene.queryIndices().size() << " query frames\n";
+    }
+  });
 }
 
 }  // namespace
@@ -69,7 +77,7 @@ void registerSynthCommand(CLI::App& app, CommandRun& run) {
   args->options.threads = 0;
   CLI::App* cmd = app.add_subcommand(
       "synth", "Write procedural RGB-D scenes with exact depth and poses (native manifest format)");
-  cmd->add_option("--out", args->out, "Output folder; scene i goes to OUT/scene_<i>_<kind>")
+  cmd->add_option("--out", args->out, "New (or empty) output folder; scene i goes to OUT/scene_<i>_<kind>")
       ->required();
   cmd->add_option("--seed", args->seed, "Seed; the same seed gives the same bytes")
       ->capture_default_str();

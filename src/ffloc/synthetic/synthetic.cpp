@@ -11,6 +11,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/core/threads.h"
+#include "ffloc/data/dataset_writers.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/data/manifest.h"
 #include "ffloc/synthetic/det_math.h"
@@ -42,9 +43,13 @@ void validate(const SyntheticOptions& o) {
   if (o.width < 16 || o.height < 16 || o.width > 8192 || o.height > 8192)
     throwInputError("width, height", 0, "image size " + std::to_string(o.width) + "x" +
                                      std::to_string(o.height) + " is outside 16..8192");
-  if (o.mapping_frames < 2)
-    throwInputError("mapping_frames", 0, "needs at least 2 mapping frames");
-  if (o.query_frames < 0) throwInputError("query_frames", 0, "must not be negative");
+  // 100000000 frames took 3.9 GB in 8 s before the first was rendered; frame names have four digits.
+  if (o.mapping_frames < 2 || o.mapping_frames > kMaxSyntheticFrames)
+    throwInputError("mapping_frames", 0, "must be in [2, " + std::to_string(kMaxSyntheticFrames) + "], got " +
+                                             std::to_string(o.mapping_frames));
+  if (o.query_frames < 0 || o.query_frames > kMaxSyntheticFrames)
+    throwInputError("query_frames", 0, "must be in [0, " + std::to_string(kMaxSyntheticFrames) + "], got " +
+                                           std::to_string(o.query_frames));
   if (!(o.min_fov_deg >= 20.0 && o.max_fov_deg <= 120.0 && o.min_fov_deg <= o.max_fov_deg))
     throwInputError("min_fov_deg, max_fov_deg", 0, "field of view must satisfy 20 <= min <= max <= 120 degrees");
   if (!(o.image_noise >= 0.0 && o.image_noise <= 64.0))
@@ -178,12 +183,12 @@ void writeMetadata(const SyntheticScene& scene, const std::filesystem::path& pat
 
 }  // namespace
 
-Scene generateSyntheticScene(const SyntheticOptions& options, const std::filesystem::path& out_dir) {
-  const SyntheticScene scene = planSyntheticScene(options);
-  std::error_code error;
-  std::filesystem::create_directories(out_dir / "images", error);
-  std::filesystem::create_directories(out_dir / "depth", error);
-  if (error) throwInputError(out_dir.string(), 0, "cannot create the output folder: " + error.message());
+namespace {
+
+Scene writeSyntheticScene(const SyntheticScene& scene, const std::filesystem::path& out_dir) {
+  const SyntheticOptions& options = scene.options;
+  std::filesystem::create_directories(out_dir / "images");
+  std::filesystem::create_directories(out_dir / "depth");
 
   const int frames = scene.frameCount();
   ProgressBar progress("synth " + out_dir.filename().string(), frames, options.quiet);
@@ -238,6 +243,15 @@ Scene generateSyntheticScene(const SyntheticOptions& options, const std::filesys
   writeManifest(out, out_dir / kManifestFileName);
   writeMetadata(scene, out_dir / "synthetic.json");
   return readManifest(out_dir / kManifestFileName);
+}
+
+}  // namespace
+
+Scene generateSyntheticScene(const SyntheticOptions& options, const std::filesystem::path& out_dir) {
+  const SyntheticScene scene = planSyntheticScene(options);
+  Scene written;
+  writeIntoNewFolder(out_dir, [&](const std::filesystem::path& out) { written = writeSyntheticScene(scene, out); });
+  return written;
 }
 
 }  // namespace ffloc

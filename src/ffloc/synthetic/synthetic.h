@@ -38,6 +38,9 @@ struct SyntheticOptions {
   bool quiet = true;   // no progress bar
 };
 
+// The most mapping frames, and the most query frames, of a scene.
+constexpr int kMaxSyntheticFrames = 10000;
+
 // Throws InputError naming the option when a value is out of range.
 void validate(const SyntheticOptions& options);
 
@@ -66,7 +69,8 @@ synthetic::RenderedView renderSyntheticFrame(const SyntheticScene& scene, int fr
 // Plans, renders and writes one scene into `out_dir`: manifest.json (format "ffloc-manifest",
 // metric, mapping/query split), images/*.png, depth/*.tiff (float32 metres, 0 = no surface)
 // and synthetic.json (generator settings and each query's kind). Returns the written scene
-// as readManifest would. Identical options give identical files.
+// as readManifest would. Identical options give identical files. `out_dir` must not exist or be
+// empty, and a failed run leaves nothing in it (writeIntoNewFolder).
 Scene generateSyntheticScene(const SyntheticOptions& options, const std::filesystem::path& out_dir);
 
 // The seed of the i-th scene of a batch started from `seed`.

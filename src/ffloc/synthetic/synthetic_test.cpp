@@ -312,6 +312,44 @@ TEST(Synthetic, RejectsBadOptions) {
   }
 }
 
+// 100000000 mapping frames took 3.9 GB in 8 s with nothing written: refused by the option check.
+TEST(Synthetic, FrameCountsBeyondTheirBoundAreRefusedNamingTheField) {
+  for (const auto& [field, frames] : std::vector<std::pair<std::string, int>>{
+           {"mapping_frames", kMaxSyntheticFrames + 1}, {"mapping_frames", 100000000},
+           {"query_frames", kMaxSyntheticFrames + 1}, {"query_frames", -1}}) {
+    SyntheticOptions options;
+    (field == "mapping_frames" ? options.mapping_frames : options.query_frames) = frames;
+    try {
+      planSyntheticScene(options);
+      ADD_FAILURE() << field << " = " << frames << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(field + ": must be in [", 0), 0u) << e.what();
+    }
+  }
+  SyntheticOptions at_bound;
+  at_bound.mapping_frames = kMaxSyntheticFrames;
+  at_bound.query_frames = kMaxSyntheticFrames;
+  EXPECT_NO_THROW(validate(at_bound));
+}
+
+// A scene written over an earlier one replaced its manifest and kept the earlier frames the new
+// one did not overwrite, mixing two scenes in one folder.
+TEST(Synthetic, ANonEmptyFolderIsRefusedAndKeptAsItWas) {
+  const auto dir = testing::makeTempDir("ffloc-synth-nonempty");
+  std::ofstream(dir / "earlier.txt") << "kept";
+  SyntheticOptions options = smallOptions(SceneKind::kIndoor, 3);
+  options.mapping_frames = 2;
+  options.query_frames = 0;
+  try {
+    generateSyntheticScene(options, dir);
+    ADD_FAILURE() << "a non-empty folder accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(dir.string() + ": output folder is not empty"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(readTree(dir), (std::map<std::string, std::string>{{"earlier.txt", "kept"}}));
+  std::filesystem::remove_all(dir);
+}
+
 TEST(SyntheticMath, DeterministicSineAndCosineMatchLibm) {
   for (double x = -40.0; x <= 40.0; x += 0.0137) {
     EXPECT_NEAR(synthetic::detSin(x), std::sin(x), 4e-15) << x;
