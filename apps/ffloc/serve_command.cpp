@@ -138,18 +138,17 @@ int runServe(const ServeArguments& args) {
   catalog.setLog([](const std::string& line) { std::cerr << line << "\n"; });
   std::cerr << "K = " << options.localize.top_k << ", N = " << options.localize.num_features
             << " (FastForward maps) unless a request says\n";
-  if (!args.keys_path.empty()) {
-    options.keys = ApiKeys::read(args.keys_path, catalog.names());
-  } else {
-    std::cerr << "no --keys: every client that reaches " << args.host << ":" << args.port << " may use every map"
+  if (!args.keys_path.empty()) options.keys = ApiKeys::read(args.keys_path, catalog.names());
+
+  LocalizationServer server(catalog, options);
+  const int port = server.bind();
+  if (!options.keys) {
+    std::cerr << "no --keys: every client that reaches " << args.host << ":" << port << " may use every map"
               << (args.host == "127.0.0.1" || args.host == "localhost" || args.host == "::1"
                       ? " (loopback only: other machines cannot)"
                       : " (not loopback: any machine on the network can)")
               << "\n";
   }
-
-  LocalizationServer server(catalog, options);
-  const int port = server.bind();
   StopOnSignal stop_on_signal(server);
   std::cerr << "listening on http://" << args.host << ":" << port << " (" << catalog.names().size()
             << " map(s): GET /health, GET /maps, GET /maps/NAME, GET /maps/NAME/scene, POST /maps/NAME/localize"
@@ -186,11 +185,12 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
   cmd->add_option("--max-waiting", args->max_waiting,
-                  "Queries that may wait while one runs; more are answered 503 (busy)")
+                  "Queries that may wait while one runs, a thread each; more are answered 503 (busy)")
+      ->check(CLI::Range(size_t{0}, ServerOptions::kMaxWaitingQueries))
       ->capture_default_str();
   cmd->add_option("--max-connections", args->max_connections,
                   "Connections served at once, a thread each; more wait for a thread")
-      ->check(CLI::Range(1, 4096))
+      ->check(CLI::Range(size_t{1}, ServerOptions::kMaxConnections))
       ->capture_default_str();
   cmd->add_option("--max-pending-connections", args->max_pending_connections,
                   "Connections that may wait for a thread; more are answered 503 (busy) at once and closed")

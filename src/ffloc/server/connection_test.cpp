@@ -18,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "ffloc/core/error.h"
 #include "ffloc/server/localization_server.h"
 // Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
 #include <httplib.h>
@@ -301,6 +302,64 @@ TEST_F(ConnectionTest, ImagesAreNotDecodedWhileTheServerIsBusy) {
   const auto busy = client.Post((kQueryPath + "garbage").c_str(), std::string(5000, 'x'), "image/png");
   ASSERT_TRUE(busy);
   EXPECT_EQ(busy->status, 503) << busy->body;
+}
+
+// A client announcing more than the limit and sending nothing: the library read (to drop) the
+// announced bytes first, so it was answered 408 at the body's deadline instead of 413.
+TEST_F(ConnectionTest, ContentLengthOverTheLimitIs413BeforeAnyBodyArrives) {
+  ServerOptions options;
+  options.max_body_bytes = size_t{1} << 20;
+  options.body_timeout = std::chrono::milliseconds(30000);
+  start(options);
+  const int socket_fd = connectTo(port_);
+  const auto sent_at = std::chrono::steady_clock::now();
+  ASSERT_TRUE(sendAll(socket_fd, "POST " + kQueryPath + "big HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                 "Content-Type: image/png\r\nContent-Length: 40000000\r\n\r\n"));
+  const std::string answer = receiveUntilClosed(socket_fd);
+  const double answered_after_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - sent_at).count();
+  close(socket_fd);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 413", 0), 0u) << "'" << answer << "'";
+  EXPECT_NE(answer.find("over the server's limit of 1048576 bytes"), std::string::npos) << answer;
+  EXPECT_LT(answered_after_s, 3.0);
+}
+
+// --max-waiting 100000 started 32,000 threads and ignored SIGTERM while creating them. Beyond
+// the bounds the server refuses to start, naming the field; at them it starts and stops at once.
+TEST_F(ConnectionTest, ThreadCountsBeyondTheirBoundsAreRefusedAndTheBoundsStopPromptly) {
+  for (const auto& [field, options] : std::vector<std::pair<std::string, ServerOptions>>{
+           {"max_waiting_queries", [] {
+              ServerOptions o;
+              o.max_waiting_queries = ServerOptions::kMaxWaitingQueries + 1;
+              return o;
+            }()},
+           {"max_connections", [] {
+              ServerOptions o;
+              o.max_connections = ServerOptions::kMaxConnections + 1;
+              return o;
+            }()},
+           {"max_connections", [] {
+              ServerOptions o;
+              o.max_connections = 0;
+              return o;
+            }()}}) {
+    try {
+      LocalizationServer refused(catalog_, options);
+      ADD_FAILURE() << field << " beyond its bound accepted";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(field + ": must be in [", 0), 0u) << e.what();
+    }
+  }
+  ServerOptions at_bounds;
+  at_bounds.max_connections = ServerOptions::kMaxConnections;
+  at_bounds.max_waiting_queries = ServerOptions::kMaxWaitingQueries;
+  start(at_bounds);
+  httplib::Client client("127.0.0.1", port_);
+  const auto health = client.Get("/health");
+  ASSERT_TRUE(health);
+  EXPECT_EQ(health->status, 200);
+  const auto stop_at = std::chrono::steady_clock::now();
+  stop();
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stop_at).count(), 5.0);
 }
 
 }  // namespace

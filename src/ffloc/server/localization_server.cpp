@@ -124,9 +124,9 @@ std::string escapeControlCharacters(const std::string& line) {
   return escaped;
 }
 
-// Why a POST's headers cannot make a query: exactly one Content-Length of decimal digits, and a
-// body type that can hold an image.
-Refusal postRefusal(const httplib::Request& request) {
+// Why a POST's headers cannot make a query: exactly one Content-Length of decimal digits, within
+// the body limit, and a body type that can hold an image.
+Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
   const size_t lengths = request.get_header_value_count("Content-Length");
   if (lengths == 0) return {411, "length required: send the body with a Content-Length header (no chunked transfer)"};
   if (lengths > 1) return {400, "Content-Length: given more than once"};
@@ -134,6 +134,9 @@ Refusal postRefusal(const httplib::Request& request) {
   if (length.empty() || length.size() > 18 || length.find_first_not_of("0123456789") != std::string::npos) {
     return {400, "Content-Length: '" + length + "' is not a byte count"};
   }
+  // The library would first read (and drop) the announced bytes: a client announcing more than
+  // it sends was answered 408 at the body's deadline instead.
+  if (std::stoull(length) > max_body_bytes) return {413, libraryErrorMessage(413, max_body_bytes)};
   const std::string type = request.get_header_value("Content-Type");
   const auto starts = [&](const char* prefix) { return type.rfind(prefix, 0) == 0; };
   // What curl --data-binary sends without -H: the library would read the image as form fields
@@ -220,8 +223,18 @@ nlohmann::json sceneJson(const std::string& name, const Localizer& localizer, si
 
 }  // namespace
 
+void ServerOptions::check() const {
+  if (max_connections < 1 || max_connections > kMaxConnections)
+    throw InputError("max_connections: must be in [1, " + std::to_string(kMaxConnections) + "], got " +
+                     std::to_string(max_connections));
+  if (max_waiting_queries > kMaxWaitingQueries)
+    throw InputError("max_waiting_queries: must be in [0, " + std::to_string(kMaxWaitingQueries) + "], got " +
+                     std::to_string(max_waiting_queries));
+}
+
 LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions options)
     : maps_(maps), options_(std::move(options)), http_(std::make_unique<Http>(options_)) {
+  options_.check();
   httplib::Server& server = http_->server;
   server.set_payload_max_length(options_.max_body_bytes);
   http_->server.setConnectionLimits(std::max<size_t>(options_.max_connections, options_.max_waiting_queries + 2),
@@ -351,7 +364,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     for (const auto& [method, pattern] : http_->routes) {
       if (!std::regex_match(request.path, pattern)) continue;
       if (method == request.method || (method == "GET" && request.method == "HEAD"))
-        return request.method == "POST" ? postRefusal(request) : Refusal{};
+        return request.method == "POST" ? postRefusal(request, options_.max_body_bytes) : Refusal{};
       allow += (allow.empty() ? "" : ", ") + (method == "GET" ? std::string("GET, HEAD") : method);
     }
     if (allow.empty()) return {404, notFoundMessage(request)};
@@ -368,23 +381,14 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     reply(response, refusal);
     return httplib::Server::HandlerResponse::Handled;
   });
-  // A client that asks before sending its body is told 413 at once rather than invited to send
-  // a body that will be refused.
-  server.set_expect_100_continue_handler([this, refusalBeforeBody, reply](const httplib::Request& request,
-                                                                           httplib::Response& response) {
+  // A client that asks before sending its body is told a refusal (413 included) at once rather
+  // than invited to send a body that will be refused.
+  server.set_expect_100_continue_handler([refusalBeforeBody, reply](const httplib::Request& request,
+                                                                     httplib::Response& response) {
     const Refusal refusal = refusalBeforeBody(request);
-    if (refusal.status != 0) {
-      reply(response, refusal);
-      return refusal.status;
-    }
-    // Only a POST's Content-Length has been checked to be a byte count.
-    if (request.method == "POST" && std::stoull(request.get_header_value("Content-Length")) > options_.max_body_bytes) {
-      replyError(response, 413,
-                 "payload too large: the body is over the server's limit of " + std::to_string(options_.max_body_bytes) +
-                     " bytes");
-      return 413;
-    }
-    return 100;
+    if (refusal.status == 0) return 100;
+    reply(response, refusal);
+    return refusal.status;
   });
 
   const auto localize = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {

@@ -59,11 +59,19 @@ struct ServerOptions {
   std::optional<ApiKeys> keys;  // none: every client may use every map
   size_t recent_answers = 20;     // kept per map for GET /maps/NAME/scene
   size_t max_scene_points = 20000;  // points in GET /maps/NAME/scene, spread over the map
+
+  // The server starts max(max_connections, max_waiting_queries + 2) threads at once, and each
+  // waiting query holds one with its body: --max-waiting 100000 started 32,000 threads (3.7 GB)
+  // and, as they were still being created, ignored SIGTERM.
+  static constexpr size_t kMaxConnections = 4096;
+  static constexpr size_t kMaxWaitingQueries = 256;
+  // InputError naming the field for a value out of range.
+  void check() const;
 };
 
 class LocalizationServer {
  public:
-  // `maps` must outlive the server.
+  // `maps` must outlive the server; InputError from options.check().
   LocalizationServer(const MapCatalog& maps, ServerOptions options);
   ~LocalizationServer();
   LocalizationServer(const LocalizationServer&) = delete;
