@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -355,6 +356,63 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
   EXPECT_EQ(localize.exit_code, 2) << localize.output;
   EXPECT_TRUE(contains(localize.output, "--ply: '" + (dir_ / "missing" / "p.ply").string() + "': folder"))
       << localize.output;
+}
+
+// synth wrote over a dataset, mixing its stale frames with new ones; convert-dataset onto a loop
+// of links was an internal error (exit 3); --max-waiting had no bound.
+TEST_F(Cli, OutputFoldersAndServerCountsAreRefusedNamingTheFlag) {
+  writeText(dir_ / "earlier" / "manifest.json", "{}");
+  const fs::path loop = dir_ / "selfloop";
+  fs::create_directory_symlink(loop, loop);
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"synth", "--out", (dir_ / "earlier").string(), "--quiet"}, "--out: " + (dir_ / "earlier").string() + ": output folder is not empty"},
+      {{"convert-dataset", "--dataset", dir_.string(), "--format", "kapture", "--out", loop.string()},
+       "--out: " + loop.string() + ": cannot examine the output folder: Too many levels of symbolic links"},
+      {{"serve", "--map", "m.ffmap", "--max-waiting", "100000"}, "--max-waiting: Value 100000 not in range 0 to 256"}};
+  for (const auto& [arguments, message] : cases) {
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << arguments[0] << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, message)) << run.output;
+  }
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir_ / "earlier"), fs::directory_iterator()), 1);
+}
+
+// With --port 0 the start said "every client that reaches 127.0.0.1:0", not the port it took.
+TEST_F(Cli, ServeOnAnyPortNamesThePortItTookAndStopsOnSigterm) {
+  const fs::path scenes = dir_ / "synth";
+  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--mapping-frames", "4", "--query-frames", "0", "--size",
+                    "160x120", "--quiet"}).exit_code, 0);
+  const fs::path map = dir_ / "m.ffmap";
+  ASSERT_EQ(runCli({"map", "--dataset", (scenes / "scene_000_indoor").string(), "-o", map.string(), "--quiet"}).exit_code, 0);
+  std::vector<std::string> arguments = {FFLOC_CLI_PATH, "serve", "--map", map.string(), "--port", "0"};
+  std::vector<char*> argv;
+  for (std::string& argument : arguments) argv.push_back(argument.data());
+  argv.push_back(nullptr);
+  int pipe_fds[2];
+  ASSERT_EQ(pipe(pipe_fds), 0);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    dup2(pipe_fds[1], 2);
+    close(pipe_fds[0]);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  close(pipe_fds[1]);
+  std::string output;
+  char buffer[4096];
+  for (ssize_t got; !contains(output, "map viewer") && (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;)
+    output.append(buffer, got);
+  kill(pid, SIGTERM);
+  for (ssize_t got; (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;) output.append(buffer, got);
+  close(pipe_fds[0]);
+  int status = 0;
+  waitpid(pid, &status, 0);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+  const size_t at = output.find("listening on http://127.0.0.1:");
+  ASSERT_NE(at, std::string::npos) << output;
+  const std::string port = output.substr(at + 30, output.find(' ', at + 30) - at - 30);
+  EXPECT_NE(port, "0") << output;
+  EXPECT_TRUE(contains(output, "every client that reaches 127.0.0.1:" + port + " may use every map")) << output;
 }
 
 }  // namespace
