@@ -78,6 +78,16 @@ TEST(LoRansac, SameEngineStateGivesTheSameModel) {
   EXPECT_EQ(a.world_to_camera.t, b.world_to_camera.t);
 }
 
+// Every pixel at one spot (an outside probe, through the Python bindings): "success" with 200
+// inliers and a rotation of determinant 4e-21. No pose projects points spread in depth to one
+// pixel, so nothing is found.
+TEST(LoRansac, PixelsAtOneSpotFindNothing) {
+  Pairs pairs = makePairs(200, 0.0, 9);
+  for (Eigen::Vector2d& pixel : pairs.pixels) pixel = Eigen::Vector2d(300, 200);
+  Rng rng(0);
+  EXPECT_FALSE(loRansacPnp(pairs.pixels, pairs.points, testCamera(), PnpOptions{}, &rng).found);
+}
+
 TEST(LoRansac, FewerThanThreePairsFindNothing) {
   const Pairs pairs = makePairs(2, 0.0, 5);
   Rng rng(0);

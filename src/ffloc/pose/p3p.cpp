@@ -226,7 +226,9 @@ int solveP3P(const std::array<Eigen::Vector3d, 3>& bearings,
       Pose pose;
       pose.R = Y * X_inverse;
       pose.t = c1 - pose.R * points[0];
-      if (!pose.isFinite()) continue;
+      // Rays that (nearly) coincide leave the camera-side triangle flat, and Y X^-1 is then no
+      // rotation (det 4e-21 for 200 pixels at one spot, which LO-RANSAC reported as a pose).
+      if (!pose.isFinite() || orthogonalityError(pose.R) > kRigidRotationTolerance || pose.R.determinant() < 0) continue;
       world_to_camera->push_back(pose);
       ++count;
     }

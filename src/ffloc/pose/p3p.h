@@ -15,7 +15,8 @@ namespace ffloc {
 //
 // `bearings` are unit rays in the camera frame, `points` the matching world points. Appends each
 // real solution with positive depths to `world_to_camera` (X_cam = R * X_world + t) and returns
-// how many it appended (at most 4). Returns 0 for (nearly) collinear world points.
+// how many it appended (at most 4). Returns 0 for (nearly) collinear world points, and appends
+// nothing that is not a rotation to kRigidRotationTolerance (rays that nearly coincide).
 int solveP3P(const std::array<Eigen::Vector3d, 3>& bearings,
              const std::array<Eigen::Vector3d, 3>& points, std::vector<Pose>* world_to_camera);
 

@@ -104,5 +104,22 @@ TEST(P3P, RejectsCollinearPoints) {
   EXPECT_TRUE(solutions.empty());
 }
 
+// Three rays along one direction, or 1e-12 to 1e-6 apart, with a proper triangle of points: the
+// construction gave matrices 1e-4 to 1.7 off orthonormal (determinant ~0 for one direction), and
+// LO-RANSAC reported one as a pose. Whatever is returned is a rotation.
+TEST(P3P, NearlyCoincidentRaysGiveOnlyRotations) {
+  const std::array<Eigen::Vector3d, 3> points = {Eigen::Vector3d(0, 0, 4), Eigen::Vector3d(1, 0, 5),
+                                                 Eigen::Vector3d(0, 1, 3)};
+  const Eigen::Vector3d ray = Eigen::Vector3d(0.1, -0.05, 1).normalized();
+  std::vector<Pose> solutions;
+  for (double apart : {0.0, 1e-12, 1e-9, 1e-6})
+    solveP3P({ray, (ray + Eigen::Vector3d(apart, 0, 0)).normalized(), (ray + Eigen::Vector3d(0, apart, 0)).normalized()},
+             points, &solutions);
+  for (const Pose& pose : solutions) {
+    EXPECT_LT(orthogonalityError(pose.R), 1e-6);
+    EXPECT_GT(pose.R.determinant(), 0);
+  }
+}
+
 }  // namespace
 }  // namespace ffloc
