@@ -11,6 +11,7 @@ shared=${3:-../shared}
 start=$(date +%s)
 mkdir -p "$out"
 echo "== synthetic indoor RGB-D scene (seed 7, 640x480) =="
+rm -rf "$out/synthetic"  # synth writes only into a new or empty folder
 "$ffloc" synth --out "$out/synthetic" --seed 7 --scenes 1 --kind indoor --size 640x480 --quiet
 scene_dir=$(find "$out/synthetic" -name manifest.json -printf '%h\n' | sort | head -n1)
 "$ffloc" map --dataset "$scene_dir" -o "$out/synthetic.ffmap" --quiet

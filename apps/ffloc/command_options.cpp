@@ -5,6 +5,7 @@
 #include <map>
 
 #include "ffloc/core/error.h"
+#include "ffloc/data/format_io.h"
 
 namespace ffloc::cli {
 std::string withFlagName(const std::string& message) {
@@ -81,6 +82,14 @@ void checkOutputPath(const std::string& flag, const std::string& path) {
                                                                              : std::string("does not exist")));
   if (access(folder.c_str(), W_OK) != 0)
     throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' is not writable");
+}
+
+void checkOutputFolder(const std::string& flag, const std::string& path) {
+  try {
+    requireEmptyOutputFolder(path);
+  } catch (const InputError& e) {
+    throw InputError(flag + ": " + e.what());
+  }
 }
 
 void addQueryOptions(CLI::App& command, QueryArguments& args) {

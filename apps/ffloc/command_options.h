@@ -44,6 +44,10 @@ CLI::Validator nonEmptyPath();
 // query had run. Empty: not asked for, nothing to check.
 void checkOutputPath(const std::string& flag, const std::string& path);
 
+// For a folder the run fills (synth, convert-dataset): it must be new or empty, checked before the
+// run (requireEmptyOutputFolder), and the error names `flag`.
+void checkOutputFolder(const std::string& flag, const std::string& path);
+
 // For an integer count: "must be at least 1, got 0", where CLI11's PositiveNumber said "Value 0
 // not in range 0.000000 to 1797...", the largest double in full.
 CLI::Validator atLeast(int64_t minimum);

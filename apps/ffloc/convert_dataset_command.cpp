@@ -1,6 +1,7 @@
 #include <iostream>
 #include <memory>
 
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
@@ -23,11 +24,7 @@ std::string joined(const std::vector<std::string>& names) {
 }
 
 void runConvertDataset(const ConvertDatasetArguments& args) {
-  try {
-    requireNewOutputFolder(args.out);
-  } catch (const InputError& e) {
-    throw InputError(std::string("--out: ") + e.what());
-  }
+  checkOutputFolder("--out", args.out);
   const Scene scene = loadDataset(args.dataset, args.input_format);
   writeDataset(scene, args.format, args.out);
   std::cout << "wrote " << args.out << ": " << scene.frames.size() << " frames of " << scene.name << " ("

@@ -48,11 +48,7 @@ void runSynth(const SynthArguments& args) {
   }
   validate(options);
   // A folder of earlier scenes was written over, mixing their stale frames with the new ones.
-  try {
-    requireNewOutputFolder(args.out);
-  } catch (const InputError& e) {
-    throw InputError(std::string("--out: ") + e.what());
-  }
+  checkOutputFolder("--out", args.out);
   const auto kinds = allSceneKinds();
   writeIntoNewFolder(args.out, [&](const std::filesystem::path& out) {
     for (int i = 0; i < args.scenes; ++i) {

@@ -32,17 +32,10 @@ std::vector<std::string> datasetWriterFormats() {
   return names;
 }
 
-void requireNewOutputFolder(const fs::path& out_dir) {
-  std::error_code error;
-  if (fs::status(out_dir, error).type() == fs::file_type::none)
-    throwInputError(out_dir.string(), 0, "cannot examine the output folder: " + error.message());
-  requireEmptyOutputFolder(out_dir);
-}
-
 void writeIntoNewFolder(const fs::path& out_dir, const std::function<void(const fs::path& out)>& write) {
   fs::path out = fs::absolute(out_dir).lexically_normal();
   if (out.filename().empty()) out = out.parent_path();  // "out/" ends in an empty part
-  requireNewOutputFolder(out);
+  requireEmptyOutputFolder(out);
   fs::path outermost_created;
   for (fs::path folder = out; !fs::exists(folder); folder = folder.parent_path()) outermost_created = folder;
   std::error_code created;

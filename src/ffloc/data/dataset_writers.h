@@ -26,11 +26,7 @@ std::vector<std::string> datasetWriterFormats();
 std::vector<std::string> writeDataset(const Scene& scene, const std::string& format,
                                       const std::filesystem::path& out_dir);
 
-// Refuses, with InputError naming the folder, an `out_dir` that exists and is not an empty folder
-// (requireEmptyOutputFolder), or that cannot be examined (a loop of links).
-void requireNewOutputFolder(const std::filesystem::path& out_dir);
-
-// Creates `out_dir` (checked by requireNewOutputFolder) and runs `write` on it, normalised to an
+// Creates `out_dir` (checked by requireEmptyOutputFolder) and runs `write` on it, normalised to an
 // absolute path. When `write` throws, what this run wrote is removed before the exception goes
 // on: the folders it created, or what it put into the empty folder it was given, never what was
 // there before; a partial output would otherwise have blocked the rerun as not empty.

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "ffloc/core/error.h"
+#include "ffloc/data/format_io.h"
 #include "ffloc/core/testing/shared_data.h"
 
 namespace ffloc {
@@ -68,7 +69,7 @@ TEST_F(DatasetWriters, AnOutputFolderThatCannotBeExaminedIsRefusedNamingIt) {
   const fs::path loop = dir_ / "selfloop";
   fs::create_directory_symlink(loop, loop);
   try {
-    requireNewOutputFolder(loop);
+    requireEmptyOutputFolder(loop);
     ADD_FAILURE() << "a loop of links accepted";
   } catch (const InputError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(loop.string() + ": cannot examine the output folder: ", 0), 0u) << e.what();

@@ -66,9 +66,16 @@ void requireImageSize(const fs::path& image, int width, int height, const std::s
 }
 
 void requireEmptyOutputFolder(const fs::path& dir) {
-  if (!fs::exists(dir)) return;
-  if (!fs::is_directory(dir)) throwInputError(dir.string(), 0, "output exists and is not a folder");
-  if (!fs::is_empty(dir)) throwInputError(dir.string(), 0, "output folder is not empty (convert into a new folder)");
+  std::error_code error;
+  const fs::file_status status = fs::status(dir, error);
+  if (status.type() == fs::file_type::not_found) return;
+  if (status.type() == fs::file_type::none)
+    throwInputError(dir.string(), 0, "cannot examine the output folder: " + error.message());
+  if (status.type() != fs::file_type::directory) throwInputError(dir.string(), 0, "output exists and is not a folder");
+  const bool empty = fs::is_empty(dir, error);
+  if (error) throwInputError(dir.string(), 0, "cannot examine the output folder: " + error.message());
+  if (!empty)
+    throwInputError(dir.string(), 0, "output folder is not empty (give a new or empty folder, or remove this one)");
 }
 
 namespace {

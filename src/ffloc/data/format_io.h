@@ -35,7 +35,9 @@ std::string matrixText(const Eigen::MatrixXd& matrix);
 void requireImageSize(const std::filesystem::path& image, int width, int height, const std::string& claim_file,
                       int claim_line);
 
-// The folder must not exist or be empty: a conversion never mixes its files with others.
+// The folder must not exist or be empty: a conversion or a synthetic scene never mixes its files
+// with others. InputError naming the folder otherwise, or when it cannot be examined (a loop of
+// links).
 void requireEmptyOutputFolder(const std::filesystem::path& dir);
 
 // Copies the frame's image to `destination` (creating folders). With `as_jpeg`, a source that is
