@@ -8,6 +8,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -291,8 +292,19 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
   Intrinsics camera = intrinsicsFrom(intrinsics, py::none());
   // The solver's test against chance needs the image's area; without it, the principal point is
   // taken to be the image's centre.
-  camera.width = image_size ? image_size->first : static_cast<int>(std::ceil(2 * camera.cx + 1));
-  camera.height = image_size ? image_size->second : static_cast<int>(std::ceil(2 * camera.cy + 1));
+  // Beyond int, the side was cast to -2147483648 (undefined behaviour) and named image_size.
+  const auto sideAround = [](double centre, const char* name) {
+    const double side = std::ceil(2 * centre + 1);
+    if (!(side >= 1 && side <= std::numeric_limits<int>::max()))
+    {
+      std::ostringstream what;
+      what << "intrinsics: " << name << " = " << centre << " puts the image centre where no image is (pass image_size)";
+      throw InputError(what.str());
+    }
+    return static_cast<int>(side);
+  };
+  camera.width = image_size ? image_size->first : sideAround(camera.cx, "cx");
+  camera.height = image_size ? image_size->second : sideAround(camera.cy, "cy");
   if (camera.width <= 0 || camera.height <= 0)
     throw InputError("image_size: must be positive, got " + std::to_string(camera.width) + "x" +
                      std::to_string(camera.height));

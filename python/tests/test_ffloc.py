@@ -248,6 +248,13 @@ def test_estimate_absolute_pose_refuses_bad_input(points2d, points3d, options, m
         ffloc.estimate_absolute_pose(points2d, points3d, (500, 500, 320, 240), options, image_size=size)
 
 
+def test_estimate_absolute_pose_refuses_a_principal_point_no_image_has():
+    # Without image_size the image is taken to span twice the principal point; cx = 1e12 made that
+    # side overflow an int (undefined behaviour), reported as "image_size: ... -2147483648x481".
+    with pytest.raises(ffloc.Error, match="intrinsics: cx = 1e\\+12 puts the image centre where no image is"):
+        ffloc.estimate_absolute_pose(np.zeros((10, 2)), np.zeros((10, 3)), (500, 500, 1e12, 240))
+
+
 # Evaluation
 
 def test_evaluate_gives_the_summary_the_cli_writes(scene_dir, cli, tmp_path):
