@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -136,35 +137,69 @@ std::vector<std::string> rankArguments() {
   return out;
 }
 
-void runTrain(const TrainArguments& args) {
+// The config file's settings with the flags' overrides. A value that cannot make a run is refused
+// naming the flag that set it; a field that no flag set is named with the config file.
+TrainingConfig effectiveConfig(const TrainArguments& args, const DistributedEnvironment& environment) {
   TrainingConfig config = args.config.empty() ? TrainingConfig{} : readTrainingConfig(args.config);
-  if (args.steps) config.steps = *args.steps;
-  if (args.learning_rate) config.learning_rate = *args.learning_rate;
-  if (args.seed) config.seed = *args.seed;
-  if (args.device) config.device = *args.device;
-  if (args.model) config.model = *args.model;
-  if (args.threads) config.threads = *args.threads;
-  if (args.precision) config.precision = *args.precision;
-  if (args.batch_size) config.batch_size = *args.batch_size;
-  if (args.accumulate) config.accumulate = *args.accumulate;
-  if (args.loader_threads) config.loader_threads = *args.loader_threads;
-  const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
+  std::map<std::string, std::string> flag_of_field;
+  const auto overrideWith = [&](auto& field, const auto& value, const std::string& name, const std::string& flag) {
+    if (!value) return;
+    field = *value;
+    flag_of_field[name] = flag;
+  };
+  overrideWith(config.steps, args.steps, "steps", "--steps");
+  overrideWith(config.learning_rate, args.learning_rate, "learning_rate", "--lr");
+  overrideWith(config.seed, args.seed, "seed", "--seed");
+  overrideWith(config.device, args.device, "device", "--device");
+  overrideWith(config.model, args.model, "model", "--model");
+  overrideWith(config.threads, args.threads, "threads", "--threads");
+  overrideWith(config.precision, args.precision, "precision", "--precision");
+  overrideWith(config.batch_size, args.batch_size, "batch_size", "--batch-size");
+  overrideWith(config.accumulate, args.accumulate, "accumulate", "--accumulate");
+  overrideWith(config.loader_threads, args.loader_threads, "loader_threads", "--loader-threads");
   // Ranks on one machine share its cores rather than each taking them all.
   if (config.threads == 0 && environment.local_world_size > 1) {
     config.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / environment.local_world_size);
   }
-  config.validate("command line");
+  if (const auto problem = config.problem()) {
+    const auto flag = flag_of_field.find(problem->field);
+    if (flag != flag_of_field.end()) throw InputError(flag->second + ": " + problem->message);
+    throwInputError(args.config.empty() ? "command line" : args.config + " with the command line", 0,
+                    "field '" + problem->field + "': " + problem->message);
+  }
+  return config;
+}
+
+// --out, before anything is read from it or written: the file system's own errors ("cannot
+// create directories: Not a directory") named nothing and ended as internal errors.
+void checkRunFolder(const fs::path& run_dir) {
+  std::error_code error;
+  const fs::file_status status = fs::status(run_dir, error);
+  if (fs::exists(status) && !fs::is_directory(status)) {
+    throw InputError("--out: '" + run_dir.string() + "' exists and is not a folder");
+  }
+  if (error && error != std::errc::no_such_file_or_directory) {
+    throw InputError("--out: '" + run_dir.string() + "': " + error.message());
+  }
+}
+
+void runTrain(const TrainArguments& args) {
+  const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
+  const TrainingConfig config = effectiveConfig(args, environment);
+  const fs::path run_dir = args.out;
+  checkRunFolder(run_dir);
   const bool lead = environment.rank == 0;
 
   requireDistinctData(args.data, "--data");
   requireDistinctData(args.validation_data, "--val-data");
   std::vector<Scene> scenes;
   for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
-  const fs::path run_dir = args.out;
   if (!args.resume && latestTrainingCheckpoint(run_dir)) {
     throwInputError(run_dir.string(), 0, "already holds a training run; pass --resume to continue it");
   }
-  fs::create_directories(run_dir);
+  std::error_code error;
+  fs::create_directories(run_dir, error);
+  if (error) throw InputError("--out: cannot create '" + run_dir.string() + "': " + error.message());
   std::vector<Scene> validation_scenes;
   for (const std::string& spec : args.validation_data) validation_scenes.push_back(loadTrainingData(spec));
   std::unique_ptr<DataParallel> parallel;
@@ -291,27 +326,36 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--val-data", args->validation_data,
                   "Held-out datasets for validation (loss and PnP pose); default: samples of --data")
       ->delimiter(',');
-  cmd->add_option("--out", args->out, "Run folder: log.csv, config.json, checkpoints/")->required();
+  cmd->add_option("--out", args->out, "Run folder: log.csv, config.json, checkpoints/")->required()->check(nonEmptyPath());
   cmd->add_flag("--resume", args->resume, "Continue from the latest checkpoint in the run folder");
   cmd->add_option("--steps", args->steps, "Total optimiser steps (overrides the config)");
   cmd->add_option("--lr", args->learning_rate, "Peak learning rate (overrides the config)");
-  cmd->add_option("--seed", args->seed, "Run seed (overrides the config)");
+  // CLI11 reads "-1" into an unsigned integer as 2^64 - 1.
+  cmd->add_option("--seed", args->seed, "Run seed (overrides the config)")
+      ->check(CLI::Validator(
+          [](const std::string& input) {
+            return input.find('-') == std::string::npos ? std::string() : "must be at least 0, got " + input;
+          },
+          "SEED"));
   cmd->add_option("--device", args->device, "cpu or cuda (overrides the config)");
   cmd->add_option("--model", args->model, "Initial weights (overrides the config): checkpoint or random:<preset>");
   cmd->add_option("--threads", args->threads, "libtorch threads, 0 = all cores (overrides the config)")
       ->check(threadCountRange());
   cmd->add_option("--precision", args->precision, "fp32, or bf16 mixed precision (overrides the config)")
       ->check(CLI::IsMember({"fp32", "bf16"}));
-  cmd->add_option("--batch-size", args->batch_size, "Samples in one forward pass of each rank (overrides the config)")
-      ->check(atLeast(1));
-  cmd->add_option("--accumulate", args->accumulate, "Forward passes per optimiser step (overrides the config)")
-      ->check(atLeast(1));
+  cmd->add_option("--batch-size", args->batch_size, "Samples in one forward pass of each rank (overrides the config)");
+  cmd->add_option("--accumulate", args->accumulate, "Forward passes per optimiser step (overrides the config)");
   cmd->add_option("--loader-threads", args->loader_threads,
-                  "Background threads preparing samples (overrides the config)")
-      ->check(atLeast(1));
+                  "Background threads preparing samples (overrides the config)");
   cmd->add_option("--nproc-per-node", args->nproc_per_node,
                   "Start this many ranks on this machine, as torchrun does (RANK, WORLD_SIZE, ... set for each)")
-      ->check(atLeast(1));
+      ->check(CLI::Validator(
+          [](const std::string& input) -> std::string {
+            int64_t ranks = 0;
+            if (!CLI::detail::lexical_cast(input, ranks)) return "expected an integer, got " + input;
+            return localRanksProblem(ranks);
+          },
+          "RANKS"));
   cmd->add_option("--max-seconds", args->max_seconds,
                   "Stop after this many seconds of training with a checkpoint (0: run all steps)")
       ->check(CLI::NonNegativeNumber);

@@ -7,11 +7,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
+#include <thread>
+
+#include "ffloc/core/error.h"
 
 namespace ffloc {
 
@@ -43,8 +47,16 @@ int exitStatusOf(int status) {
 
 }  // namespace
 
+std::string localRanksProblem(int64_t ranks) {
+  const int64_t most = std::max(1u, std::thread::hardware_concurrency());
+  if (ranks >= 1 && ranks <= most) return "";
+  return "must be in [1, " + std::to_string(most) + "] (one rank per hardware thread of this machine at most), got " +
+         std::to_string(ranks);
+}
+
 int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
-  if (arguments.empty() || ranks < 1) throw std::invalid_argument("runLocalRanks: no program or no ranks");
+  if (arguments.empty()) throw std::invalid_argument("runLocalRanks: no program");
+  if (const std::string problem = localRanksProblem(ranks); !problem.empty()) throw InputError("ranks: " + problem);
   const char* address = std::getenv("MASTER_ADDR");
   const char* port = std::getenv("MASTER_PORT");
   const std::string master_addr = address && *address ? address : "127.0.0.1";

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 
 #include "ffloc/core/error.h"
@@ -68,6 +69,62 @@ TEST(TrainingConfig, ReadsJsonAndNamesBadFields) {
   const TrainingConfig head_only = trainingConfigFromJson({{"trained_parameters", {"match_head.", "decoder_embed."}}}, "cfg.json");
   EXPECT_EQ(head_only.trained_parameters, (std::vector<std::string>{"match_head.", "decoder_embed."}));
   EXPECT_TRUE(contains(errorOf([] { readTrainingConfig("/nonexistent/cfg.json"); }), "/nonexistent/cfg.json"));
+}
+
+// nlohmann's get<int>() truncated 1.5 to 1, turned a seed of 1e30 into 0 and wrapped -1 to
+// 2^64 - 1; an integer field takes a number only when it holds it exactly.
+TEST(TrainingConfig, RefusesNumbersAnIntegerFieldCannotHold) {
+  const auto error = [](const nlohmann::json& json) { return errorOf([&] { trainingConfigFromJson(json, "cfg.json"); }); };
+  EXPECT_EQ(error({{"steps", 1.5}}), "cfg.json: field 'steps': expected an integer, got 1.5");
+  EXPECT_EQ(error({{"long_side", 64.9}}), "cfg.json: field 'long_side': expected an integer, got 64.9");
+  EXPECT_EQ(error({{"seed", 1e30}}), "cfg.json: field 'seed': 1e+30 is too large (at most 18446744073709551615)");
+  EXPECT_EQ(error({{"seed", -1}}), "cfg.json: field 'seed': -1 is too small (at least 0)");
+  EXPECT_EQ(error({{"mapping_frames", 3000000000LL}}),
+            "cfg.json: field 'mapping_frames': 3000000000 is too large (at most 2147483647)");
+  // Too large, not "must be positive", as 1e20 once read.
+  EXPECT_EQ(error({{"steps", 1e20}}), "cfg.json: field 'steps': 1e+20 is too large (at most 9223372036854775807)");
+  EXPECT_EQ(error({{"steps", 1e12}}), "cfg.json: field 'steps': must be in [1, 1000000000], got 1000000000000");
+  EXPECT_EQ(error({{"steps", true}}), "cfg.json: field 'steps': wrong type (true)");
+  EXPECT_EQ(trainingConfigFromJson({{"steps", 2e3}}, "cfg.json").steps, 2000);
+  EXPECT_EQ(trainingConfigFromJson({{"seed", 18446744073709551615ULL}}, "cfg.json").seed, 18446744073709551615ULL);
+}
+
+// Values that made the loss or the weights non-finite (or overflowed float: learning_rate 1e39
+// was an internal error), and an accumulation of a billion passes per step, are refused.
+TEST(TrainingConfig, RefusesNonFiniteAndAbsurdHyperParameters) {
+  const auto field = [](const std::function<void(TrainingConfig&)>& set) {
+    TrainingConfig config;
+    set(config);
+    const auto problem = config.problem();
+    return problem ? problem->field : std::string();
+  };
+  const double infinity = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(field([](TrainingConfig&) {}), "");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.learning_rate = 1e300; }), "learning_rate");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.learning_rate = 1e10; }), "learning_rate");
+  EXPECT_EQ(field([&](TrainingConfig& c) { c.learning_rate = infinity; }), "learning_rate");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.learning_rate = std::nan(""); }), "learning_rate");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.alpha = 1e300; }), "alpha");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.weight_decay = 1e300; }), "weight_decay");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.adam_epsilon = 1e300; }), "adam_epsilon");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.adam_epsilon = 1e-300; }), "adam_epsilon");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.clip_grad_norm = 1e300; }), "clip_grad_norm");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.accumulate = 1000000000; }), "accumulate");
+  EXPECT_EQ(errorOf([] { trainingConfigFromJson({{"learning_rate", 1e300}}, "c.json"); }),
+            "c.json: field 'learning_rate': must be in (0, 1], got 1e+300");
+  EXPECT_EQ(errorOf([] { trainingConfigFromJson({{"accumulate", 1000000000}}, "c.json"); }),
+            "c.json: field 'accumulate': must be in [1, 1024], got 1000000000");
+}
+
+// A short run with the default warm-up used to hear "field 'warmup_steps': must be in [0, steps]"
+// about a field it never set.
+TEST(TrainingConfig, AWarmUpLongerThanTheRunSaysWhatToSet) {
+  EXPECT_EQ(errorOf([] { trainingConfigFromJson({{"steps", 1}}, "c.json"); }),
+            "c.json: field 'warmup_steps': must be at most steps (1), got 50, the default: set warmup_steps to at "
+            "most 1 for a run this short");
+  EXPECT_EQ(errorOf([] { trainingConfigFromJson({{"steps", 5}, {"warmup_steps", 6}}, "c.json"); }),
+            "c.json: field 'warmup_steps': must be at most steps (5), got 6: set warmup_steps to at most 5 for a run "
+            "this short");
 }
 
 TEST(ConfidenceLoss, MatchesEquationTwoOnValidElementsOnly) {

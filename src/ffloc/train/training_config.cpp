@@ -1,7 +1,11 @@
 #include "ffloc/train/training_config.h"
 
+#include <cmath>
+#include <cstdio>
 #include <functional>
+#include <limits>
 #include <map>
+#include <type_traits>
 
 #include <torch/cuda.h>
 
@@ -13,6 +17,56 @@ namespace ffloc {
 
 namespace {
 
+// A JSON value that its field's type cannot hold; the message follows "field '<key>': ".
+class FieldValueError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+std::string wrongType(const nlohmann::json& value) { return "wrong type (" + value.dump() + ")"; }
+
+// nlohmann's get<int>() truncated 1.5 to 1, turned 1e30 into 0 and wrapped -1 to 2^64 - 1 for an
+// unsigned field: an integer field takes a number only when it holds that number exactly. An
+// integral float (1e3) is a number like any other.
+template <typename T>
+T integerFrom(const nlohmann::json& value) {
+  constexpr T lowest = std::numeric_limits<T>::min(), highest = std::numeric_limits<T>::max();
+  const auto tooLarge = [&] {
+    return FieldValueError(value.dump() + " is too large (at most " + std::to_string(highest) + ")");
+  };
+  const auto tooSmall = [&] {
+    return FieldValueError(value.dump() + " is too small (at least " + std::to_string(lowest) + ")");
+  };
+  if (value.is_number_unsigned()) {
+    const uint64_t number = value.get<uint64_t>();
+    if (number > static_cast<uint64_t>(highest)) throw tooLarge();
+    return static_cast<T>(number);
+  }
+  if (value.is_number_integer()) {
+    const int64_t number = value.get<int64_t>();
+    if (number < 0 && number < static_cast<int64_t>(lowest)) throw tooSmall();
+    if (number > 0 && static_cast<uint64_t>(number) > static_cast<uint64_t>(highest)) throw tooLarge();
+    return static_cast<T>(number);
+  }
+  if (value.is_number_float()) {
+    const double number = value.get<double>();
+    if (!std::isfinite(number) || number != std::floor(number)) {
+      throw FieldValueError("expected an integer, got " + value.dump());
+    }
+    if (number < static_cast<double>(lowest)) throw tooSmall();
+    // highest + 1 is a power of two, which a double holds exactly.
+    if (number >= static_cast<double>(highest) + 1.0) throw tooLarge();
+    return static_cast<T>(number);
+  }
+  throw FieldValueError(wrongType(value));
+}
+
+std::string number(double value) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%g", value);
+  return text;
+}
+
 // One accessor per field, so reading, writing and the unknown-key check share one list.
 struct FieldBinding {
   std::function<void(TrainingConfig&, const nlohmann::json&)> read;
@@ -21,7 +75,13 @@ struct FieldBinding {
 
 template <typename T>
 FieldBinding bindField(T TrainingConfig::*member) {
-  return {[member](TrainingConfig& config, const nlohmann::json& value) { config.*member = value.get<T>(); },
+  return {[member](TrainingConfig& config, const nlohmann::json& value) {
+            if constexpr (std::is_integral_v<T> && !std::is_same_v<T, bool>) {
+              config.*member = integerFrom<T>(value);
+            } else {
+              config.*member = value.get<T>();
+            }
+          },
           [member](const TrainingConfig& config) { return nlohmann::json(config.*member); }};
 }
 
@@ -73,9 +133,10 @@ const std::map<std::string, FieldBinding>& fieldBindings() {
 
 }  // namespace
 
-void TrainingConfig::validate(const std::string& origin) const {
+std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
+  std::optional<TrainingConfigProblem> first;
   const auto fail = [&](const std::string& field, const std::string& what) {
-    throwInputError(origin, 0, "field '" + field + "': " + what);
+    if (!first) first = TrainingConfigProblem{field, what};
   };
   // Upper bounds keep a sample's memory bounded before any is prepared: long_side 100000 once
   // grew to 24 GB before the kernel killed the run. Attention over an image's tokens grows as
@@ -92,26 +153,45 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (overlap_stride < 1) fail("overlap_stride", "must be positive");
   if (long_side < 16 || long_side > 2048) fail("long_side", "must be in [16, 2048] pixels, got " + std::to_string(long_side));
   if (!(colour_jitter >= 0 && colour_jitter < 1)) fail("colour_jitter", "must be in [0, 1)");
-  if (!(alpha > 0)) fail("alpha", "must be positive");
+  // The loss and the optimiser run in float32: the upper bounds below keep every product of a
+  // setting with a loss, gradient or weight finite (alpha 1e300 made the loss -inf, weight_decay
+  // 1e300 and learning_rate 1e10 the weights non-finite, learning_rate 1e39 overflowed float).
+  if (!(alpha > 0 && alpha <= 1e3)) fail("alpha", "must be in (0, 1000], got " + number(alpha));
   if (!(match_weight >= 0 && match_weight <= 1e3)) fail("match_weight", "must be in [0, 1000]");
   if (!(match_radius > 0 && match_radius <= 16)) fail("match_radius", "must be in (0, 16] patch footprints");
   if (!(point_weight >= 0 && point_weight <= 1e3)) fail("point_weight", "must be in [0, 1000]");
   for (const std::string& prefix : trained_parameters) {
     if (prefix.empty()) fail("trained_parameters", "an empty prefix would name every parameter; leave the list empty instead");
   }
-  if (steps < 1) fail("steps", "must be positive");
-  if (warmup_steps < 0 || warmup_steps > steps) fail("warmup_steps", "must be in [0, steps]");
-  if (!(learning_rate > 0)) fail("learning_rate", "must be positive");
-  if (!(min_learning_rate >= 0 && min_learning_rate <= learning_rate)) {
-    fail("min_learning_rate", "must be in [0, learning_rate]");
+  // A billion steps is years on any machine; past it a value is a typo.
+  if (steps < 1 || steps > 1000000000) fail("steps", "must be in [1, 1000000000], got " + std::to_string(steps));
+  if (warmup_steps < 0) fail("warmup_steps", "must be at least 0, got " + std::to_string(warmup_steps));
+  if (warmup_steps > steps) {
+    const bool by_default = warmup_steps == TrainingConfig{}.warmup_steps;
+    fail("warmup_steps", "must be at most steps (" + std::to_string(steps) + "), got " + std::to_string(warmup_steps) +
+                             (by_default ? ", the default" : "") + ": set warmup_steps to at most " +
+                             std::to_string(steps) + " for a run this short");
   }
-  if (!(weight_decay >= 0)) fail("weight_decay", "must be non-negative");
+  if (!(learning_rate > 0 && learning_rate <= 1)) fail("learning_rate", "must be in (0, 1], got " + number(learning_rate));
+  if (!(min_learning_rate >= 0 && min_learning_rate <= learning_rate)) {
+    fail("min_learning_rate", "must be in [0, learning_rate], got " + number(min_learning_rate));
+  }
+  // AdamW scales the weights by 1 - lr x weight_decay each step: with both at most 1 that stays
+  // in [0, 1].
+  if (!(weight_decay >= 0 && weight_decay <= 1)) fail("weight_decay", "must be in [0, 1], got " + number(weight_decay));
   if (!(beta1 >= 0 && beta1 < 1)) fail("beta1", "must be in [0, 1)");
   if (!(beta2 >= 0 && beta2 < 1)) fail("beta2", "must be in [0, 1)");
-  if (!(adam_epsilon > 0)) fail("adam_epsilon", "must be positive");
-  if (!(clip_grad_norm >= 0)) fail("clip_grad_norm", "must be non-negative (0: off)");
+  // Added to float32 moments: below float's smallest normal number (1.2e-38) it rounds to 0, and
+  // a parameter without gradient then divides 0 by 0.
+  if (!(adam_epsilon >= 1e-30 && adam_epsilon <= 1)) {
+    fail("adam_epsilon", "must be in [1e-30, 1], got " + number(adam_epsilon));
+  }
+  if (!(clip_grad_norm >= 0 && clip_grad_norm <= 1e6)) {
+    fail("clip_grad_norm", "must be in [0, 1e6] (0: off), got " + number(clip_grad_norm));
+  }
   if (batch_size < 1 || batch_size > 1024) fail("batch_size", "must be in [1, 1024]");
-  if (accumulate < 1) fail("accumulate", "must be at least 1");
+  // Every pass is a forward and backward pass: a billion of them made one step run for days.
+  if (accumulate < 1 || accumulate > 1024) fail("accumulate", "must be in [1, 1024], got " + std::to_string(accumulate));
   if (loader_threads < 1 || loader_threads > 256) fail("loader_threads", "must be in [1, 256]");
   if (prefetch_samples < 1 || prefetch_samples > 1024) fail("prefetch_samples", "must be in [1, 1024]");
   if (threads < 0 || threads > kMaxThreads)
@@ -127,6 +207,11 @@ void TrainingConfig::validate(const std::string& origin) const {
   if (keep_checkpoints < 1) fail("keep_checkpoints", "must be at least 1");
   if (validation_every < 0) fail("validation_every", "must be non-negative (0: off)");
   if (validation_samples < 1) fail("validation_samples", "must be positive");
+  return first;
+}
+
+void TrainingConfig::validate(const std::string& origin) const {
+  if (const auto found = problem()) throwInputError(origin, 0, "field '" + found->field + "': " + found->message);
 }
 
 TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::string& origin) {
@@ -137,8 +222,10 @@ TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::str
     if (binding == fieldBindings().end()) throwInputError(origin, 0, "field '" + key + "': unknown setting");
     try {
       binding->second.read(config, value);
+    } catch (const FieldValueError& e) {
+      throwInputError(origin, 0, "field '" + key + "': " + e.what());
     } catch (const nlohmann::json::exception&) {
-      throwInputError(origin, 0, "field '" + key + "': wrong type (" + value.dump() + ")");
+      throwInputError(origin, 0, "field '" + key + "': " + wrongType(value));
     }
   }
   config.validate(origin);

@@ -2,12 +2,19 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 namespace ffloc {
+
+// A setting that cannot make a run.
+struct TrainingConfigProblem {
+  std::string field;
+  std::string message;
+};
 
 // Everything that defines a training run. Defaults follow the paper's appendix where it gives a
 // value (K = 5 mapping images, N in [250, 1000] map tokens, overlap in [0.2, 0.85], AdamW, cosine
@@ -81,12 +88,16 @@ struct TrainingConfig {
   int64_t validation_every = 0;  // 0: no validation
   int validation_samples = 8;
 
-  // InputError naming the field for values that cannot make a run.
+  // The first value that cannot make a run, if any; a caller that sets fields from elsewhere (a
+  // command line) may name their source instead of the field.
+  std::optional<TrainingConfigProblem> problem() const;
+  // InputError "<origin>: field '<field>': <message>" for problem().
   void validate(const std::string& origin = "training config") const;
 };
 
 // Reads a JSON object of the fields above (any subset; the rest keep their defaults). Unknown
-// keys and wrong types are InputErrors naming the file and the field.
+// keys, wrong types, and numbers that an integer field cannot hold exactly (1.5, 1e30, -1 for a
+// seed) are InputErrors naming the file and the field.
 TrainingConfig readTrainingConfig(const std::filesystem::path& file);
 TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::string& origin);
 nlohmann::json toJson(const TrainingConfig& config);

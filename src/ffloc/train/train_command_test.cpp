@@ -1,0 +1,119 @@
+// `ffloc train` refusing bad input before it writes anything, and the launcher's bound on ranks.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "ffloc/core/error.h"
+#include "ffloc/train/local_launcher.h"
+#include "ffloc/train/training_test_util.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+
+// 1000 ranks forked about 100 processes on 2 cores that never got anywhere.
+TEST(LocalLauncher, StartsAtMostOneRankPerHardwareThread) {
+  const int64_t most = std::max(1u, std::thread::hardware_concurrency());
+  EXPECT_EQ(localRanksProblem(1), "");
+  EXPECT_EQ(localRanksProblem(most), "");
+  EXPECT_EQ(localRanksProblem(most + 1), "must be in [1, " + std::to_string(most) +
+                                             "] (one rank per hardware thread of this machine at most), got " +
+                                             std::to_string(most + 1));
+  EXPECT_NE(localRanksProblem(0), "");
+  try {
+    runLocalRanks({"/bin/true"}, 1000);
+    ADD_FAILURE() << "1000 ranks were started";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("ranks: must be in [1, ", 0), 0u) << e.what();
+  }
+}
+
+#ifdef FFLOC_CLI_PATH
+class TrainCommandInput : public ::testing::Test {
+ protected:
+  void SetUp() override { root_ = testing::makeTempDir("ffloc-train-input"); }
+
+  // Exit status of `ffloc train <arguments>`; its output goes to output().
+  int train(const std::string& arguments) {
+    const std::string command = std::string(FFLOC_CLI_PATH) + " train --quiet --data " +
+                                testing::smallScene().root.string() + " " + arguments + " > " +
+                                (root_ / "output.txt").string() + " 2>&1";
+    const int status = std::system(command.c_str());
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+
+  std::string output() const {
+    std::ifstream in(root_ / "output.txt");
+    std::stringstream text;
+    text << in.rdbuf();
+    return text.str();
+  }
+
+  std::string config(const std::string& json) {
+    const fs::path file = root_ / "c.json";
+    std::ofstream(file) << json;
+    return file.string();
+  }
+
+  bool contains(const std::string& part) const { return output().find(part) != std::string::npos; }
+
+  fs::path root_;
+};
+
+// Each of these was an internal error (exit 3); learning_rate 1e300 also left config.json and an
+// empty log.csv behind.
+TEST_F(TrainCommandInput, RefusesARunFolderItCannotUseAndAnOverflowingRateBeforeWritingAnything) {
+  const fs::path file = root_ / "afile";
+  std::ofstream(file) << "hi\n";
+  EXPECT_EQ(train("--out " + file.string()), 2) << output();
+  EXPECT_TRUE(contains("error: --out: '" + file.string() + "' exists and is not a folder")) << output();
+  std::ifstream kept(file);
+  std::string line;
+  std::getline(kept, line);
+  EXPECT_EQ(line, "hi");
+
+  EXPECT_EQ(train("--out ''"), 2) << output();
+  EXPECT_TRUE(contains("--out")) << output();
+
+  const fs::path loop = root_ / "loop";
+  fs::create_symlink(loop, loop);
+  EXPECT_EQ(train("--out " + loop.string()), 2) << output();
+  EXPECT_TRUE(contains("error: --out: '" + loop.string() + "': ")) << output();
+
+  const fs::path run = root_ / "run";
+  const std::string bad_rate = config(R"({"steps": 1, "warmup_steps": 0, "learning_rate": 1e300})");
+  EXPECT_EQ(train("--config " + bad_rate + " --out " + run.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + bad_rate + ": field 'learning_rate': must be in (0, 1], got 1e+300")) << output();
+  EXPECT_FALSE(fs::exists(run));
+}
+
+// Flags that override the config are named as typed: --lr inf wrote "learning_rate": null, which
+// no resume could read, and --accumulate 1000000000 made one step run for days.
+TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
+  const fs::path run = root_ / "run";
+  const std::string short_run = config(R"({"steps": 1, "warmup_steps": 0})");
+  EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --lr inf"), 2) << output();
+  EXPECT_TRUE(contains("error: --lr: must be in (0, 1], got inf")) << output();
+  EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --accumulate 1000000000"), 2) << output();
+  EXPECT_TRUE(contains("error: --accumulate: must be in [1, 1024], got 1000000000")) << output();
+  EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --nproc-per-node 100000"), 2) << output();
+  EXPECT_TRUE(contains("--nproc-per-node: must be in [1, ")) << output();
+  EXPECT_FALSE(fs::exists(run));
+
+  // A field no flag set is named with its source, and says what to do.
+  EXPECT_EQ(train("--out " + run.string() + " --steps 1"), 2) << output();
+  EXPECT_TRUE(contains("error: command line: field 'warmup_steps': must be at most steps (1), got 50, the default"))
+      << output();
+  EXPECT_FALSE(fs::exists(run));
+}
+#endif
+
+}  // namespace
+}  // namespace ffloc
