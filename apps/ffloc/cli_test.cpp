@@ -207,6 +207,27 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
       << run.output;
 }
 
+// A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a
+// principal point outside the image) was reported without its line: in a long list, no telling which.
+TEST_F(Cli, LocalizeNamesTheLineOfAListedQueryItRefuses) {
+  const fs::path scenes = dir_ / "synth";
+  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--seed", "3", "--mapping-frames", "6", "--query-frames", "1",
+                    "--quiet"}).exit_code, 0);
+  const fs::path scene = scenes / "scene_000_indoor";
+  const fs::path map = dir_ / "m.ffmap";
+  ASSERT_EQ(runCli({"map", "--dataset", scene.string(), "-o", map.string(), "--quiet"}).exit_code, 0);
+  writeText(scene / "one.txt", "images/query_0000_near.png -200 200 127.5 95.5\n");
+  const CliRun one = runCli({"localize", "--map", map.string(), "--images", (scene / "one.txt").string()});
+  EXPECT_EQ(one.exit_code, 2) << one.output;
+  EXPECT_TRUE(contains(one.output, "one.txt:1: query 'images/query_0000_near.png': fx: focal length -200 px")) << one.output;
+  writeText(scene / "two.txt", "# a comment\nimages/query_0000_near.png 200 200 127.5 95.5\n"
+                               "images/query_0000_near.png 200 200 900 95.5\n");
+  const CliRun two = runCli({"localize", "--map", map.string(), "--images", (scene / "two.txt").string()});
+  EXPECT_EQ(two.exit_code, 2) << two.output;
+  EXPECT_TRUE(contains(two.output, "two.txt:3: query 'images/query_0000_near.png': cx, cy: the principal point (900, 95.5)"))
+      << two.output;
+}
+
 TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {
   for (const std::string stem : {"caf\xE9", "plain"}) {
     const fs::path root = dir_ / "data" / "train";

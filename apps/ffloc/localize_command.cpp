@@ -38,6 +38,9 @@ struct Query {
   std::string name;
   std::filesystem::path path;
   Intrinsics intrinsics;  // fx == 0: not given
+  // "list.txt:3: query 'q.jpg'" for a query from --images, which its errors start with: a focal
+  // length out of range named no line of a long list. Empty for --image.
+  std::string location;
 };
 
 // "fx,fy,cx,cy" (commas or spaces).
@@ -68,11 +71,12 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
     if (!(stream >> path)) continue;
     Query query;
     query.name = path;
+    query.location = locate(list.string(), number, "query '" + path + "'");
     query.path = std::filesystem::path(path).is_absolute() ? std::filesystem::path(path) : list.parent_path() / path;
     std::string rest;
     std::getline(stream, rest);
     if (rest.find_first_not_of(" \t\r") != std::string::npos) {
-      query.intrinsics = parseIntrinsics(rest, locate(list.string(), number, "query '" + path + "'"));
+      query.intrinsics = parseIntrinsics(rest, query.location);
     } else if (fallback.fx > 0) {
       query.intrinsics = fallback;
     } else {
@@ -174,8 +178,9 @@ int runLocalize(const LocalizeArguments& args) {
       }
       if (result.pnp.ok()) estimated_cameras.emplace_back(result.pnp.camera_to_world, result.camera);
     } catch (const InputError& e) {
-      if (queries.size() == 1) throw;
-      r = {{"name", query.name}, {"status", "error"}, {"error", e.what()}};
+      const std::string error = query.location.empty() ? e.what() : query.location + ": " + e.what();
+      if (queries.size() == 1) throw InputError(error);
+      r = {{"name", query.name}, {"status", "error"}, {"error", error}};
       any_input_error = true;
     }
     if (!args.json) printText(r);
