@@ -113,6 +113,40 @@ TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
       << output();
   EXPECT_FALSE(fs::exists(run));
 }
+
+// learning_rate 1 with full weight decay and no clipping diverges within a few steps (at step 2
+// on our machines; the first step's loss is the initial model's, always finite): the run stops
+// there with exit 2 and the previous step's checkpoint stays, where a run that carried on wrote
+// NaN checkpoints and rotated the good one out.
+TEST_F(TrainCommandInput, StopsAtTheFirstNonFiniteLossAndKeepsTheLastCheckpoint) {
+  TrainingConfig settings = testing::smallConfig();
+  settings.steps = 6;
+  settings.warmup_steps = 0;
+  settings.learning_rate = 1;
+  settings.min_learning_rate = 0;
+  settings.weight_decay = 1;
+  settings.clip_grad_norm = 0;
+  settings.log_every = 1;
+  settings.checkpoint_every = 1;
+  settings.keep_checkpoints = 1;
+  const fs::path run = root_ / "run";
+  EXPECT_EQ(train("--config " + config(toJson(settings).dump()) + " --out " + run.string()), 2) << output();
+  const std::string text = output();
+  const std::string prefix = "error: training step ";
+  const size_t at = text.find(prefix);
+  ASSERT_NE(at, std::string::npos) << text;
+  const int64_t step = std::stoll(text.substr(at + prefix.size()));
+  EXPECT_GE(step, 2);
+  EXPECT_TRUE(contains("the run diverged and stops here, without a checkpoint of this state; try a lower "
+                       "learning_rate (now 1)")) << text;
+  char expected[32];
+  std::snprintf(expected, sizeof(expected), "step_%08lld", static_cast<long long>(step - 1));
+  std::ifstream latest(run / "checkpoints" / "latest");
+  std::string name;
+  std::getline(latest, name);
+  EXPECT_EQ(name, expected);
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / name / "model.safetensors"));
+}
 #endif
 
 }  // namespace

@@ -484,6 +484,48 @@ TEST(Trainer, RefusesAnIncompatibleResume) {
   EXPECT_TRUE(contains(errorOf([&] { Trainer(smallConfig(), {smallScene()}, run, true); }), "latest:1"));
 }
 
+// `--resume --steps 1` on a run at step 2 printed "steps 2 -> 1", rewrote the checkpoint and
+// ended as a success.
+TEST(Trainer, RefusesToResumeARunPastItsSteps) {
+  TrainingConfig config = smallConfig();
+  config.steps = 2;
+  config.warmup_steps = 0;
+  const fs::path run = testing::makeTempDir("ffloc-train-past-steps");
+  {
+    Trainer trainer(config, {smallScene()}, run);
+    trainer.step();
+    trainer.step();
+    trainer.saveCheckpoint();
+  }
+  config.steps = 1;
+  const std::string error = errorOf([&] { Trainer(config, {smallScene()}, run, true); });
+  EXPECT_TRUE(contains(error, "field 'steps': 1, but the run in " + run.string() + " is already at step 2")) << error;
+  config.steps = 2;  // nothing left to do, but nothing wrong either
+  EXPECT_EQ(Trainer(config, {smallScene()}, run, true).stepsDone(), 2);
+}
+
+// A non-finite loss stops the run before the update, naming the step and what to try: a run
+// that carried on wrote NaN checkpoints and rotated the good ones out.
+TEST(Trainer, StopsAtTheFirstNonFiniteLossBeforeTheUpdate) {
+  TrainingConfig config = smallConfig();
+  config.steps = 3;
+  config.warmup_steps = 0;
+  Trainer trainer(config, {smallScene()}, testing::makeTempDir("ffloc-train-diverged"));
+  const TrainingSample sample = trainer.validationSample(0);
+  trainer.step({sample});
+  const auto before = parameterSnapshot(trainer.model());
+  TrainingSample poisoned = sample;
+  poisoned.query_points = sample.query_points.clone();
+  poisoned.query_points.fill_(std::numeric_limits<float>::infinity());
+  const std::string error = errorOf([&] { trainer.step({poisoned}); });
+  EXPECT_TRUE(contains(error, "training step 2: the loss is ")) << error;
+  EXPECT_TRUE(contains(error, "the run diverged")) << error;
+  EXPECT_TRUE(contains(error, "try a lower learning_rate (now 0.001)")) << error;
+  EXPECT_EQ(trainer.stepsDone(), 1);
+  const auto after = parameterSnapshot(trainer.model());
+  for (size_t i = 0; i < before.size(); ++i) EXPECT_TRUE(at::equal(before[i].second, after[i].second)) << before[i].first;
+}
+
 }  // namespace
 }  // namespace ffloc
 

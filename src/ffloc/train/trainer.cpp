@@ -2,14 +2,16 @@
 
 #include <ATen/TensorOperators.h>
 #include <ATen/ops/cat.h>
+#include <ATen/ops/isfinite.h>
 #include <ATen/ops/tensor.h>
 #include <c10/core/GradMode.h>
 
 #include <algorithm>
 #include <chrono>
-#include <map>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <map>
 #include <set>
 
 #include "ffloc/core/clock.h"
@@ -71,6 +73,36 @@ void shrinkOutputLayers(FastForwardModel& model) {
     const bool output_layer = entry.name.rfind("downstream_head1.dpt.head.4.", 0) == 0 || entry.name.rfind("map_head.", 0) == 0;
     if (output_layer) entry.tensor->mul_(0.01);
   }
+}
+
+// std::to_string says "-nan" for some NaNs.
+std::string nonFiniteName(double value) {
+  if (std::isnan(value)) return "nan";
+  return value > 0 ? "inf" : "-inf";
+}
+
+// A run whose loss, gradients or weights went non-finite at `step` (1-based): `what` says which.
+[[noreturn]] void throwDiverged(int64_t step, const std::string& what, const TrainingConfig& config) {
+  char remedy[256];
+  std::snprintf(remedy, sizeof(remedy),
+                "try a lower learning_rate (now %g), a longer warmup_steps (now %lld) or clip_grad_norm (now %g%s)",
+                config.learning_rate, static_cast<long long>(config.warmup_steps), config.clip_grad_norm,
+                config.clip_grad_norm > 0 ? "" : ", off");
+  throw InputError("training step " + std::to_string(step) + ": " + what +
+                   ": the run diverged and stops here, without a checkpoint of this state; " + remedy);
+}
+
+// One reduction read back, not one per tensor: on a GPU each read waits for the device.
+int64_t nonFiniteCount(const std::vector<std::pair<std::string, at::Tensor>>& parameters) {
+  at::NoGradGuard no_grad;
+  int64_t elements = 0;
+  at::Tensor finite;
+  for (const auto& entry : parameters) {
+    elements += entry.second.numel();
+    const at::Tensor here = at::isfinite(entry.second).sum();
+    finite = finite.defined() ? finite + here : here;
+  }
+  return finite.defined() ? elements - finite.item<int64_t>() : 0;
 }
 
 // Infinite values (failed poses) sort last; the median of an empty list is infinite.
@@ -138,6 +170,12 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
     checkpoint = latestTrainingCheckpoint(run_dir_);
     if (!checkpoint) throwInputError((run_dir_ / "checkpoints" / "latest").string(), 0, "no checkpoint to resume from");
     checkResumable(*checkpoint, config_, world_size_, (checkpoint->folder / "model.safetensors").string());
+    if (checkpoint->step > config_.steps) {
+      throwInputError("training config", 0,
+                      "field 'steps': " + std::to_string(config_.steps) + ", but the run in " + run_dir_.string() +
+                          " is already at step " + std::to_string(checkpoint->step) +
+                          "; ask for more steps to continue it");
+    }
   }
   ModelLoadOptions load;
   load.init_seed = config_.model_seed;
@@ -387,9 +425,20 @@ TrainingStepStats Trainer::update(BatchLosses sums) {
   }
   start = std::chrono::steady_clock::now();
   stats.grad_norm = clipGradientNorm(optimizer_->parameters(), config_.clip_grad_norm);
+  // Every rank sees the same reduced loss, gradients and weights, so all of them stop here
+  // together. Stopping before the update keeps the weights as the last step left them, and the
+  // caller's checkpoints as they were: a run that carried on wrote NaN checkpoints and rotated the
+  // good ones out.
+  if (!std::isfinite(sums.loss)) throwDiverged(index + 1, "the loss is " + nonFiniteName(sums.loss), config_);
+  if (!std::isfinite(stats.grad_norm)) {
+    throwDiverged(index + 1, "the gradient norm is " + nonFiniteName(stats.grad_norm), config_);
+  }
   stats.learning_rate =
       cosineLearningRate(index, config_.steps, config_.warmup_steps, config_.learning_rate, config_.min_learning_rate);
   optimizer_->step(stats.learning_rate);
+  if (const int64_t broken = nonFiniteCount(optimizer_->parameters())) {
+    throwDiverged(index + 1, std::to_string(broken) + " parameters are non-finite after the update", config_);
+  }
   stats.optimizer_seconds = secondsSince(start);
   stats.step = stepsDone();
   const double count = static_cast<double>(std::max<int64_t>(sums.samples, 1));

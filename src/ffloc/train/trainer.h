@@ -82,14 +82,17 @@ class Trainer {
   // A fresh run from config.model, or, when `resume`, the latest checkpoint in run_dir (whose
   // stored configuration must agree with `config` on everything but the step count, the batch
   // split, the loader, and the logging, checkpoint and validation intervals; the global batch must
-  // stay the same; InputError naming the field otherwise). `validation_scenes`: held-out scenes
+  // stay the same, and `steps` may not fall below the checkpoint's step; InputError naming the
+  // field otherwise). `validation_scenes`: held-out scenes
   // for validate(); none: validation draws from the training scenes. `parallel`: this rank's
   // process group (not owned), or null for a run of one process.
   Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const std::filesystem::path& run_dir,
           bool resume = false, std::vector<Scene> validation_scenes = {}, DataParallel* parallel = nullptr);
   ~Trainer();
 
-  // One update on this rank's share of the current step's global batch.
+  // One update on this rank's share of the current step's global batch. A run that diverges
+  // stops with an InputError naming the step and the settings to try: a non-finite loss or
+  // gradient norm before the update, non-finite parameters after it.
   TrainingStepStats step();
   // One update on exactly these samples, as the whole batch of a run of one process (overfitting
   // checks, custom data pipelines); the step count and the schedule advance as for step().
