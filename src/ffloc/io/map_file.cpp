@@ -227,7 +227,17 @@ MapHeader mapHeader(const nlohmann::json& metadata, const std::string& file) {
 }
 
 MapHeader readMapHeader(const std::filesystem::path& path) {
-  return mapHeader(readMapMetadata(*openSafetensors(path), path.string()), path.string());
+  std::shared_ptr<const TensorArchive> archive;
+  try {
+    archive = openSafetensors(path);
+  } catch (const InputError& error) {
+    // A manifest given as the map was refused for a "header length 7308604848694364795", which
+    // told the user nothing about what they had given.
+    std::string reason = error.what();
+    if (const std::string named = path.string() + ": "; reason.rfind(named, 0) == 0) reason.erase(0, named.size());
+    throwInputError(path.string(), 0, "not an ffloc map, or a damaged one: " + reason);
+  }
+  return mapHeader(readMapMetadata(*archive, path.string()), path.string());
 }
 
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {

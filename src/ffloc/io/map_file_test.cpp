@@ -128,6 +128,15 @@ TEST(MapFile, DetectsCorruptionAndTruncation) {
   EXPECT_THROW(readMapFile(path), InputError);
   std::ofstream(dir / "empty.ffmap").close();
   EXPECT_THROW(readMapFile(dir / "empty.ffmap"), InputError);
+  // Another file given as the map: what it is not comes first, the reason after.
+  std::ofstream(dir / "manifest.json") << R"({"format": "ffloc-manifest", "version": 1, "frames": []})";
+  try {
+    readMapHeader(dir / "manifest.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind((dir / "manifest.json").string() + ": not an ffloc map, or a damaged one: header length", 0), 0u)
+        << e.what();
+  }
 }
 
 TEST(MapFile, RejectsInconsistentImages) {
