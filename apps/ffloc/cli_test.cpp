@@ -103,13 +103,13 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
 }
 
 // A libtorch stack trace from deep inside the run, exit 3, before.
-TEST_F(Cli, CudaOnACpuOnlyBuildIsRefusedNamingTheField) {
+TEST_F(Cli, CudaOnACpuOnlyBuildIsRefusedNamingTheFlag) {
   if (torch::cuda::is_available()) GTEST_SKIP() << "this libtorch has CUDA and sees a GPU";
   fs::create_directories(dir_ / "data");
   const CliRun run = runCli({"train", "--device", "cuda", "--data", (dir_ / "data").string(), "--out",
                              (dir_ / "run").string()});
   EXPECT_EQ(run.exit_code, 2) << run.output;
-  EXPECT_TRUE(contains(run.output, "command line: field 'device': cuda, but this libtorch was built without CUDA"))
+  EXPECT_TRUE(contains(run.output, "--device: cuda, but this libtorch was built without CUDA"))
       << run.output;
   EXPECT_FALSE(contains(run.output, "Exception raised from")) << run.output;
   EXPECT_FALSE(fs::exists(dir_ / "run"));
