@@ -10,6 +10,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -173,20 +174,46 @@ py::array pointArray(std::vector<Eigen::Vector3d> points) {
                              owner->empty() ? nullptr : owner->front().data(), free_when_done);
 }
 
+// A keyword or dict option's value as T, or InputError naming the field: pybind11's own cast
+// said only "Unable to cast Python instance to C++ type", and silently took 1.5 for an integer.
+// NumPy scalars are taken as the Python numbers they stand for.
+template <typename T>
+T optionValue(const py::handle& value, const std::string& field) {
+  const auto refuse = [&](const std::string& expected) -> T {
+    throw InputError(field + ": expected " + expected + ", got " + py::repr(value).cast<std::string>());
+  };
+  const bool boolean = py::isinstance<py::bool_>(value);
+  if constexpr (std::is_same_v<T, bool>) {
+    return boolean ? value.cast<bool>() : refuse("True or False");
+  } else if constexpr (std::is_integral_v<T>) {
+    if (boolean || !PyIndex_Check(value.ptr())) return refuse("an integer");
+    try {
+      return value.cast<T>();
+    } catch (const py::cast_error&) {
+      return refuse(std::is_signed_v<T> ? "an integer within range" : "a non-negative integer within range");
+    }
+  } else if constexpr (std::is_floating_point_v<T>) {
+    if (boolean || py::isinstance<py::str>(value) || !PyNumber_Check(value.ptr())) return refuse("a number");
+    return value.cast<T>();
+  } else {
+    return py::isinstance<py::str>(value) ? value.cast<std::string>() : refuse("a string");
+  }
+}
+
 // Query options from keyword arguments, named as the CLI's flags.
 QuerySettings querySettings(const py::kwargs& kwargs, std::vector<std::string>& unused) {
   QuerySettings settings;
   for (const auto& [key, value] : kwargs) {
     const std::string name = py::str(key).cast<std::string>();
-    if (name == "preset") settings.preset = value.cast<std::string>();
-    else if (name == "top_k") settings.top_k = value.cast<int64_t>();
-    else if (name == "features") settings.features = value.cast<int64_t>();
-    else if (name == "seed") settings.seed = value.cast<uint64_t>();
-    else if (name == "selection") settings.selection = value.cast<std::string>();
-    else if (name == "retrieval") settings.retrieval = value.cast<std::string>();
-    else if (name == "solver") settings.solver = value.cast<std::string>();
-    else if (name == "verify") settings.verify = value.cast<bool>();
-    else if (name == "pose_guided") settings.pose_guided = value.cast<bool>();
+    if (name == "preset") settings.preset = optionValue<std::string>(value, name);
+    else if (name == "top_k") settings.top_k = optionValue<int64_t>(value, name);
+    else if (name == "features") settings.features = optionValue<int64_t>(value, name);
+    else if (name == "seed") settings.seed = optionValue<uint64_t>(value, name);
+    else if (name == "selection") settings.selection = optionValue<std::string>(value, name);
+    else if (name == "retrieval") settings.retrieval = optionValue<std::string>(value, name);
+    else if (name == "solver") settings.solver = optionValue<std::string>(value, name);
+    else if (name == "verify") settings.verify = optionValue<bool>(value, name);
+    else if (name == "pose_guided") settings.pose_guided = optionValue<bool>(value, name);
     else unused.push_back(name);
   }
   return settings;
@@ -259,14 +286,14 @@ PnpOptions pnpOptions(const py::dict& given) {
   PnpOptions options;
   for (const auto& [key, value] : given) {
     const std::string name = py::str(key).cast<std::string>();
-    if (name == "solver") options.solver = parsePnpSolver(value.cast<std::string>());
-    else if (name == "inlier_threshold_px") options.inlier_threshold_px = value.cast<double>();
-    else if (name == "max_iterations") options.max_iterations = value.cast<int>();
-    else if (name == "success_probability") options.success_probability = value.cast<double>();
-    else if (name == "min_inliers") options.min_inliers = value.cast<int>();
-    else if (name == "max_correspondences") options.max_correspondences = value.cast<size_t>();
-    else if (name == "refine") options.refine = value.cast<bool>();
-    else if (name == "seed") options.seed = value.cast<uint64_t>();
+    if (name == "solver") options.solver = parsePnpSolver(optionValue<std::string>(value, name));
+    else if (name == "inlier_threshold_px") options.inlier_threshold_px = optionValue<double>(value, name);
+    else if (name == "max_iterations") options.max_iterations = optionValue<int>(value, name);
+    else if (name == "success_probability") options.success_probability = optionValue<double>(value, name);
+    else if (name == "min_inliers") options.min_inliers = optionValue<int>(value, name);
+    else if (name == "max_correspondences") options.max_correspondences = optionValue<size_t>(value, name);
+    else if (name == "refine") options.refine = optionValue<bool>(value, name);
+    else if (name == "seed") options.seed = optionValue<uint64_t>(value, name);
     else
       throw InputError("options: unknown key '" + name +
                        "' (known: solver, inlier_threshold_px, max_iterations, success_probability, min_inliers, "

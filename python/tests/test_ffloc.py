@@ -124,6 +124,14 @@ def test_query_options_are_the_cli_flags(cli_map, query):
         ffloc.Localizer(str(cli_map), top_k=0)
     with pytest.raises(ffloc.Error, match="no_such_option"):
         ffloc.Localizer(str(cli_map), no_such_option=1)
+    # Values of the wrong type name the option (pybind11's own cast named nothing, and took 1.5).
+    for options, message in (({"top_k": 1.5}, "top_k: expected an integer, got 1.5"),
+                             ({"top_k": "3"}, "top_k: expected an integer, got '3'"),
+                             ({"seed": -1}, "seed: expected a non-negative integer within range, got -1"),
+                             ({"verify": "no"}, "verify: expected True or False, got 'no'")):
+        with pytest.raises(ffloc.Error, match=message):
+            ffloc.Localizer(str(cli_map), **options)
+    ffloc.Localizer(str(cli_map), top_k=np.int64(3))  # a NumPy integer is an integer
 
 
 @pytest.mark.parametrize(
@@ -240,6 +248,8 @@ def test_estimate_absolute_pose_fails_as_a_status_on_noise():
         (np.zeros((10, 2)), np.zeros((10, 3)), {"solver": "magic"}, "magic"),
         (np.zeros((10, 2)), np.zeros((10, 3)), {"inlier_threshold_px": -1.0}, "pnp.inlier_threshold_px"),
         (np.zeros((10, 2)), np.zeros((10, 3)), {"seed": 1}, "image_size: must be positive, got 0x480"),
+        (np.zeros((10, 2)), np.zeros((10, 3)), {"max_iterations": 1.5}, "max_iterations: expected an integer, got 1.5"),
+        (np.zeros((10, 2)), np.zeros((10, 3)), {"refine": "yes"}, "refine: expected True or False, got 'yes'"),
     ],
 )
 def test_estimate_absolute_pose_refuses_bad_input(points2d, points3d, options, message):
