@@ -209,7 +209,7 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
 
 // A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a
 // principal point outside the image) was reported without its line: in a long list, no telling which.
-TEST_F(Cli, LocalizeNamesTheLineOfAListedQueryItRefuses) {
+TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   const fs::path scenes = dir_ / "synth";
   ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--seed", "3", "--mapping-frames", "6", "--query-frames", "1",
                     "--quiet"}).exit_code, 0);
@@ -226,6 +226,19 @@ TEST_F(Cli, LocalizeNamesTheLineOfAListedQueryItRefuses) {
   EXPECT_EQ(two.exit_code, 2) << two.output;
   EXPECT_TRUE(contains(two.output, "two.txt:3: query 'images/query_0000_near.png': cx, cy: the principal point (900, 95.5)"))
       << two.output;
+  // A path with spaces (split at its first space, it was refused), after a UTF-8 byte order mark,
+  // with Windows line ends and intrinsics apart by commas; and a NUL byte, which cut the path short.
+  fs::copy_file(scene / "images" / "query_0000_near.png", scene / "images" / "near view.png");
+  writeText(scene / "spaces.txt", "\xEF\xBB\xBFimages/near view.png 200 200 127.5 95.5\r\n"
+                                  "images/near view.png 200,200,127.5,95.5\r\n");
+  const CliRun spaces = runCli({"localize", "--map", map.string(), "--images", (scene / "spaces.txt").string(), "--json"});
+  EXPECT_NE(spaces.exit_code, 2) << spaces.output;
+  EXPECT_TRUE(contains(spaces.output, "\"name\": \"images/near view.png\"")) << spaces.output;
+  EXPECT_FALSE(contains(spaces.output, "\"error\"")) << spaces.output;
+  writeText(scene / "nul.txt", std::string("images/query_0000_near.png\0.jpg 200 200 127.5 95.5\n", 51));
+  const CliRun nul = runCli({"localize", "--map", map.string(), "--images", (scene / "nul.txt").string()});
+  EXPECT_EQ(nul.exit_code, 2) << nul.output;
+  EXPECT_TRUE(contains(nul.output, "nul.txt:1: query list: the line holds a NUL byte")) << nul.output;
 }
 
 TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {

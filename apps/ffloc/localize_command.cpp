@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -56,27 +57,66 @@ Intrinsics parseIntrinsics(const std::string& text, const std::string& where) {
   return k;
 }
 
+bool isNumber(const std::string& token) {
+  std::istringstream stream(token);
+  double value = 0;
+  std::string rest;
+  return (stream >> value) && !(stream >> rest);
+}
+
 // One query per line: `image_path [fx fy cx cy]`; paths relative to the list's folder; blank
-// lines and '#' comments skipped.
+// lines and '#' comments skipped. The intrinsics are the four numbers at the end when there are
+// four, the path everything before them, so a path may hold spaces (split at the first space, it was
+// refused as "intrinsics must be four numbers").
 std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrinsics& fallback) {
-  std::ifstream file(list);
+  std::ifstream file(list, std::ios::binary);
   if (!file) throwInputError(list.string(), 0, "query list: cannot open");
   std::vector<Query> queries;
   std::string line;
   for (int number = 1; std::getline(file, line); ++number) {
+    if (number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);  // a UTF-8 byte order mark
+    if (line.find('\0') != std::string::npos)
+      throwInputError(list.string(), number, "query list: the line holds a NUL byte, which no path can");
     const size_t hash = line.find('#');
     if (hash != std::string::npos) line.resize(hash);
-    std::istringstream stream(line);
-    std::string path;
-    if (!(stream >> path)) continue;
+    const std::string whitespace = " \t\r";
+    std::vector<std::string> fields;
+    std::vector<size_t> starts;
+    for (size_t at = line.find_first_not_of(whitespace); at != std::string::npos;) {
+      const size_t end = std::min(line.find_first_of(whitespace, at), line.size());
+      starts.push_back(at);
+      fields.push_back(line.substr(at, end - at));
+      at = line.find_first_not_of(whitespace, end);
+    }
+    if (fields.empty()) continue;
+    // The intrinsics: four numbers at the end, apart by spaces or commas.
+    std::vector<std::string> numbers;
+    size_t first_number = fields.size();
+    while (first_number > 1 && numbers.size() < 4) {
+      std::vector<std::string> pieces;
+      std::istringstream split(fields[first_number - 1]);
+      for (std::string piece; std::getline(split, piece, ',');)
+        if (!piece.empty()) pieces.push_back(piece);
+      if (pieces.empty() || !std::all_of(pieces.begin(), pieces.end(), isNumber)) break;
+      numbers.insert(numbers.begin(), pieces.begin(), pieces.end());
+      --first_number;
+    }
+    const bool given = numbers.size() == 4;
+    const auto trimmed = [&](const std::string& text) {
+      const size_t first = text.find_first_not_of(whitespace);
+      return text.substr(first, text.find_last_not_of(whitespace) - first + 1);
+    };
+    const std::string path = trimmed(given ? line.substr(0, starts[first_number]) : line);
     Query query;
     query.name = path;
-    query.location = locate(list.string(), number, "query '" + path + "'");
     query.path = std::filesystem::path(path).is_absolute() ? std::filesystem::path(path) : list.parent_path() / path;
-    std::string rest;
-    std::getline(stream, rest);
-    if (rest.find_first_not_of(" \t\r") != std::string::npos) {
-      query.intrinsics = parseIntrinsics(rest, query.location);
+    query.location = locate(list.string(), number, "query '" + path + "'");
+    if (given) {
+      query.intrinsics = parseIntrinsics(numbers[0] + " " + numbers[1] + " " + numbers[2] + " " + numbers[3], query.location);
+    } else if (fields.size() > 1 && std::filesystem::exists(list.parent_path() / fields[0])) {
+      const std::string rest = trimmed(line.substr(starts[1]));
+      throwInputError(list.string(), number,
+                      "query '" + fields[0] + "': intrinsics must be four numbers fx,fy,cx,cy, got '" + rest + "'");
     } else if (fallback.fx > 0) {
       query.intrinsics = fallback;
     } else {
@@ -219,7 +259,7 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
   addQueryOptions(*cmd, args->query);
   cmd->add_option("--image", args->image, "Query image");
   cmd->add_option("--images", args->image_list,
-                  "Text file, one query per line: image path (relative to the file) [fx fy cx cy]");
+                  "Text file, one query per line: image path (relative to the file; spaces allowed) [fx fy cx cy]");
   cmd->add_option("--intrinsics", args->intrinsics, "Query pinhole intrinsics fx,fy,cx,cy in pixels of the image");
   cmd->add_option("--poses", args->poses_path, "Write the estimated poses as an hloc pose list");
   cmd->add_option("--ply", args->ply_path,
