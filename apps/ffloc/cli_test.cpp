@@ -355,6 +355,16 @@ TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {
     EXPECT_EQ(run.exit_code, 2) << run.output;
     EXPECT_TRUE(contains(run.output, "--stride: must be an integer of at least 1, got " + stride)) << run.output;
   }
+  // CLI11 read "-1" into an unsigned seed or K as 2^64 - 1, without a word.
+  for (const auto& [arguments, flag] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"localize", "--map", map, "--image", "q.png", "--intrinsics", "50,50,31.5,23.5", "--seed", "-1"}, "--seed"},
+           {{"eval", "--dataset", data, "--seed", "-1"}, "--seed"},
+           {{"synth", "--out", (dir_ / "s").string(), "--seed", "-1"}, "--seed"},
+           {{"retrieval", "--map", map, "--dataset", data, "--top-k", "5,-1"}, "--top-k"}}) {
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << arguments[0] << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, flag + ": must be at least 0, got -1")) << arguments[0] << ": " << run.output;
+  }
 }
 
 // Accepted before: an empty method list ran classical, a method named twice ran twice, NaN

@@ -58,6 +58,14 @@ CLI::Validator nonEmptyPath() {
   return CLI::Validator([](const std::string& input) { return input.empty() ? "the path is empty" : ""; }, "PATH");
 }
 
+CLI::Validator notNegative() {
+  return CLI::Validator(
+      [](const std::string& input) {
+        return input.find('-') == std::string::npos ? std::string() : "must be at least 0, got " + input;
+      },
+      ">= 0");
+}
+
 CLI::Validator atLeast(int64_t minimum) {
   return CLI::Validator(
       [minimum](const std::string& input) -> std::string {
@@ -97,7 +105,9 @@ void addQueryOptions(CLI::App& command, QueryArguments& args) {
   args.top_k_option = command.add_option("--top-k", args.top_k, "Mapping images per query (overrides the preset)");
   args.features_option =
       command.add_option("--features", args.features, "fastforward: map tokens per query (overrides the preset)");
-  command.add_option("--seed", args.seed, "Seed of RANSAC, the token sampling and random selection")->capture_default_str();
+  command.add_option("--seed", args.seed, "Seed of RANSAC, the token sampling and random selection")
+      ->check(notNegative())
+      ->capture_default_str();
   command.add_option("--selection", args.selection, "fastforward: mapping image selection: retrieval, uniform or random")
       ->capture_default_str();
   command.add_option("--retrieval", args.retrieval,

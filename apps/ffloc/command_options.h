@@ -48,6 +48,9 @@ void checkOutputPath(const std::string& flag, const std::string& path);
 // run (requireEmptyOutputFolder), and the error names `flag`.
 void checkOutputFolder(const std::string& flag, const std::string& path);
 
+// For a flag read into an unsigned integer (seeds, counts): CLI11 reads "-1" as 2^64 - 1.
+CLI::Validator notNegative();
+
 // For an integer count: "must be at least 1, got 0", where CLI11's PositiveNumber said "Value 0
 // not in range 0.000000 to 1797...", the largest double in full.
 CLI::Validator atLeast(int64_t minimum);

@@ -214,10 +214,13 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
   addModelOptions(*cmd, args->model, "The model the map was built with (same forms as for 'ffloc map')");
   cmd->add_option("--dataset", args->dataset, "Dataset folder; its query split is measured")->required();
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
-  cmd->add_option("--top-k", args->top_k, "Comma-separated K values")->delimiter(',')->capture_default_str();
+  cmd->add_option("--top-k", args->top_k, "Comma-separated K values")
+      ->delimiter(',')
+      ->check(notNegative())
+      ->capture_default_str();
   cmd->add_option("--max-queries", args->max_queries, "Measure at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "Seed of the random selection")->capture_default_str();
+  cmd->add_option("--seed", args->seed, "Seed of the random selection")->check(notNegative())->capture_default_str();
   cmd->add_option("--retrieval", args->retrieval,
                   "What ranks the mapping images: encoder (the model's pooled tokens), vlad (the classical "
                   "descriptor; the map must have been built with --vlad) or token-vlad (a VLAD of the model's "
