@@ -60,6 +60,7 @@ void LocalizeOptions::check() const {
     throw InputError("pnp.inlier_threshold_px: must be positive and finite");
   if (pnp.max_correspondences < 4) throw InputError("pnp.max_correspondences: must be at least 4");
   if (pnp.max_iterations <= 0) throw InputError("pnp.max_iterations: must be positive");
+  if (pnp.min_inliers < 0) throw InputError("pnp.min_inliers: must not be negative, got " + std::to_string(pnp.min_inliers));
   if (!(pnp.success_probability > 0 && pnp.success_probability < 1))
     throw InputError("pnp.success_probability: must be in (0, 1)");
   verdict.check();
