@@ -85,6 +85,23 @@ class Cli : public ::testing::Test {
  protected:
   void SetUp() override { dir_ = testing::makeTempDir("ffloc_cli"); }
   void TearDown() override { fs::remove_all(dir_); }
+
+  // A synthetic indoor scene (256 x 192, one query) and its map, built by `method`.
+  struct MappedScene {
+    fs::path scene, map;
+  };
+  MappedScene mappedSyntheticScene(int mapping_frames, const std::string& method) {
+    const fs::path scenes = dir_ / "synth";
+    const CliRun rendered = runCli({"synth", "--out", scenes.string(), "--seed", "3", "--mapping-frames",
+                                    std::to_string(mapping_frames), "--query-frames", "1", "--quiet"});
+    EXPECT_EQ(rendered.exit_code, 0) << rendered.output;
+    const MappedScene mapped{scenes / "scene_000_indoor", dir_ / "m.ffmap"};
+    const CliRun run =
+        runCli({"map", "--dataset", mapped.scene.string(), "--method", method, "-o", mapped.map.string(), "--quiet"});
+    EXPECT_EQ(run.exit_code, 0) << run.output;
+    return mapped;
+  }
+
   fs::path dir_;
 };
 
@@ -193,13 +210,8 @@ TEST_F(Cli, LocalizeJsonRefusesANameThatIsNotUtf8BeforeLoadingTheMap) {
 
 // The library names its own option as the remedy; the CLI names the command and flag that set it.
 TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
-  const fs::path scenes = dir_ / "synth";
-  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--seed", "3", "--mapping-frames", "8", "--query-frames", "1",
-                    "--quiet"}).exit_code, 0);
-  const fs::path scene = scenes / "scene_000_indoor";
-  const fs::path map = dir_ / "m.ffmap";
-  const CliRun mapped = runCli({"map", "--dataset", scene.string(), "--method", "fastforward", "-o", map.string(), "--quiet"});
-  ASSERT_EQ(mapped.exit_code, 0) << mapped.output;
+  const auto [scene, map] = mappedSyntheticScene(8, "fastforward");
+  ASSERT_FALSE(HasFailure());
   const CliRun run = runCli({"localize", "--map", map.string(), "--image", (scene / "images" / "query_0000_near.png").string(),
                              "--intrinsics", "200,200,128,96", "--retrieval", "vlad"});
   EXPECT_EQ(run.exit_code, 2) << run.output;
@@ -210,12 +222,8 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
 // A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a
 // principal point outside the image) was reported without its line: in a long list, no telling which.
 TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
-  const fs::path scenes = dir_ / "synth";
-  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--seed", "3", "--mapping-frames", "6", "--query-frames", "1",
-                    "--quiet"}).exit_code, 0);
-  const fs::path scene = scenes / "scene_000_indoor";
-  const fs::path map = dir_ / "m.ffmap";
-  ASSERT_EQ(runCli({"map", "--dataset", scene.string(), "-o", map.string(), "--quiet"}).exit_code, 0);
+  const auto [scene, map] = mappedSyntheticScene(6, "classical");
+  ASSERT_FALSE(HasFailure());
   writeText(scene / "one.txt", "images/query_0000_near.png -200 200 127.5 95.5\n");
   const CliRun one = runCli({"localize", "--map", map.string(), "--images", (scene / "one.txt").string()});
   EXPECT_EQ(one.exit_code, 2) << one.output;
