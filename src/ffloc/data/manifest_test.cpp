@@ -92,12 +92,18 @@ TEST(Manifest, SharesIdenticalCamerasAndWritesRelativePaths) {
   EXPECT_EQ(back.frames[0].image_path, dir / "images/0.png");
 }
 
+// A manifest of one frame, a.png, of a 4 x 3 camera, with the pose given as JSON text.
+std::string oneFrameManifest(const std::string& camera_to_world, const std::string& more_frame_fields = "") {
+  return R"({"format": "ffloc-manifest", "version": 1,
+    "cameras": {"cam": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
+    "frames": [{"image": "a.png", "camera": "cam", )" +
+         more_frame_fields + R"("camera_to_world": )" + camera_to_world + "}]}";
+}
+
 TEST(Manifest, ReadsDefaults) {
   const auto dir = testing::makeTempDir("ffloc-manifest");
-  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
-    "cameras": {"cam": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
-    "frames": [{"image": "a.png", "camera": "cam", "depth": "a_depth.png",
-                "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  writeTextFile(dir / "manifest.json",
+                oneFrameManifest("[[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]", R"("depth": "a_depth.png", )"));
   writeImage(dir / "a.png", 4, 3);
   const Scene scene = readManifest(dir / "manifest.json");
   ASSERT_EQ(scene.frames.size(), 1u);
@@ -117,10 +123,7 @@ TEST(Manifest, ReadsDefaults) {
 // now, while one that is a rotation as written is kept bit for bit (RoundTripsExactly).
 TEST(Manifest, NearlyOrthonormalRotationsAreProjected) {
   const auto dir = testing::makeTempDir("ffloc-manifest");
-  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
-    "cameras": {"cam": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
-    "frames": [{"image": "a.png", "camera": "cam",
-                "camera_to_world": [[1,0.001,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  writeTextFile(dir / "manifest.json", oneFrameManifest("[[1,0.001,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]"));
   writeImage(dir / "a.png", 4, 3);
   const Pose pose = readManifest(dir / "manifest.json").frames.at(0).camera_to_world;
   EXPECT_LT(orthogonalityError(pose.R), 1e-12);
@@ -208,10 +211,7 @@ TEST(Manifest, EveryFrameGetsTheChecksOfAQuery) {
 TEST(Manifest, OverflowingNumberIsRejected) {
   // JSON has no NaN or inf literal; an out-of-range exponent is the nearest a file can get.
   const auto dir = testing::makeTempDir("ffloc-manifest");
-  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1,
-    "cameras": {"0": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}},
-    "frames": [{"image": "a.png", "camera": "0",
-                "camera_to_world": [[1,0,0,1e999],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+  writeTextFile(dir / "manifest.json", oneFrameManifest("[[1,0,0,1e999],[0,1,0,2],[0,0,1,3],[0,0,0,1]]"));
   expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "invalid JSON", "1e999"});
 }
 

@@ -32,6 +32,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::smallConfig;
+using testing::smallConfigOfSteps;
 using testing::smallScene;
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
@@ -405,9 +406,7 @@ TEST(AutocastGuard, CastsMatrixProductsOnlyInsideItsScope) {
 // A checkpoint records the image size it was trained at; loading it (directly or as the
 // "default" model through FFLOC_MODEL) preprocesses at that size.
 TEST(Trainer, CheckpointsCarryTheInputSize) {
-  TrainingConfig config = smallConfig();
-  config.steps = 1;
-  config.warmup_steps = 0;
+  TrainingConfig config = smallConfigOfSteps(1);
   const fs::path run = testing::makeTempDir("ffloc-train-input-size");
   Trainer trainer(config, {smallScene()}, run);
   trainer.step();
@@ -487,9 +486,7 @@ TEST(Trainer, RefusesAnIncompatibleResume) {
 // `--resume --steps 1` on a run at step 2 printed "steps 2 -> 1", rewrote the checkpoint and
 // ended as a success.
 TEST(Trainer, RefusesToResumeARunPastItsSteps) {
-  TrainingConfig config = smallConfig();
-  config.steps = 2;
-  config.warmup_steps = 0;
+  TrainingConfig config = smallConfigOfSteps(2);
   const fs::path run = testing::makeTempDir("ffloc-train-past-steps");
   {
     Trainer trainer(config, {smallScene()}, run);
@@ -507,9 +504,7 @@ TEST(Trainer, RefusesToResumeARunPastItsSteps) {
 // A non-finite loss stops the run before the update, naming the step and what to try: a run
 // that carried on wrote NaN checkpoints and rotated the good ones out.
 TEST(Trainer, StopsAtTheFirstNonFiniteLossBeforeTheUpdate) {
-  TrainingConfig config = smallConfig();
-  config.steps = 3;
-  config.warmup_steps = 0;
+  TrainingConfig config = smallConfigOfSteps(3);
   Trainer trainer(config, {smallScene()}, testing::makeTempDir("ffloc-train-diverged"));
   const TrainingSample sample = trainer.validationSample(0);
   trainer.step({sample});

@@ -44,6 +44,14 @@ inline TrainingConfig smallConfig() {
   return config;
 }
 
+// smallConfig() for a run of `steps` steps at the full learning rate from the first.
+inline TrainingConfig smallConfigOfSteps(int64_t steps) {
+  TrainingConfig config = smallConfig();
+  config.steps = steps;
+  config.warmup_steps = 0;
+  return config;
+}
+
 // smallConfig() for a short run through the CLI: every step logged, a checkpoint every
 // `checkpoint_every` steps, written as JSON to `file`.
 inline void writeShortRunConfig(const std::filesystem::path& file, int64_t steps, int64_t checkpoint_every,
