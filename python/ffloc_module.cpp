@@ -574,7 +574,8 @@ PYBIND11_MODULE(_ffloc, m) {
         std::vector<std::string> unused;
         const LocalizeOptions localize = localizeOptions(querySettings(kwargs, unused));
         refuseUnknown(unused, "evaluate");
-        if (methods.empty()) throw InputError("methods: give at least one method");
+        if (const std::string problem = methodListProblem(methods); !problem.empty())
+          throw InputError("methods: " + problem);
         const Scene scene = sceneFrom(dataset, format);
         MethodEvaluationOptions options;
         options.localize = localize;

@@ -263,14 +263,7 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
 #endif
                  "; classical and fastforward build their map of the mapping split in memory")
       ->check(CLI::Validator(
-          [](const std::string& input) -> std::string {
-            // An empty list ran classical, and a method named twice ran twice, without a word.
-            const std::vector<std::string> methods = splitList(input);
-            if (methods.empty()) return "names no method";
-            for (auto method = methods.begin(); method != methods.end(); ++method)
-              if (std::find(methods.begin(), method, *method) != method) return "'" + *method + "' is given twice";
-            return "";
-          },
+          [](const std::string& input) { return methodListProblem(splitList(input)); },
           "LIST"));
   cmd->add_option("--map", args->map_path,
                   "Also evaluate this map file from 'ffloc map' (any method), exactly as 'ffloc localize' runs it; "

@@ -287,7 +287,10 @@ def test_evaluate_gives_the_summary_the_cli_writes(scene_dir, cli, tmp_path):
 def test_evaluate_refuses_unknown_methods(scene_dir):
     with pytest.raises(ffloc.Error, match="methods: unknown method 'magic'"):
         ffloc.evaluate(scene_dir, methods=["magic"])
-    with pytest.raises(ffloc.Error, match="methods"):
+    with pytest.raises(ffloc.Error, match="methods: names no method"):
         ffloc.evaluate(scene_dir, methods=[])
+    # Run twice without a word before, as the CLI's --methods had been.
+    with pytest.raises(ffloc.Error, match="methods: 'classical' is given twice"):
+        ffloc.evaluate(scene_dir, methods=["classical", "classical"])
     with pytest.raises(ffloc.Error, match="dataset: expected a folder path"):
         ffloc.evaluate(3.5)

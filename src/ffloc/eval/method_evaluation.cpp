@@ -13,6 +13,13 @@ std::vector<std::string> evaluationMethods(const MethodEvaluationOptions& option
   return methods;
 }
 
+std::string methodListProblem(const std::vector<std::string>& methods) {
+  if (methods.empty()) return "names no method";
+  for (auto method = methods.begin(); method != methods.end(); ++method)
+    if (std::find(methods.begin(), method, *method) != method) return "'" + *method + "' is given twice";
+  return "";
+}
+
 std::vector<FrameResult> evaluateMethod(const Scene& scene, const std::string& method,
                                         const MethodEvaluationOptions& options,
                                         const LocalizationObserver& on_result) {

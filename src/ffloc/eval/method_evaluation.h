@@ -24,6 +24,10 @@ struct MethodEvaluationOptions {
 // The method names evaluateMethod knows with these options.
 std::vector<std::string> evaluationMethods(const MethodEvaluationOptions& options);
 
+// What is wrong with a list of methods to evaluate ("names no method", "'classical' is given
+// twice"), or "": an empty list ran the default without a word, and a method named twice ran twice.
+std::string methodListProblem(const std::vector<std::string>& methods);
+
 // oracle-depth and sift-baseline answer with correspondences (evaluate); classical and
 // fastforward localize each query frame against a map of the mapping split built in memory
 // (evaluateLocalizer), and `on_result` sees their results. InputError naming "methods" for an
