@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/data/pose_check.h"
 #include "ffloc/io/image_format.h"
 #include "ffloc/io/input_file.h"
 
@@ -81,8 +82,10 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
                         (source.camera ? "its depth camera is " : "the frame's image is ") +
                         std::to_string(camera.width) + "x" + std::to_string(camera.height));
 
+  // A depth beyond any scene (a depth_scale of 1e300) is no measurement; as a float it would
+  // overflow, which C++ leaves undefined.
   const auto metres = [&source](double v) {
-    bool invalid = !std::isfinite(v) || v <= 0;
+    bool invalid = !std::isfinite(v) || v <= 0 || !(v * source.scale <= kMaxCameraDistance);
     for (double bad : source.invalid_values) invalid = invalid || v == bad;
     return invalid ? 0.0f : static_cast<float>(v * source.scale);
   };

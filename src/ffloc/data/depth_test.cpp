@@ -55,6 +55,11 @@ TEST(Depth, FloatTiffRoundTripsAndMasksNanAndNegative) {
   EXPECT_EQ(depth(1, 0), 0.0f);
   EXPECT_EQ(depth(1, 1), 7.5f);
   expectInputError([&] { writeDepth(written, dir / "d.png"); }, {"d.png", "tif"});
+  // A depth beyond any scene is no measurement: 1e300 metres overflowed the float it is kept in.
+  frame.depth->scale = 1e300;
+  EXPECT_EQ(cv::countNonZero(readDepthMetres(frame)), 0);
+  frame.depth->scale = 1e8;  // 7.5e8 m is still inside kMaxCameraDistance, 1.25e8 too
+  EXPECT_EQ(cv::countNonZero(readDepthMetres(frame)), 2);
 }
 
 TEST(Depth, BadFilesNameTheFile) {
