@@ -111,6 +111,7 @@ TEST(TrainingConfig, RefusesNonFiniteAndAbsurdHyperParameters) {
   EXPECT_EQ(field([](TrainingConfig& c) { c.adam_epsilon = 1e-300; }), "adam_epsilon");
   EXPECT_EQ(field([](TrainingConfig& c) { c.clip_grad_norm = 1e300; }), "clip_grad_norm");
   EXPECT_EQ(field([](TrainingConfig& c) { c.accumulate = 1000000000; }), "accumulate");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.validation_samples = 1000000000; }), "validation_samples");
   EXPECT_EQ(errorOf([] { trainingConfigFromJson({{"learning_rate", 1e300}}, "c.json"); }),
             "c.json: field 'learning_rate': must be in (0, 1], got 1e+300");
   EXPECT_EQ(errorOf([] { trainingConfigFromJson({{"accumulate", 1000000000}}, "c.json"); }),

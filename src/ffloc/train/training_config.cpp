@@ -206,7 +206,9 @@ std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
   if (checkpoint_every < 1) fail("checkpoint_every", "must be positive");
   if (keep_checkpoints < 1) fail("keep_checkpoints", "must be at least 1");
   if (validation_every < 0) fail("validation_every", "must be non-negative (0: off)");
-  if (validation_samples < 1) fail("validation_samples", "must be positive");
+  // Each is a forward pass and a PnP at every validation: a billion of them never finished one.
+  if (validation_samples < 1 || validation_samples > 100000)
+    fail("validation_samples", "must be in [1, 100000], got " + std::to_string(validation_samples));
   return first;
 }
 
