@@ -20,6 +20,7 @@ namespace {
 using nlohmann::json;
 
 Intrinsics readCamera(const JsonFields& camera) {
+  camera.requireKnownKeys({"width", "height", "fx", "fy", "cx", "cy", "distortion"});
   Intrinsics intrinsics;
   intrinsics.width = camera.integer("width");
   intrinsics.height = camera.integer("height");
@@ -59,6 +60,7 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
   if (top.integer("version") != kManifestVersion)
     top.fail("version", "unsupported version " + std::to_string(top.integer("version")) + " (this build reads " +
                             std::to_string(kManifestVersion) + ")");
+  top.requireKnownKeys({"format", "version", "name", "metric", "cameras", "frames"});
 
   const auto folder = std::filesystem::absolute(manifest_json).lexically_normal().parent_path();
   Scene scene;
@@ -79,6 +81,8 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
   for (size_t i = 0; i < frames.size(); ++i) {
     const std::string path = "frames[" + std::to_string(i) + "]";
     const JsonFields entry(frames[i], manifest_json, path);
+    entry.requireKnownKeys({"image", "name", "camera", "camera_to_world", "depth", "depth_scale", "depth_invalid",
+                            "depth_camera", "split"});
     Frame frame;
     const std::string image = entry.string("image");
     frame.name = entry.has("name") ? entry.string("name") : image;

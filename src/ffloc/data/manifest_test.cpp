@@ -154,6 +154,10 @@ TEST(Manifest, RejectsBadFieldsNamingThem) {
       {"[1,0,0,1],", "[1,0,0,1e300],", "camera centre is 1e+300 from the origin"},
       {"\"image\": \"a.png\",", "", "frames[0].image"},
       {"\"metric\": true", "\"metric\": true,", "invalid JSON"},
+      // Misspelt or invented fields were read as absent: "k1" gave no distortion, without a word.
+      {"\"cy\": 1}", "\"cy\": 1, \"k1\": 0.1}", "field 'cameras.0.k1': unknown field (known here: width, height"},
+      {"\"split\": \"query\"", "\"spilt\": \"query\"", "field 'frames[0].spilt': unknown field"},
+      {"\"metric\": true", "\"metric\": true, \"units\": \"cm\"", "field 'units': unknown field"},
   };
   const auto dir = testing::makeTempDir("ffloc-manifest");
   writeImage(dir / "a.png", 4, 3);

@@ -1,5 +1,6 @@
 #include "ffloc/io/json_fields.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -115,6 +116,16 @@ Eigen::Matrix4d JsonFields::matrix4(const std::string& key) const {
     }
   }
   return T;
+}
+
+void JsonFields::requireKnownKeys(const std::vector<std::string>& known) const {
+  if (!object_.is_object()) return;
+  for (const auto& item : object_.items()) {
+    if (std::find(known.begin(), known.end(), item.key()) != known.end()) continue;
+    std::string list;
+    for (const std::string& key : known) list += (list.empty() ? "" : ", ") + key;
+    fail(item.key(), "unknown field (known here: " + list + ")");
+  }
 }
 
 void JsonFields::fail(const std::string& key, const std::string& what) const {

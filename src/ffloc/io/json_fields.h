@@ -36,6 +36,10 @@ class JsonFields {
 
   [[noreturn]] void fail(const std::string& key, const std::string& what) const;
 
+  // Fails on the first key of the object that is not one of `known`: a misspelt or invented field
+  // (a camera's "k1" meant as distortion) was read as absent, without a word.
+  void requireKnownKeys(const std::vector<std::string>& known) const;
+
  private:
   const nlohmann::json& object_;
   std::filesystem::path file_;
