@@ -176,7 +176,7 @@ py::array pointArray(std::vector<Eigen::Vector3d> points) {
 
 // A keyword or dict option's value as T, or InputError naming the field: pybind11's own cast
 // said only "Unable to cast Python instance to C++ type", and silently took 1.5 for an integer.
-// NumPy scalars are taken as the Python numbers they stand for.
+// NumPy integers and floats are taken as the Python numbers they stand for.
 template <typename T>
 T optionValue(const py::handle& value, const std::string& field) {
   const auto refuse = [&](const std::string& expected) -> T {
@@ -194,7 +194,11 @@ T optionValue(const py::handle& value, const std::string& field) {
     }
   } else if constexpr (std::is_floating_point_v<T>) {
     if (boolean || py::isinstance<py::str>(value) || !PyNumber_Check(value.ptr())) return refuse("a number");
-    return value.cast<T>();
+    try {
+      return value.cast<T>();
+    } catch (const py::cast_error&) {  // numbers that are no real number: complex, arrays
+      return refuse("a number");
+    }
   } else {
     return py::isinstance<py::str>(value) ? value.cast<std::string>() : refuse("a string");
   }

@@ -243,6 +243,11 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   EXPECT_NE(spaces.exit_code, 2) << spaces.output;
   EXPECT_TRUE(contains(spaces.output, "\"name\": \"images/near view.png\"")) << spaces.output;
   EXPECT_FALSE(contains(spaces.output, "\"error\"")) << spaces.output;
+  writeText(scene / "three.txt", "images/near view.png 200 200 127.5\n");
+  const CliRun three = runCli({"localize", "--map", map.string(), "--images", (scene / "three.txt").string()});
+  EXPECT_EQ(three.exit_code, 2) << three.output;
+  EXPECT_TRUE(contains(three.output, "three.txt:1: query 'images/near view.png': intrinsics must be four numbers"))
+      << three.output;
   writeText(scene / "nul.txt", std::string("images/query_0000_near.png\0.jpg 200 200 127.5 95.5\n", 51));
   const CliRun nul = runCli({"localize", "--map", map.string(), "--images", (scene / "nul.txt").string()});
   EXPECT_EQ(nul.exit_code, 2) << nul.output;

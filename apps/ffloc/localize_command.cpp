@@ -64,6 +64,23 @@ bool isNumber(const std::string& token) {
   return (stream >> value) && !(stream >> rest);
 }
 
+// Where the intrinsics of a list line start when they are there but not four numbers ("q.jpg 500
+// 500 320", "my photo.jpg 500 5oo 320 240"): after the text that names an existing image, either
+// the text before the trailing numbers or the first field; 0 when neither names a file (then the
+// whole line is a path, spaces included).
+size_t misgivenIntrinsicsStart(const std::string& line, const std::vector<size_t>& starts, size_t first_number,
+                               const std::filesystem::path& folder) {
+  const auto namesAFile = [&](size_t end) {
+    std::string candidate = line.substr(0, end);
+    candidate.erase(candidate.find_last_not_of(" \t\r") + 1);
+    const std::filesystem::path path(candidate);
+    return std::filesystem::exists(path.is_absolute() ? path : folder / path);
+  };
+  if (first_number > 0 && first_number < starts.size() && namesAFile(starts[first_number])) return starts[first_number];
+  if (starts.size() > 1 && namesAFile(starts[1])) return starts[1];
+  return 0;
+}
+
 // One query per line: `image_path [fx fy cx cy]`; paths relative to the list's folder; blank
 // lines and '#' comments skipped. The intrinsics are the four numbers at the end when there are
 // four, the path everything before them, so a path may hold spaces (split at the first space, it was
@@ -113,10 +130,11 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
     query.location = locate(list.string(), number, "query '" + path + "'");
     if (given) {
       query.intrinsics = parseIntrinsics(numbers[0] + " " + numbers[1] + " " + numbers[2] + " " + numbers[3], query.location);
-    } else if (fields.size() > 1 && std::filesystem::exists(list.parent_path() / fields[0])) {
-      const std::string rest = trimmed(line.substr(starts[1]));
+    } else if (const size_t image_end = misgivenIntrinsicsStart(line, starts, first_number, list.parent_path());
+               image_end > 0) {
       throwInputError(list.string(), number,
-                      "query '" + fields[0] + "': intrinsics must be four numbers fx,fy,cx,cy, got '" + rest + "'");
+                      "query '" + trimmed(line.substr(0, image_end)) + "': intrinsics must be four numbers fx,fy,cx,cy, got '" +
+                          trimmed(line.substr(image_end)) + "'");
     } else if (fallback.fx > 0) {
       query.intrinsics = fallback;
     } else {

@@ -59,10 +59,12 @@ TEST(DescriptorMatching, ExactMatchingAgreesWithTheRuleWrittenOut) {
   std::vector<cv::Mat> images;
   for (int size : sizes) images.push_back(unitRows(size, random));
   // Three near twins around one query row, as far from it as from each other: targets 3 and 19
-  // share a lane of the scan, 40 is in another. That row's ratio test must fail.
+  // share a lane of the scan, 40 is in another. That row's ratio test must fail. And two targets
+  // exactly alike in different lanes (5 and 22): a row nearest to them matches neither.
   cv::Mat& large = images.back();
   const cv::Mat ambiguous = unitRows(1, random);
   for (int t : {3, 19, 40}) cv::normalize(ambiguous + 0.05f * unitRows(1, random), large.row(t));
+  large.row(5).copyTo(large.row(22));
   std::normal_distribution<float> normal;
   std::uniform_int_distribution<size_t> image_of(0, images.size() - 1);
   cv::Mat query = unitRows(300, random);
@@ -75,6 +77,7 @@ TEST(DescriptorMatching, ExactMatchingAgreesWithTheRuleWrittenOut) {
     cv::normalize(noisy, query.row(q));
   }
   ambiguous.copyTo(query.row(200));
+  cv::normalize(large.row(5) + 0.01f * unitRows(1, random), query.row(201));
 
   std::vector<const cv::Mat*> pointers;
   for (const cv::Mat& image : images) pointers.push_back(&image);
@@ -89,7 +92,10 @@ TEST(DescriptorMatching, ExactMatchingAgreesWithTheRuleWrittenOut) {
     total += exact[i].size();
   }
   EXPECT_GT(total, 100u);  // the noisy copies matched: the comparison is not of empty sets
-  for (const auto& [q, t] : exact.back()) EXPECT_NE(q, 200) << "matched target " << t << " despite its twins";
+  for (const auto& [q, t] : exact.back()) {
+    EXPECT_NE(q, 200) << "matched target " << t << " despite its twins";
+    EXPECT_NE(q, 201) << "matched target " << t << " though 5 and 22 are alike";
+  }
 }
 
 }  // namespace

@@ -48,8 +48,11 @@ void writeIntoNewFolder(const fs::path& out_dir, const std::function<void(const 
     if (!outermost_created.empty()) {
       fs::remove_all(outermost_created, ignored);
     } else {
+      // The error_code steps: a throw here would replace the error being handled.
       std::vector<fs::path> written;
-      for (const fs::directory_entry& entry : fs::directory_iterator(out, ignored)) written.push_back(entry.path());
+      for (fs::directory_iterator entry(out, ignored); !ignored && entry != fs::directory_iterator();
+           entry.increment(ignored))
+        written.push_back(entry->path());
       for (const fs::path& path : written) fs::remove_all(path, ignored);
     }
     throw;

@@ -10,6 +10,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/hash.h"
+#include "ffloc/io/input_file.h"
 #include "ffloc/io/json_fields.h"
 #include "ffloc/io/mapped_file.h"
 #include "ffloc/io/tensor_archive.h"
@@ -227,6 +228,7 @@ MapHeader mapHeader(const nlohmann::json& metadata, const std::string& file) {
 }
 
 MapHeader readMapHeader(const std::filesystem::path& path) {
+  requireRegularFile(path, "map file");  // a mistyped path is that, not a damaged map
   std::shared_ptr<const TensorArchive> archive;
   try {
     archive = openSafetensors(path);

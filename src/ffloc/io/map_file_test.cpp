@@ -137,6 +137,13 @@ TEST(MapFile, DetectsCorruptionAndTruncation) {
     EXPECT_EQ(std::string(e.what()).rfind((dir / "manifest.json").string() + ": not an ffloc map, or a damaged one: header length", 0), 0u)
         << e.what();
   }
+  // A mistyped path is that, not a damaged map.
+  try {
+    readMapHeader(dir / "typo.ffmap");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), (dir / "typo.ffmap").string() + ": map file not found");
+  }
 }
 
 TEST(MapFile, RejectsInconsistentImages) {
