@@ -483,33 +483,45 @@ PYBIND11_MODULE(_ffloc, m) {
 
   m.def(
       "build_map",
-      [](const py::handle& scene_or_path, const std::string& out, const std::string& method, const std::string& model,
-         const std::string& dtype, bool append, bool use_depth, int max_image_size, int max_features, bool vlad,
-         int threads, const std::string& format, bool quiet) {
-        const Scene scene = sceneFrom(scene_or_path, format);
+      [](const py::handle& scene_or_path, const std::string& out, const std::string& method, const py::object& model,
+         const py::object& dtype, bool append, const py::object& use_depth, const py::object& max_image_size,
+         const py::object& max_features, const py::object& vlad, int threads, const std::string& format, bool quiet) {
         MapBuildOptions options;
         options.method = parseLocalizationMethod(method);
         options.append = append;
-        options.classical.use_depth = use_depth;
-        options.classical.sift.max_image_size = max_image_size;
-        options.classical.sift.max_features = max_features;
+        // Keywords left at None take the defaults; one passed that the build would ignore is
+        // refused, as 'ffloc map' refuses the flag.
+        SetMapBuildOptions given;
+        const auto take = [&](const py::object& value, const char* name, auto& field) {
+          if (value.is_none()) return;
+          field = optionValue<std::decay_t<decltype(field)>>(value, name);
+          given.push_back(name);
+        };
+        std::string model_spec = "default", precision = "f32";
+        take(model, "model", model_spec);
+        take(dtype, "dtype", precision);
+        take(use_depth, "use_depth", options.classical.use_depth);
+        take(max_image_size, "max_image_size", options.classical.sift.max_image_size);
+        take(max_features, "max_features", options.classical.sift.max_features);
+        take(vlad, "vlad", options.fastforward.vlad);
+        if (const std::string problem = ignoredOptionProblem(options, given); !problem.empty()) throw InputError(problem);
         options.classical.quiet = quiet;
-        options.fastforward.vlad = vlad;
         options.fastforward.quiet = quiet;
+        const Scene scene = sceneFrom(scene_or_path, format);
         MapBuildReport report;
         {
           py::gil_scoped_release unlocked;
           useThreads(threads, false);
-          report = buildMap(scene, out, options, modelLoader(model, dtype, threads));
+          report = buildMap(scene, out, options, modelLoader(model_spec, precision, threads));
         }
-        Map map = Map::load(out, model, dtype, threads);
+        Map map = Map::load(out, model_spec, precision, threads);
         map.build_report = report;
         return map;
       },
-      py::arg("scene_or_path"), py::arg("out"), py::arg("method") = "classical", py::arg("model") = "default",
-      py::arg("dtype") = "f32", py::arg("append") = false, py::arg("use_depth") = true,
-      py::arg("max_image_size") = SiftOptions().max_image_size, py::arg("max_features") = SiftOptions().max_features,
-      py::arg("vlad") = false, py::arg("threads") = 0, py::arg("format") = "auto", py::arg("quiet") = true,
+      py::arg("scene_or_path"), py::arg("out"), py::arg("method") = "classical", py::arg("model") = py::none(),
+      py::arg("dtype") = py::none(), py::arg("append") = false, py::arg("use_depth") = py::none(),
+      py::arg("max_image_size") = py::none(), py::arg("max_features") = py::none(), py::arg("vlad") = py::none(),
+      py::arg("threads") = 0, py::arg("format") = "auto", py::arg("quiet") = true,
       "Maps the scene's mapping split into the file `out` (as 'ffloc map') and opens it");
 
   py::class_<Result>(m, "Result", "One query's answer")

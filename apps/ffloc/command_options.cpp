@@ -22,6 +22,8 @@ std::string withFlagName(const std::string& message) {
       {"pnp.max_correspondences", "--max-correspondences"},
       {"max_image_size", "--max-image-size"},
       {"max_features", "--max-features"},
+      {"use_depth", "--no-depth"},
+      {"vlad", "--vlad"},
       {"model", "--model"},
       {"dtype", "--dtype"},
       {"kind", "--kind"},

@@ -29,27 +29,8 @@ struct MapArguments {
   int max_features = SiftOptions().max_features;
   bool vlad = false;
   bool quiet = false;
-  std::vector<std::string> flags_given;  // of those that apply to one method only, or not with --append
+  SetMapBuildOptions options_given;  // of those that apply to one method only, or not with --append
 };
-
-// A flag that the run would ignore is refused: the user expects it to act.
-void refuseIgnoredFlags(const MapArguments& args) {
-  auto given = [&](const std::string& flag) {
-    return std::find(args.flags_given.begin(), args.flags_given.end(), flag) != args.flags_given.end();
-  };
-  const bool classical = parseLocalizationMethod(args.method) == LocalizationMethod::kClassical;
-  for (const char* flag : {"--model", "--dtype"})
-    if (classical && given(flag))
-      throw InputError(std::string(flag) + ": the classical method uses no network; give --method fastforward");
-  for (const char* flag : {"--no-depth", "--max-image-size", "--max-features"}) {
-    if (!classical && given(flag))
-      throw InputError(std::string(flag) + ": applies to the classical method only, not --method " + args.method);
-    if (args.append && given(flag) && std::string(flag) != "--no-depth")
-      throw InputError(std::string(flag) + ": a map appended to keeps the SIFT settings it was built with");
-  }
-  if (classical && given("--vlad"))
-    throw InputError("--vlad: a classical map always holds its VLAD descriptors; --vlad is for --method fastforward");
-}
 
 void printSummary(size_t added, size_t duplicates, double seconds, size_t images, const std::string& output) {
   std::cout << "mapped " << added << " images";
@@ -61,11 +42,13 @@ void printSummary(size_t added, size_t duplicates, double seconds, size_t images
 }
 
 int runMap(const MapArguments& args) {
-  refuseIgnoredFlags(args);
-  setLibraryThreadCount(args.model.threads);
   MapBuildOptions options;
   options.method = parseLocalizationMethod(args.method);
   options.append = args.append;
+  // A flag that the run would ignore is refused before any work.
+  if (const std::string problem = ignoredOptionProblem(options, args.options_given); !problem.empty())
+    throw InputError(problem);
+  setLibraryThreadCount(args.model.threads);
   options.classical.use_depth = !args.no_depth;
   options.classical.sift.max_image_size = args.max_image_size;
   options.classical.sift.max_features = args.max_features;
@@ -120,8 +103,14 @@ void registerMapCommand(CLI::App& app, CommandRun& run) {
                 "fastforward: also store the classical VLAD descriptor of every image, for 'localize --retrieval vlad'");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   cmd->callback([args, cmd, &run] {
-    for (const char* flag : {"--model", "--dtype", "--no-depth", "--max-image-size", "--max-features", "--vlad"})
-      if (cmd->count(flag) > 0) args->flags_given.push_back(flag);
+    const std::pair<const char*, const char*> options[] = {{"--model", "model"},
+                                                           {"--dtype", "dtype"},
+                                                           {"--no-depth", "use_depth"},
+                                                           {"--max-image-size", "max_image_size"},
+                                                           {"--max-features", "max_features"},
+                                                           {"--vlad", "vlad"}};
+    for (const auto& [flag, option] : options)
+      if (cmd->count(flag) > 0) args->options_given.push_back(option);
     run = [args] { return runMap(*args); };
   });
 }

@@ -71,6 +71,18 @@ def test_build_map_takes_a_scene_and_refuses_bad_options(scene_dir, tmp_path):
         ffloc.build_map(scene, out=str(tmp_path / "m.ffmap"), method="no-such-method")
     with pytest.raises(ffloc.Error, match="no-such.ffmap"):
         ffloc.Map.load(str(tmp_path / "no-such.ffmap"))
+    # Options the build would ignore are refused, as 'ffloc map' refuses their flags; they were
+    # silently dropped.
+    out = str(tmp_path / "ignored.ffmap")
+    for options, message in (({"dtype": "bf16"}, "dtype: the classical method uses no network"),
+                             ({"vlad": True}, "vlad: a classical map always holds its VLAD descriptors"),
+                             ({"method": "fastforward", "max_features": 100},
+                              "max_features: applies to the classical method only"),
+                             ({"max_features": 10**9}, "max_features: must be in \\[1, 16777216\\]"),
+                             ({"max_features": "many"}, "max_features: expected an integer")):
+        with pytest.raises(ffloc.Error, match=message):
+            ffloc.build_map(scene, out=out, **options)
+    assert not pathlib.Path(out).exists()
 
 
 # Localization

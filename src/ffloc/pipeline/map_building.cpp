@@ -33,6 +33,21 @@ void requireReplaceable(const std::filesystem::path& output) {
 
 }  // namespace
 
+std::string ignoredOptionProblem(const MapBuildOptions& options, const SetMapBuildOptions& set) {
+  const bool classical = options.method == LocalizationMethod::kClassical;
+  for (const std::string& name : set) {
+    if (classical && (name == "model" || name == "dtype"))
+      return name + ": the classical method uses no network; build with the fastforward method";
+    if (classical && name == "vlad")
+      return "vlad: a classical map always holds its VLAD descriptors; vlad is for the fastforward method";
+    const bool sift = name == "max_image_size" || name == "max_features";
+    if (!classical && (sift || name == "use_depth"))
+      return name + ": applies to the classical method only, not " + toString(options.method);
+    if (options.append && sift) return name + ": a map appended to keeps the SIFT settings it was built with";
+  }
+  return "";
+}
+
 MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output, const MapBuildOptions& options,
                         const std::function<LoadedModel()>& load_model) {
   const std::vector<size_t> frames = scene.mappingIndices();

@@ -24,6 +24,16 @@ struct MapBuildOptions {
   bool append = false;
 };
 
+// Which of the options that apply to one method only, or not to an append, a caller set (a
+// flag given, a keyword passed), by their library names: model, dtype, vlad, use_depth,
+// max_image_size, max_features.
+using SetMapBuildOptions = std::vector<std::string>;
+
+// The first of `set` that a build with `options` would ignore, as "<name>: why", or "": the user
+// expects an option to act (a classical map takes no model, keeps its VLAD, and an append keeps
+// the SIFT settings the map was built with).
+std::string ignoredOptionProblem(const MapBuildOptions& options, const SetMapBuildOptions& set);
+
 struct MapBuildReport {
   size_t previous_images = 0;  // in the map appended to
   size_t images = 0;           // in the written map
