@@ -264,6 +264,7 @@ def test_estimate_absolute_pose_fails_as_a_status_on_noise():
         (np.zeros((10, 2)), np.zeros((10, 3)), {"refine": "yes"}, "refine: expected True or False, got 'yes'"),
         (np.zeros((10, 2)), np.zeros((10, 3)), {"min_inliers": -1}, "pnp.min_inliers: must not be negative, got -1"),
         (np.zeros((10, 2)), np.zeros((10, 3)), {"inlier_threshold_px": 2j}, "inlier_threshold_px: expected a number"),
+        (np.zeros((10, 2), bool), np.zeros((10, 3)), None, "points2d: expected numbers, got an array of bool"),
     ],
 )
 def test_estimate_absolute_pose_refuses_bad_input(points2d, points3d, options, message):
