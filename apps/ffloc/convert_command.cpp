@@ -50,7 +50,7 @@ void registerConvertCommand(CLI::App& app, CommandRun& run) {
       ->required();
   cmd->add_option("--output", args->output, "safetensors file to write (atomically)")->required();
   cmd->add_option("--dtype", args->dtype,
-                  "Store floating-point tensors as f32, f16 or bf16 (default: keep each tensor's "
+                  "Store floating-point tensors as f32, f16, bf16 or f64 (default: keep each tensor's "
                   "dtype); integer tensors are never cast");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   cmd->callback([args, &run] {
