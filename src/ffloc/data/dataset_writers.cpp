@@ -1,5 +1,6 @@
 #include "ffloc/data/dataset_writers.h"
 
+#include <algorithm>
 #include <functional>
 
 #include "ffloc/core/error.h"
@@ -62,6 +63,14 @@ void writeIntoNewFolder(const fs::path& out_dir, const std::function<void(const 
 std::vector<std::string> writeDataset(const Scene& scene, const std::string& format, const fs::path& out_dir) {
   for (const auto& writer : writers()) {
     if (format != writer.format) continue;
+    // Written inside the dataset, the copy becomes part of it: a reader that searches the
+    // dataset's folders (7-Scenes' seq-XX, kapture's sensors) then finds the copy's files too.
+    std::error_code ignored;
+    const fs::path out = fs::weakly_canonical(fs::absolute(out_dir), ignored);
+    const fs::path root = fs::weakly_canonical(scene.root, ignored);
+    if (!root.empty() && std::mismatch(root.begin(), root.end(), out.begin(), out.end()).first == root.end())
+      throwInputError(out_dir.string(), 0, "output folder is inside the dataset it converts (" + scene.root.string() +
+                                                "); write it elsewhere");
     std::vector<std::string> names;
     writeIntoNewFolder(out_dir, [&](const fs::path& out) { names = writer.write(scene, out); });
     return names;

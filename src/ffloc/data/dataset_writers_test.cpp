@@ -65,6 +65,21 @@ TEST_F(DatasetWriters, AFailedWriteRemovesWhatItWroteAndNothingElse) {
   }
 }
 
+// A copy written inside the dataset it converts became part of it (probe).
+TEST_F(DatasetWriters, AnOutputInsideTheDatasetIsRefused) {
+  fs::create_directories(dir_ / "source");
+  const Scene scene = sceneFailingAtItsSecondFrame(dir_ / "source");
+  for (const fs::path& out : {dir_ / "source" / "copy", dir_ / "source" / "a" / ".." / "copy2"}) {
+    try {
+      writeDataset(scene, "manifest", out);
+      ADD_FAILURE() << out << " accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("output folder is inside the dataset it converts"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(fs::exists(out));
+  }
+}
+
 TEST_F(DatasetWriters, AnOutputFolderThatCannotBeExaminedIsRefusedNamingIt) {
   const fs::path loop = dir_ / "selfloop";
   fs::create_directory_symlink(loop, loop);
