@@ -399,7 +399,14 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
       {{"--methods", "oracle-depth", "--poses", dir_.string()}, "--poses: '" + dir_.string() + "' is a folder"},
       // A name the file system cannot look up was an uncaught filesystem_error: "internal error", exit 3.
       {{"--methods", "oracle-depth", "--csv", (dir_ / std::string(300, 'a') / "r.csv").string()},
-       "' cannot be reached: File name too long"}};
+       "' cannot be reached: File name too long"},
+      // An HTML report over the query image replaced it, exit 0; two outputs of one path kept the last.
+      {{"--methods", "oracle-depth", "--html", data + "/q.png"},
+       "--html: '" + data + "/q.png' is inside the dataset '" + data + "' being evaluated"},
+      {{"--methods", "oracle-depth", "--json", (dir_ / "r.json").string(), "--markdown", (dir_ / "r.json").string()},
+       "--markdown: '" + (dir_ / "r.json").string() + "' is also the output of --json"},
+      {{"--methods", "oracle-depth", "--json", (dir_ / "r.json").string(), "--html", (dir_ / "r.md").string()},
+       "--json (its table): '" + (dir_ / "r.md").string() + "' is also the output of --html"}};
   for (const auto& [options, message] : cases) {
     std::vector<std::string> arguments = {"eval", "--dataset", data};
     arguments.insert(arguments.end(), options.begin(), options.end());

@@ -18,6 +18,7 @@
 #include "ffloc/eval/protocol.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/eval/scene_ply.h"
+#include "ffloc/io/input_file.h"
 #ifdef FFLOC_WITH_TORCH
 #include "command_model.h"
 #include "ffloc/pipeline/map_building.h"
@@ -70,6 +71,37 @@ const LoadedModel& sharedModel(const EvalArguments& args) {
 }
 #endif
 
+// An HTML report given a query image's path replaced the image, exit 0, and the dataset no
+// longer read back; two outputs of one path kept only the last. Outputs go beside the data, each
+// to its own file.
+void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
+  std::vector<std::pair<std::string, std::string>> outputs;  // flag, path
+  for (const auto& [flag, path] : {std::pair<const char*, const std::string&>{"--json", args.json_path},
+                                   {"--csv", args.csv_path},
+                                   {"--markdown", args.markdown_path},
+                                   {"--html", args.html_path},
+                                   {"--poses", args.poses_path},
+                                   {"--ply", args.ply_path}})
+    if (!path.empty()) outputs.emplace_back(flag, path);
+  if (!args.json_path.empty()) {  // the files --json puts beside it unless told otherwise
+    const std::string stem = std::filesystem::path(args.json_path).replace_extension().string();
+    if (args.csv_path.empty()) outputs.emplace_back("--json (its CSV)", stem + ".frames.csv");
+    if (args.markdown_path.empty()) outputs.emplace_back("--json (its table)", stem + ".md");
+  }
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const auto& [flag, path] = outputs[i];
+    for (size_t j = 0; j < i; ++j)
+      if (sameFolderKey(path) == sameFolderKey(outputs[j].second))
+        throw InputError(flag + ": '" + path + "' is also the output of " + outputs[j].first);
+    for (const std::string& dataset : args.datasets)
+      if (liesWithin(path, dataset))
+        throw InputError(flag + ": '" + path + "' is inside the dataset '" + dataset +
+                         "' being evaluated, whose files it could replace; write it elsewhere");
+    if (!args.map_path.empty() && sameFolderKey(path) == sameFolderKey(args.map_path))
+      throw InputError(flag + ": '" + path + "' is the map being evaluated");
+  }
+}
+
 int runEval(const EvalArguments& args) {
 #ifdef FFLOC_WITH_TORCH
   setLibraryThreadCount(args.model.threads);
@@ -94,6 +126,7 @@ int runEval(const EvalArguments& args) {
     for (size_t j = 0; j < i; ++j)
       if (sameFolderKey(args.datasets[i]) == sameFolderKey(args.datasets[j]))
         throw InputError("--dataset: '" + args.datasets[i] + "' is given twice");
+  refuseOutputsOverInputsOrEachOther(args);
   const size_t rows = methods.size() + (args.map_path.empty() ? 0 : 1);
   if (!args.poses_path.empty() && (rows != 1 || args.datasets.size() != 1))
     throw InputError("--poses: needs exactly one dataset and one method");

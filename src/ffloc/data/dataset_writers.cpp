@@ -6,6 +6,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/data/format_io.h"
 #include "ffloc/data/manifest.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc {
 namespace {
@@ -65,10 +66,7 @@ std::vector<std::string> writeDataset(const Scene& scene, const std::string& for
     if (format != writer.format) continue;
     // Written inside the dataset, the copy becomes part of it: a reader that searches the
     // dataset's folders (7-Scenes' seq-XX, kapture's sensors) then finds the copy's files too.
-    std::error_code ignored;
-    const fs::path out = fs::weakly_canonical(fs::absolute(out_dir), ignored);
-    const fs::path root = fs::weakly_canonical(scene.root, ignored);
-    if (!root.empty() && std::mismatch(root.begin(), root.end(), out.begin(), out.end()).first == root.end())
+    if (!scene.root.empty() && liesWithin(out_dir, scene.root))
       throwInputError(out_dir.string(), 0, "output folder is inside the dataset it converts (" + scene.root.string() +
                                                 "); write it elsewhere");
     std::vector<std::string> names;

@@ -1,5 +1,7 @@
 #include "ffloc/io/input_file.h"
 
+#include <algorithm>
+
 #include "ffloc/core/error.h"
 
 namespace ffloc {
@@ -13,6 +15,15 @@ void requireRegularFile(const std::filesystem::path& path, const std::string& wh
     throwInputError(path.string(), 0, what + " expected, found a folder");
   if (status.type() != std::filesystem::file_type::regular)
     throwInputError(path.string(), 0, what + " expected, found something that is not a regular file (FIFO, device or socket)");
+}
+
+bool liesWithin(const std::filesystem::path& path, const std::filesystem::path& folder) {
+  std::error_code ignored;
+  const std::filesystem::path inner = std::filesystem::weakly_canonical(std::filesystem::absolute(path), ignored);
+  std::filesystem::path outer = std::filesystem::weakly_canonical(std::filesystem::absolute(folder), ignored);
+  if (!outer.has_filename()) outer = outer.parent_path();  // "d/" ends in an empty part
+  if (outer.empty()) return false;
+  return std::mismatch(outer.begin(), outer.end(), inner.begin(), inner.end()).first == outer.end();
 }
 
 }  // namespace ffloc

@@ -12,4 +12,8 @@ namespace ffloc {
 // or the system's reason ("Too many levels of symbolic links", "Permission denied").
 void requireRegularFile(const std::filesystem::path& path, const std::string& what = "file");
 
+// Whether `path` is `folder` or lies below it, however either is spelt ("d/../d/x", links):
+// outputs written into a dataset's folder became part of it, or replaced its files.
+bool liesWithin(const std::filesystem::path& path, const std::filesystem::path& folder);
+
 }  // namespace ffloc
