@@ -210,6 +210,11 @@ TEST(Manifest, EveryFrameGetsTheChecksOfAQuery) {
   absurd.replace(absurd.find("\"fx\": 2"), 7, "\"fx\": 1e300");
   writeTextFile(dir / "manifest.json", absurd);
   expectInputError([&] { loadDataset(dir); }, {dir.string(), "frame 'a.png'", "fx: focal length"});
+  // Too short as well as too long: 4e-320 px gave infinite errors, scored as an evaluation.
+  std::string tiny = good;
+  tiny.replace(tiny.find("\"fy\": 2"), 7, "\"fy\": 4e-320");
+  writeTextFile(dir / "manifest.json", tiny);
+  expectInputError([&] { loadDataset(dir); }, {dir.string(), "frame 'a.png'", "fy: focal length", "is not in [0.004, 4000]"});
 }
 
 TEST(Manifest, OverflowingNumberIsRejected) {

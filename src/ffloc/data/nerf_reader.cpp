@@ -71,17 +71,24 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
     intrinsics.height = size.height;
   }
   const double w = intrinsics.width, h = intrinsics.height;
+  // Radians across the image: 40 (degrees given by mistake) gave a focal length of 241 px where
+  // 1375 was meant, and pi one of 1e-12, without a word.
+  const auto fieldOfView = [&](const char* key) {
+    const double angle = keys.number(key);
+    if (!(angle > 0 && angle < M_PI)) keys.owner(key).fail(key, "must be an angle in radians in (0, pi), got " + std::to_string(angle));
+    return angle;
+  };
   if (keys.has("fl_x")) {
     intrinsics.fx = keys.number("fl_x");
   } else if (keys.has("camera_angle_x")) {
-    intrinsics.fx = 0.5 * w / std::tan(0.5 * keys.number("camera_angle_x"));
+    intrinsics.fx = 0.5 * w / std::tan(0.5 * fieldOfView("camera_angle_x"));
   } else {
     keys.owner("fl_x").fail("fl_x", "missing focal length (need fl_x or camera_angle_x)");
   }
   if (keys.has("fl_y")) {
     intrinsics.fy = keys.number("fl_y");
   } else if (keys.has("camera_angle_y")) {
-    intrinsics.fy = 0.5 * h / std::tan(0.5 * keys.number("camera_angle_y"));
+    intrinsics.fy = 0.5 * h / std::tan(0.5 * fieldOfView("camera_angle_y"));
   } else {
     intrinsics.fy = intrinsics.fx;
   }

@@ -100,12 +100,14 @@ void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
     throw InputError("width, height: the intrinsics are for a " + std::to_string(k.width) + "x" +
                      std::to_string(k.height) + " image, but the image is " + std::to_string(width) + "x" +
                      std::to_string(height));
-  const double absurd = 1000.0 * std::max(width, height);
+  // A field of view of a few thousandths of a degree, or of nearly 180 degrees, is no camera's: a
+  // focal length of 4e-320 px gave infinite errors scored as an evaluation.
+  const double absurd = 1000.0 * std::max(width, height), least = std::max(width, height) / 1000.0;
   auto focal = [&](const char* field, double value) {
-    if (!(std::isfinite(value) && value > 0 && value <= absurd)) {
+    if (!(std::isfinite(value) && value >= least && value <= absurd)) {
       std::ostringstream what;
-      what << field << ": focal length " << value << " px is not in (0, " << absurd << "] for a " << width << "x"
-           << height << " image";
+      what << field << ": focal length " << value << " px is not in [" << least << ", " << absurd << "] for a " << width
+           << "x" << height << " image";
       throw InputError(what.str());
     }
   };
