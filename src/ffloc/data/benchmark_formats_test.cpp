@@ -411,6 +411,10 @@ TEST(Kapture, BadInputNamesFileAndLine) {
   writeTextFile(query / "trajectories.txt", std::string(kKaptureHeader) + "8, rig, 1, 0, 0, 0, 0, 0, 0\n");
   expectInputError([&] { loadDataset(dir); },
                    {"records_camera.txt:2:", "no pose for image 'query/0007.jpg' (timestamp 7, device phone)"});
+  // The last of two poses won, and the frame was scored against another frame's pose.
+  writeTextFile(query / "trajectories.txt",
+                std::string(kKaptureHeader) + "7, rig, 1, 0, 0, 0, 0, 0, 0\n7, rig, 1, 0, 0, 0, 5, 0, 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"trajectories.txt:3:", "a second pose for timestamp 7, device 'rig'"});
 }
 
 }  // namespace

@@ -119,7 +119,13 @@ KaptureFolder readFolderGeometry(const fs::path& root) {
     for (const CsvLine& row : readCsv(trajectories)) {
       if (row.fields.size() != 9)
         throwInputError(trajectories.string(), row.number, "expected 'timestamp, device_id, qw, qx, qy, qz, tx, ty, tz'");
-      folder.device_to_world[{row.fields[0], row.fields[1]}] = readDeviceToWorld(row, 2, trajectories);
+      // The last of two poses for one (timestamp, device) won: a frame got another frame's pose as
+      // its ground truth, and was scored against it.
+      const auto [entry, added] =
+          folder.device_to_world.emplace(TimedDevice{row.fields[0], row.fields[1]}, readDeviceToWorld(row, 2, trajectories));
+      if (!added)
+        throwInputError(trajectories.string(), row.number,
+                        "a second pose for timestamp " + row.fields[0] + ", device '" + row.fields[1] + "'");
     }
   return folder;
 }
