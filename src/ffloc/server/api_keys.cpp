@@ -45,12 +45,19 @@ ApiKeys ApiKeys::read(const std::filesystem::path& file, const std::vector<std::
   std::string line;
   for (int number = 1; std::getline(in, line); ++number) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    // Kept, a byte order mark became part of the first key, which then never matched.
+    if (number == 1 && line.rfind("\xEF\xBB\xBF", 0) == 0) line.erase(0, 3);
     std::istringstream words(line);
     std::string key, maps, extra;
     if (!(words >> key) || key[0] == '#') continue;
     if (!(words >> maps) || (words >> extra)) {
       throwInputError(file.string(), number, "expected '<key> <map>[,<map>...]' or '<key> *'");
     }
+    // A key travels in an HTTP header: one with a control or non-ASCII byte can never be sent.
+    if (!std::all_of(key.begin(), key.end(), [](unsigned char c) { return c > 0x20 && c < 0x7F; }))
+      throwInputError(file.string(), number, "a key may hold only printable ASCII characters");
+    if (maps.back() == ',' || maps.find(",,") != std::string::npos)
+      throwInputError(file.string(), number, "an empty map name in '" + maps + "'");
     if (key.size() < kMinimumKeyLength) {
       throwInputError(file.string(), number, "key shorter than " + std::to_string(kMinimumKeyLength) + " characters");
     }

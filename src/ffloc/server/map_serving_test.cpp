@@ -266,6 +266,12 @@ TEST(ApiKeys, FileErrorsNameTheLine) {
   EXPECT_NE(errorFor("0123456789abcdef *\n0123456789abcdef kitchen\n").find("given twice"), std::string::npos);
   EXPECT_NE(errorFor("0123456789abcdef\n").find("expected"), std::string::npos);
   EXPECT_NE(errorFor("\n# nothing\n").find("holds no key"), std::string::npos);
+  EXPECT_NE(errorFor("0123456789abcd\x01f kitchen\n").find("only printable ASCII"), std::string::npos);
+  EXPECT_NE(errorFor("0123456789abcdef kitchen,\n").find("an empty map name"), std::string::npos);
+  // A byte order mark became part of the first key, which then never matched (second probe).
+  std::ofstream(dir / "keys.txt", std::ios::trunc) << "\xEF\xBB\xBF" "0123456789abcdef kitchen\n";
+  EXPECT_EQ(ApiKeys::read(dir / "keys.txt", {"kitchen", "office"}).decide("Bearer 0123456789abcdef", "kitchen"),
+            ApiKeys::Decision::kAllowed);
 
   std::ofstream(dir / "keys.txt", std::ios::trunc) << "0123456789abcdef kitchen,office\r\n";
   const ApiKeys keys = ApiKeys::read(dir / "keys.txt", {"kitchen", "office"});
