@@ -29,6 +29,10 @@ ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
     throw InputError(std::string("convert: target dtype ") + toString(*options.float_dtype) +
                      " is not a floating-point type");
   }
+  // Written over its input, an f32 original became its f16 copy: the only full-precision weights lost.
+  std::error_code ignored;
+  if (std::filesystem::equivalent(input, output, ignored))
+    throwInputError(output.string(), 0, "output: is the input file; write the converted weights to another path");
   const std::unique_ptr<TensorArchive> archive = openTensorArchive(input);
   ConvertWeightsSummary summary;
   summary.tensors_read = archive->names().size();

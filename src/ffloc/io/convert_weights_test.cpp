@@ -75,6 +75,15 @@ TEST(ConvertWeights, CastsFloatTensorsOnly) {
     }
   }
   EXPECT_THROW(parseFloatDType("i8", "--dtype"), InputError);
+  // Over its own input, however spelt: the f32 original became its f16 copy (second probe).
+  const auto original = dir / "f32.safetensors";
+  std::filesystem::copy_file(fixture, original);
+  const auto size = std::filesystem::file_size(original);
+  ConvertWeightsOptions options;
+  options.quiet = true;
+  options.float_dtype = DType::kF16;
+  EXPECT_THROW(convertWeights(original, dir / "." / "f32.safetensors", options), InputError);
+  EXPECT_EQ(std::filesystem::file_size(original), size);
   std::filesystem::remove_all(dir);
 }
 
