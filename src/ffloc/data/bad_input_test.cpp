@@ -260,6 +260,9 @@ TEST(BadInput, NerfErrors) {
   expectInputError([&] { loadDataset(makeNerf(R"(, "camera_model": "OPENCV_FISHEYE")")); },
                    {"transforms_train.json", "frames[0].camera_model", "OPENCV_FISHEYE"});
   expectInputError([&] { loadDataset(makeNerf("", R"(, "fl_x": "big")")); }, {"transforms_train.json", "field 'fl_x'"});
+  // "w" and "h" swapped passed, and a converted copy then failed its own reader.
+  expectInputError([&] { loadDataset(makeNerf("", R"(, "w": 6, "h": 8)")); },
+                   {"frame 'train/r_0.png'", "the intrinsics are for a 6x8 image, but", "r_0.png is 8x6"});
   // Degrees given by mistake read as radians: 40 gave a focal length 5.7 times too short.
   expectInputError([&] { loadDataset(makeNerf(R"(, "camera_angle_x": 40)")); },
                    {"transforms_train.json", "frames[0].camera_angle_x", "must be an angle in radians in (0, pi), got 40"});

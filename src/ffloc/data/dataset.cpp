@@ -1,12 +1,15 @@
 #include "ffloc/data/dataset.h"
 
 #include <functional>
+#include <set>
+#include <utility>
 #include <unordered_set>
 
 #include "ffloc/core/error.h"
 #include "ffloc/data/manifest.h"
 #include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
+#include "ffloc/io/image_size.h"
 
 namespace ffloc {
 namespace {
@@ -54,12 +57,24 @@ void requireUniqueNames(const Scene& scene) {
 // (some formats give centres, not matrices): a mapping frame that fails would otherwise give a map
 // that refuses every query, or one that cannot be read back.
 void requirePlausibleFrames(const Scene& scene) {
+  // One image per size the intrinsics give is read (its header; a JPEG with EXIF, decoded): a
+  // NeRF "w" and "h" swapped, or a COLMAP camera of twice the images' size, passed, and a
+  // converted copy then failed its own reader.
+  std::set<std::pair<int, int>> sizes_seen;
   for (const Frame& frame : scene.frames) {
     const std::string where = "frame '" + frame.name + "': ";
     try {
       checkIntrinsicsFitImage(frame.intrinsics, frame.intrinsics.width, frame.intrinsics.height);
     } catch (const InputError& error) {
       throwInputError(scene.root.string(), 0, where + "intrinsics: " + error.what());
+    }
+    if (sizes_seen.insert({frame.intrinsics.width, frame.intrinsics.height}).second) {
+      const cv::Size image = readImageSize(frame.image_path);
+      if (image.width != frame.intrinsics.width || image.height != frame.intrinsics.height)
+        throwInputError(scene.root.string(), 0,
+                        where + "the intrinsics are for a " + std::to_string(frame.intrinsics.width) + "x" +
+                            std::to_string(frame.intrinsics.height) + " image, but " + frame.image_path.string() +
+                            " is " + std::to_string(image.width) + "x" + std::to_string(image.height));
     }
     const std::string centre = cameraCentreProblem(frame.camera_to_world.t);
     if (!centre.empty()) throwInputError(scene.root.string(), 0, where + centre);
