@@ -71,11 +71,9 @@ const LoadedModel& sharedModel(const EvalArguments& args) {
 }
 #endif
 
-// An HTML report given a query image's path replaced the image, exit 0, and the dataset no
-// longer read back; two outputs of one path kept only the last. Outputs go beside the data, each
-// to its own file.
-void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
-  std::vector<std::pair<std::string, std::string>> outputs;  // flag, path
+// The output files a run was asked for: (flag, path).
+std::vector<std::pair<std::string, std::string>> outputsAsked(const EvalArguments& args) {
+  std::vector<std::pair<std::string, std::string>> outputs;
   for (const auto& [flag, path] : {std::pair<const char*, const std::string&>{"--json", args.json_path},
                                    {"--csv", args.csv_path},
                                    {"--markdown", args.markdown_path},
@@ -83,6 +81,14 @@ void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
                                    {"--poses", args.poses_path},
                                    {"--ply", args.ply_path}})
     if (!path.empty()) outputs.emplace_back(flag, path);
+  return outputs;
+}
+
+// An HTML report given a query image's path replaced the image, exit 0, and the dataset no
+// longer read back; two outputs of one path kept only the last. Outputs go beside the data, each
+// to its own file.
+void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
+  std::vector<std::pair<std::string, std::string>> outputs = outputsAsked(args);
   if (!args.json_path.empty()) {  // the files --json puts beside it unless told otherwise
     const std::string stem = std::filesystem::path(args.json_path).replace_extension().string();
     if (args.csv_path.empty()) outputs.emplace_back("--json (its CSV)", stem + ".frames.csv");
@@ -114,13 +120,7 @@ int runEval(const EvalArguments& args) {
     throw InputError("--noise-px: must be a finite number of pixels, 0 or more");
   if (!(args.point_noise >= 0 && std::isfinite(args.point_noise)))
     throw InputError("--point-noise: must be a finite distance, 0 or more");
-  for (const auto& [flag, path] : {std::pair<const char*, const std::string&>{"--json", args.json_path},
-                                   {"--csv", args.csv_path},
-                                   {"--markdown", args.markdown_path},
-                                   {"--html", args.html_path},
-                                   {"--poses", args.poses_path},
-                                   {"--ply", args.ply_path}})
-    checkOutputPath(flag, path);
+  for (const auto& [flag, path] : outputsAsked(args)) checkOutputPath(flag, path);
   if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
   for (size_t i = 0; i < args.datasets.size(); ++i)
     for (size_t j = 0; j < i; ++j)
