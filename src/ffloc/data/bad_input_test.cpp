@@ -55,6 +55,7 @@ TEST(BadInput, MalformedPoses) {
       {"1 0 0 0\n0 1 0 0\n0 0 1 x\n0 0 0 1\n", ":3: expected a number"},
       {"1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n", "last row"},
       {"1 0 0 0\n0 2 0 0\n0 0 1 0\n0 0 0 1\n", "not orthonormal"},
+      {"1 0 0 0\n0 1 0 0\n0 0 -1 0\n0 0 0 1\n", "rotation is a reflection (det -1): an axis is flipped"},
   };
   for (const auto& bad : cases) {
     SCOPED_TRACE(bad.text);

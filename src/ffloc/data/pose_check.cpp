@@ -12,8 +12,13 @@ std::string rotationProblem(const Eigen::Matrix3d& R) {
   Eigen::Matrix3d projected = R;
   if (projectToRotation(projected)) return "";
   std::ostringstream what;
-  what << "rotation is not orthonormal (det " << R.determinant() << ", max |R^T R - I| " << orthogonalityError(R)
-       << ")";
+  // An orthonormal matrix of determinant -1 mirrors the scene (a flipped axis convention): said
+  // so, it was reported as "not orthonormal".
+  if (orthogonalityError(R) <= 1e-2 && R.determinant() < 0)
+    what << "rotation is a reflection (det " << R.determinant() << "): an axis is flipped";
+  else
+    what << "rotation is not orthonormal (det " << R.determinant() << ", max |R^T R - I| " << orthogonalityError(R)
+         << ")";
   return what.str();
 }
 
