@@ -30,13 +30,22 @@
 namespace ffloc::cli {
 namespace {
 
+// Upper bounds beyond any measurement worth making: --height 100000 took 2.5 GB and had not
+// finished one call after 30 s, and a billion repeats never end.
+constexpr int kMaxBenchSide = 4096;
+constexpr int64_t kMaxBenchRepeats = 10000, kMaxBenchMapTokens = 1000000;
+
 void validate(const BenchModelArguments& args) {
-  if (args.repeats < 1) throw InputError("--repeats: must be at least 1");
-  if (args.warmup < 0) throw InputError("--warmup: must not be negative");
+  if (args.repeats < 1 || args.repeats > kMaxBenchRepeats)
+    throw InputError("--repeats: must be in [1, " + std::to_string(kMaxBenchRepeats) + "]");
+  if (args.warmup < 0 || args.warmup > kMaxBenchRepeats)
+    throw InputError("--warmup: must be in [0, " + std::to_string(kMaxBenchRepeats) + "]");
   if (args.dtypes.empty()) throw InputError("--dtype: give at least one of fp32, bf16");
   for (const auto& dtype : args.dtypes) parseNetworkDtype(dtype);
   for (const int64_t count : args.map_tokens) {
-    if (count < 1) throw InputError("--features: map token counts must be positive, got " + std::to_string(count));
+    if (count < 1 || count > kMaxBenchMapTokens)
+      throw InputError("--features: map token counts must be in [1, " + std::to_string(kMaxBenchMapTokens) + "], got " +
+                       std::to_string(count));
   }
   Dust3rConfig config;
   try {
@@ -45,9 +54,10 @@ void validate(const BenchModelArguments& args) {
     throw InputError(std::string("--config: ") + e.what());
   }
   if (args.width <= 0 || args.height <= 0 || args.width % config.patch_size != 0 ||
-      args.height % config.patch_size != 0) {
+      args.height % config.patch_size != 0 || args.width > kMaxBenchSide || args.height > kMaxBenchSide) {
     throw InputError("--width/--height: " + std::to_string(args.width) + "x" + std::to_string(args.height) +
-                     " is not a positive multiple of the patch size " + std::to_string(config.patch_size));
+                     " is not a positive multiple of the patch size " + std::to_string(config.patch_size) +
+                     " of at most " + std::to_string(kMaxBenchSide));
   }
 }
 

@@ -297,6 +297,20 @@ TEST_F(Cli, ThreadCountsOutsideTheirRangeAreRefusedNamingTheFlag) {
   EXPECT_FALSE(contains(at_bound.output, "--threads")) << at_bound.output;
 }
 
+// Unbounded before: --height 100000 took 2.5 GB and had not finished one call after 30 s.
+TEST_F(Cli, BenchSizesAndCountsBeyondAnyMeasurementAreRefused) {
+  for (const auto& [flags, message] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"--height", "100000"}, "--width/--height: 512x100000 is not a positive multiple of the patch size 16 of at most 4096"},
+           {{"--repeats", "1000000000"}, "--repeats: must be in [1, 10000]"},
+           {{"--features", "99999999"}, "--features: map token counts must be in [1, 1000000], got 99999999"}}) {
+    std::vector<std::string> arguments = {"bench", "model"};
+    arguments.insert(arguments.end(), flags.begin(), flags.end());
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << flags[0] << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, message)) << run.output;
+  }
+}
+
 // Classical mapped the empty split and blamed the features ("no mapping image has usable
 // features"), fastforward the depth; a dataset without queries was mapped in full first.
 TEST_F(Cli, EvalOfADatasetWithAnEmptySplitSaysWhichAndNamesTheDataset) {
