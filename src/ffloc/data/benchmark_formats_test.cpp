@@ -403,6 +403,9 @@ TEST(Kapture, BadInputNamesFileAndLine) {
   const fs::path query = dir / "query/sensors";
   writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) + "phone, , camera, FOV, 64, 48, 120, 120, 32, 24, 0.9\n");
   expectInputError([&] { loadDataset(dir); }, {"sensors.txt:2:", "unsupported camera model 'FOV'"});
+  // Without its name column the line's camera was skipped, and its images blamed instead.
+  writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) + "phone, camera, PINHOLE, 64, 48, 120, 120, 32, 24\n");
+  expectInputError([&] { loadDataset(dir); }, {"sensors.txt:2:", "sensor type 'PINHOLE' is a camera model"});
   writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) + "phone, , camera, PINHOLE, 640, 480, 120, 120, 32, 24\n");
   expectInputError([&] { loadDataset(dir); }, {"sensors.txt:2:", "says the image is 640x480", "is 64x48"});
   writeTextFile(query / "sensors.txt", std::string(kKaptureHeader) + "phone, , camera, PINHOLE, 64, 48, 120, 120, 32, 24\n");

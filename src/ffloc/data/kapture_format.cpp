@@ -57,6 +57,12 @@ std::map<std::string, Sensor> readSensors(const fs::path& file) {
   for (const CsvLine& row : readCsv(file)) {
     if (row.fields.size() < 3) throwInputError(file.string(), row.number, "expected 'sensor_device_id, name, sensor_type, ...'");
     Sensor sensor{row.fields[2], {}, row.number};
+    // Other sensor types (gnss, wifi, lidar, ...) are skipped; a camera model in the type's place
+    // is a line missing its name column, whose camera was skipped and its images then blamed.
+    if (colmapModelParameterCount(sensor.type))
+      throwInputError(file.string(), row.number,
+                      "sensor type '" + sensor.type + "' is a camera model: expected 'sensor_device_id, name, camera, " +
+                          sensor.type + ", ...' (is the name column missing? it may be empty, not absent)");
     if (sensor.type == "camera" || sensor.type == "depth") {
       if (row.fields.size() < 6)
         throwInputError(file.string(), row.number, "expected '..., " + sensor.type + ", model, width, height, parameters'");
