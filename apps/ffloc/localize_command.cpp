@@ -64,17 +64,22 @@ bool isNumber(const std::string& token) {
   return (stream >> value) && !(stream >> rest);
 }
 
+// A path as a query list gives it: relative to the list's folder.
+std::filesystem::path listedPath(const std::filesystem::path& list, const std::string& text) {
+  const std::filesystem::path path(text);
+  return path.is_absolute() ? path : list.parent_path() / path;
+}
+
 // Where the intrinsics of a list line start when they are there but not four numbers ("q.jpg 500
 // 500 320", "my photo.jpg 500 5oo 320 240"): after the text that names an existing image, either
 // the text before the trailing numbers or the first field; 0 when neither names a file (then the
 // whole line is a path, spaces included).
 size_t misgivenIntrinsicsStart(const std::string& line, const std::vector<size_t>& starts, size_t first_number,
-                               const std::filesystem::path& folder) {
+                               const std::filesystem::path& list) {
   const auto namesAFile = [&](size_t end) {
     std::string candidate = line.substr(0, end);
     candidate.erase(candidate.find_last_not_of(" \t\r") + 1);
-    const std::filesystem::path path(candidate);
-    return std::filesystem::exists(path.is_absolute() ? path : folder / path);
+    return std::filesystem::exists(listedPath(list, candidate));
   };
   if (first_number > 0 && first_number < starts.size() && namesAFile(starts[first_number])) return starts[first_number];
   if (starts.size() > 1 && namesAFile(starts[1])) return starts[1];
@@ -106,19 +111,22 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
       at = line.find_first_not_of(whitespace, end);
     }
     if (fields.empty()) continue;
-    // The intrinsics: four numbers at the end, apart by spaces or commas.
-    std::vector<std::string> numbers;
-    size_t first_number = fields.size();
-    while (first_number > 1 && numbers.size() < 4) {
-      std::vector<std::string> pieces;
+    // The intrinsics: four numbers at the end, apart by spaces or commas, from field first_number.
+    size_t numbers = 0, first_number = fields.size();
+    while (first_number > 1 && numbers < 4) {
+      size_t pieces = 0;
+      bool all_numbers = true;
       std::istringstream split(fields[first_number - 1]);
-      for (std::string piece; std::getline(split, piece, ',');)
-        if (!piece.empty()) pieces.push_back(piece);
-      if (pieces.empty() || !std::all_of(pieces.begin(), pieces.end(), isNumber)) break;
-      numbers.insert(numbers.begin(), pieces.begin(), pieces.end());
+      for (std::string piece; std::getline(split, piece, ',');) {
+        if (piece.empty()) continue;
+        ++pieces;
+        all_numbers = all_numbers && isNumber(piece);
+      }
+      if (pieces == 0 || !all_numbers) break;
+      numbers += pieces;
       --first_number;
     }
-    const bool given = numbers.size() == 4;
+    const bool given = numbers == 4;
     const auto trimmed = [&](const std::string& text) {
       const size_t first = text.find_first_not_of(whitespace);
       return text.substr(first, text.find_last_not_of(whitespace) - first + 1);
@@ -126,11 +134,11 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
     const std::string path = trimmed(given ? line.substr(0, starts[first_number]) : line);
     Query query;
     query.name = path;
-    query.path = std::filesystem::path(path).is_absolute() ? std::filesystem::path(path) : list.parent_path() / path;
+    query.path = listedPath(list, path);
     query.location = locate(list.string(), number, "query '" + path + "'");
     if (given) {
-      query.intrinsics = parseIntrinsics(numbers[0] + " " + numbers[1] + " " + numbers[2] + " " + numbers[3], query.location);
-    } else if (const size_t image_end = misgivenIntrinsicsStart(line, starts, first_number, list.parent_path());
+      query.intrinsics = parseIntrinsics(line.substr(starts[first_number]), query.location);
+    } else if (const size_t image_end = misgivenIntrinsicsStart(line, starts, first_number, list);
                image_end > 0) {
       throwInputError(list.string(), number,
                       "query '" + trimmed(line.substr(0, image_end)) + "': intrinsics must be four numbers fx,fy,cx,cy, got '" +
