@@ -1,7 +1,6 @@
 #include "ffloc/train/training_config.h"
 
 #include <cmath>
-#include <cstdio>
 #include <functional>
 #include <limits>
 #include <map>
@@ -11,6 +10,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
+#include "ffloc/data/format_io.h"
 #include "ffloc/io/json_fields.h"
 
 namespace ffloc {
@@ -59,12 +59,6 @@ T integerFrom(const nlohmann::json& value) {
     return static_cast<T>(number);
   }
   throw FieldValueError(wrongType(value));
-}
-
-std::string number(double value) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%g", value);
-  return text;
 }
 
 // One accessor per field, so reading, writing and the unknown-key check share one list.
@@ -156,7 +150,7 @@ std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
   // The loss and the optimiser run in float32: the upper bounds below keep every product of a
   // setting with a loss, gradient or weight finite (alpha 1e300 made the loss -inf, weight_decay
   // 1e300 and learning_rate 1e10 the weights non-finite, learning_rate 1e39 overflowed float).
-  if (!(alpha > 0 && alpha <= 1e3)) fail("alpha", "must be in (0, 1000], got " + number(alpha));
+  if (!(alpha > 0 && alpha <= 1e3)) fail("alpha", "must be in (0, 1000], got " + formatNumber(alpha));
   if (!(match_weight >= 0 && match_weight <= 1e3)) fail("match_weight", "must be in [0, 1000]");
   if (!(match_radius > 0 && match_radius <= 16)) fail("match_radius", "must be in (0, 16] patch footprints");
   if (!(point_weight >= 0 && point_weight <= 1e3)) fail("point_weight", "must be in [0, 1000]");
@@ -172,22 +166,22 @@ std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
                              (by_default ? ", the default" : "") + ": set warmup_steps to at most " +
                              std::to_string(steps) + " for a run this short");
   }
-  if (!(learning_rate > 0 && learning_rate <= 1)) fail("learning_rate", "must be in (0, 1], got " + number(learning_rate));
+  if (!(learning_rate > 0 && learning_rate <= 1)) fail("learning_rate", "must be in (0, 1], got " + formatNumber(learning_rate));
   if (!(min_learning_rate >= 0 && min_learning_rate <= learning_rate)) {
-    fail("min_learning_rate", "must be in [0, learning_rate], got " + number(min_learning_rate));
+    fail("min_learning_rate", "must be in [0, learning_rate], got " + formatNumber(min_learning_rate));
   }
   // AdamW scales the weights by 1 - lr x weight_decay each step: with both at most 1 that stays
   // in [0, 1].
-  if (!(weight_decay >= 0 && weight_decay <= 1)) fail("weight_decay", "must be in [0, 1], got " + number(weight_decay));
+  if (!(weight_decay >= 0 && weight_decay <= 1)) fail("weight_decay", "must be in [0, 1], got " + formatNumber(weight_decay));
   if (!(beta1 >= 0 && beta1 < 1)) fail("beta1", "must be in [0, 1)");
   if (!(beta2 >= 0 && beta2 < 1)) fail("beta2", "must be in [0, 1)");
   // Added to float32 moments: below float's smallest normal number (1.2e-38) it rounds to 0, and
   // a parameter without gradient then divides 0 by 0.
   if (!(adam_epsilon >= 1e-30 && adam_epsilon <= 1)) {
-    fail("adam_epsilon", "must be in [1e-30, 1], got " + number(adam_epsilon));
+    fail("adam_epsilon", "must be in [1e-30, 1], got " + formatNumber(adam_epsilon));
   }
   if (!(clip_grad_norm >= 0 && clip_grad_norm <= 1e6)) {
-    fail("clip_grad_norm", "must be in [0, 1e6] (0: off), got " + number(clip_grad_norm));
+    fail("clip_grad_norm", "must be in [0, 1e6] (0: off), got " + formatNumber(clip_grad_norm));
   }
   if (batch_size < 1 || batch_size > 1024) fail("batch_size", "must be in [1, 1024]");
   // Every pass is a forward and backward pass: a billion of them made one step run for days.
