@@ -49,9 +49,9 @@ std::string withFlagName(const std::string& message) {
 CLI::Validator threadCountRange() {
   return CLI::Validator(
       [](const std::string& input) -> std::string {
-        int threads = 0;
-        if (CLI::detail::lexical_cast(input, threads) && threads >= 0 && threads <= kMaxThreads) return "";
-        return "must be 0 (all hardware threads) to " + std::to_string(kMaxThreads) + ", got " + input;
+        int64_t threads = 0;
+        if (!CLI::detail::lexical_cast(input, threads)) return "expected an integer, got " + input;
+        return threadCountProblem(threads);
       },
       "0 to " + std::to_string(kMaxThreads));
 }

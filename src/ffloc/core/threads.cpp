@@ -13,10 +13,14 @@ extern "C" char* openblas_get_corename(void) __attribute__((weak));
 
 namespace ffloc {
 
+std::string threadCountProblem(int64_t requested) {
+  if (requested >= 0 && requested <= kMaxThreads) return "";
+  return "must be 0 (all hardware threads) to " + std::to_string(kMaxThreads) + ", got " + std::to_string(requested);
+}
+
 int resolveThreadCount(int requested) {
-  if (requested < 0 || requested > kMaxThreads)
-    throw InputError("threads: must be 0 (all hardware threads) to " + std::to_string(kMaxThreads) + ", got " +
-                     std::to_string(requested));
+  if (const std::string problem = threadCountProblem(requested); !problem.empty())
+    throw InputError("threads: " + problem);
   if (requested > 0) return requested;
   return std::max(1u, std::thread::hardware_concurrency());
 }

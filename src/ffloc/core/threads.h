@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 namespace ffloc {
@@ -9,6 +10,10 @@ namespace ffloc {
 // took 1.4 s with 2 threads, 33 s with 1000. 0 (all hardware threads) reaches every core of a
 // larger machine.
 inline constexpr int kMaxThreads = 256;
+
+// What is wrong with asking for `requested` threads ("must be 0 (all hardware threads) to 256, got
+// 300"), or "": one wording for resolveThreadCount, every --threads flag and training configs.
+std::string threadCountProblem(int64_t requested);
 
 // Number of worker threads to use when the user asked for `requested` (0 = all hardware threads).
 // InputError naming `threads` outside [0, kMaxThreads].

@@ -188,8 +188,7 @@ std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
   if (accumulate < 1 || accumulate > 1024) fail("accumulate", "must be in [1, 1024], got " + std::to_string(accumulate));
   if (loader_threads < 1 || loader_threads > 256) fail("loader_threads", "must be in [1, 256]");
   if (prefetch_samples < 1 || prefetch_samples > 1024) fail("prefetch_samples", "must be in [1, 1024]");
-  if (threads < 0 || threads > kMaxThreads)
-    fail("threads", "must be 0 (all hardware threads) to " + std::to_string(kMaxThreads));
+  if (const std::string problem = threadCountProblem(threads); !problem.empty()) fail("threads", problem);
   if (device != "cpu" && device != "cuda") fail("device", "must be cpu or cuda");
   // Here, before any tensor: libtorch's own refusal is a stack trace from deep inside the run.
   if (device == "cuda" && !torch::cuda::is_available()) {
