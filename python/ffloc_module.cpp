@@ -63,14 +63,16 @@ std::string dtypeText(const py::array& array) { return py::str(array.dtype()).ca
 // A float64 view of `value` (converted when it is another numeric type), with `field` named when
 // it is not numbers at all.
 py::array_t<double, py::array::c_style | py::array::forcecast> floatArray(const py::handle& value, const std::string& field) {
+  // ensure() gives a null array instead of raising. A list is made an array once, in its own
+  // type, and that array converted.
+  const py::array natural = py::array::ensure(value);
+  if (!natural) throw InputError(field + ": expected numbers");
   // Booleans, strings and objects were cast too: intrinsics (True, True, True, True) were ones.
-  if (const py::array natural = py::array::ensure(value)) {
-    const char kind = natural.dtype().kind();
-    if (kind != 'f' && kind != 'i' && kind != 'u')
-      throw InputError(field + ": expected numbers, got an array of " + py::str(natural.dtype()).cast<std::string>());
-  }
-  auto array = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(value);
-  if (!array) throw InputError(field + ": expected numbers");  // ensure() gives a null array instead of raising
+  const char kind = natural.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u')
+    throw InputError(field + ": expected numbers, got an array of " + py::str(natural.dtype()).cast<std::string>());
+  auto array = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(natural);
+  if (!array) throw InputError(field + ": expected numbers");
   return array;
 }
 
