@@ -220,6 +220,8 @@ int runEval(const EvalArguments& args) {
       const ClassicalLocalizer localizer(readClassicalMap(args.map_path));
 #endif
       const std::string label = std::string(toString(localizer.method())) + "@map";
+      for (const std::string& warning : mapScoringWarnings(scene, localizer.cameras()))
+        std::cerr << "warning: --map '" << args.map_path << "': " << warning << "\n";
       if (ply_method.empty()) ply_method = label;
       record(evaluateLocalizer(scene, localizer, label, localize, options, keep_points), label, &last_points);
       methods.push_back(label);

@@ -60,15 +60,19 @@ Eigen::Matrix3d validatedRotation(const Eigen::Matrix3d& R, const std::filesyste
   return projected;
 }
 
+bool isSamePoseAsMapped(const Pose& mapped, const Pose& frame) {
+  // A map stores the reader's pose exactly (JSON keeps every digit). The slack lets the same
+  // images through with poses exported again at fewer digits (6 give 1e-6).
+  return translationError(mapped, frame) <= 1e-5 * std::max(1.0, mapped.t.norm()) &&
+         rotationErrorDeg(mapped, frame) <= 1e-3;
+}
+
 void requireSamePoseAsMapped(const std::filesystem::path& dataset, const std::string& name, const Pose& mapped,
                              const Pose& frame) {
-  // A map stores the reader's pose exactly (JSON keeps every digit). The slack lets the same
-  // images through with poses exported again at fewer digits (6 give 1e-6); another image under
-  // the same name is centimetres or degrees away.
-  const double distance = translationError(mapped, frame), angle = rotationErrorDeg(mapped, frame);
-  if (distance <= 1e-5 * std::max(1.0, mapped.t.norm()) && angle <= 1e-3) return;
+  if (isSamePoseAsMapped(mapped, frame)) return;
   std::ostringstream what;
-  what << "frame '" << name << "' is already in the map with another pose (" << distance << " apart, " << angle
+  what << "frame '" << name << "' is already in the map with another pose (" << translationError(mapped, frame)
+       << " apart, " << rotationErrorDeg(mapped, frame)
        << " deg): an append adds images by name, so this is another image under a mapped name; rename it, or "
           "map without appending";
   throwInputError(dataset.string(), 0, what.str());

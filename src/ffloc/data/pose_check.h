@@ -26,6 +26,10 @@ std::string rotationProblem(const Eigen::Matrix3d& R);
 Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, int line);
 Eigen::Matrix3d validatedRotation(const Eigen::Matrix3d& R, const std::filesystem::path& file, int line);
 
+// Whether `frame` is the pose a map stores for the same image: equal up to the digits a pose
+// exported again loses. Another image under the same name is centimetres or degrees away.
+bool isSamePoseAsMapped(const Pose& mapped, const Pose& frame);
+
 // An append skips the frames whose name the map already holds, as the same images again. Under
 // such a name with another pose is another image (a second dataset named alike, whose frames the
 // skip left out without a word): InputError naming the dataset, the frame and how far apart the

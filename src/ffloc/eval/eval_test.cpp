@@ -167,6 +167,37 @@ TEST(Evaluator, EmptySplitIsAnInputError) {
   EXPECT_THROW(evaluate(scene, source, {}), InputError);
 }
 
+std::vector<MapCamera> mapCamerasOf(const Scene& scene, const std::vector<int>& frames) {
+  std::vector<MapCamera> cameras;
+  for (const int i : frames) {
+    const Frame& frame = scene.frames[i];
+    cameras.push_back({frame.name, frame.camera_to_world, frame.intrinsics});
+  }
+  return cameras;
+}
+
+TEST(Evaluator, WarnsOfMapsThatHoldTheQueriesOrNoneOfTheMappingFrames) {
+  const Scene scene = syntheticScene();  // frames 0-2 mapping, 3-5 query
+  EXPECT_TRUE(mapScoringWarnings(scene, mapCamerasOf(scene, {0, 1, 2})).empty());
+  EXPECT_TRUE(mapScoringWarnings(scene, mapCamerasOf(scene, {1})).empty());
+
+  const std::vector<std::string> leaked = mapScoringWarnings(scene, mapCamerasOf(scene, {0, 1, 2, 4, 5}));
+  ASSERT_EQ(leaked.size(), 1u);
+  EXPECT_NE(leaked[0].find("holds 2 of the 3 query frames of toy (first 'frame4')"), std::string::npos) << leaked[0];
+
+  // Another capture: its own names, or the same names (synthetic scenes of other seeds) 1 cm away.
+  std::vector<MapCamera> renamed = mapCamerasOf(scene, {0, 1}), moved = renamed;
+  for (MapCamera& camera : renamed) camera.name = "other/" + camera.name;
+  for (MapCamera& camera : moved) camera.camera_to_world.t.x() += 0.01;
+  for (const std::vector<MapCamera>& other : {renamed, moved}) {
+    const std::vector<std::string> elsewhere = mapScoringWarnings(scene, other);
+    ASSERT_EQ(elsewhere.size(), 1u);
+    EXPECT_NE(elsewhere[0].find("none of the 3 mapping frames of toy"), std::string::npos) << elsewhere[0];
+  }
+
+  EXPECT_EQ(mapScoringWarnings(scene, mapCamerasOf(scene, {3})).size(), 2u);
+}
+
 // Both PnP solvers on real 7-Scenes geometry through the whole harness: the query's own depth
 // and pose, 1 px pixel noise, 30% of the 3D points replaced at random.
 TEST(OracleDepth, SevenScenesWithOutliersIsAccurateWithBothSolvers) {

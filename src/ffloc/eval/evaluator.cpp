@@ -2,11 +2,13 @@
 
 #include <chrono>
 #include <limits>
+#include <unordered_map>
 
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/data/dataset.h"
+#include "ffloc/data/pose_check.h"
 #include "ffloc/io/image.h"
 
 namespace ffloc {
@@ -109,6 +111,35 @@ std::vector<FrameResult> evaluateLocalizer(const Scene& scene, const Localizer& 
   }
   progress.finish();
   return results;
+}
+
+std::vector<std::string> mapScoringWarnings(const Scene& scene, const std::vector<MapCamera>& map_cameras) {
+  std::unordered_map<std::string, const Pose*> mapped;
+  for (const MapCamera& camera : map_cameras) mapped.emplace(camera.name, &camera.camera_to_world);
+  const auto count_mapped = [&](Split split, std::string& first) {
+    size_t count = 0;
+    for (const size_t index : scene.indices(split)) {
+      const Frame& frame = scene.frames[index];
+      const auto found = mapped.find(frame.name);
+      if (found == mapped.end() || !isSamePoseAsMapped(*found->second, frame.camera_to_world)) continue;
+      if (count++ == 0) first = frame.name;
+    }
+    return count;
+  };
+  std::vector<std::string> warnings;
+  std::string first_query;
+  const size_t queries = count_mapped(Split::kQuery, first_query);
+  if (queries > 0)
+    warnings.push_back("the map holds " + std::to_string(queries) + " of the " +
+                       std::to_string(scene.indices(Split::kQuery).size()) + " query frames of " + scene.name +
+                       " (first '" + first_query + "'): each is localized against its own image");
+  std::string first_mapping;
+  const size_t mapping = scene.indices(Split::kMapping).size();
+  if (mapping > 0 && count_mapped(Split::kMapping, first_mapping) == 0)
+    warnings.push_back("the map holds none of the " + std::to_string(mapping) + " mapping frames of " + scene.name +
+                       ": its poses are right against this ground truth only if its capture shares the " +
+                       "dataset's coordinate frame");
+  return warnings;
 }
 
 }  // namespace ffloc
