@@ -436,14 +436,19 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
       << localize.output;
 }
 
-// synth wrote over a dataset, mixing its stale frames with new ones; convert-dataset onto a loop
-// of links was an internal error (exit 3); --max-waiting had no bound.
+// synth wrote over a dataset, mixing its stale frames with new ones, and ran --scenes 2e9 (or
+// scenes the disk cannot hold) until the disk filled; convert-dataset onto a loop of links was an
+// internal error (exit 3); --max-waiting had no bound.
 TEST_F(Cli, OutputFoldersAndServerCountsAreRefusedNamingTheFlag) {
   writeText(dir_ / "earlier" / "manifest.json", "{}");
   const fs::path loop = dir_ / "selfloop";
   fs::create_directory_symlink(loop, loop);
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {{"synth", "--out", (dir_ / "earlier").string(), "--quiet"}, "--out: " + (dir_ / "earlier").string() + ": output folder is not empty"},
+      {{"synth", "--out", (dir_ / "many").string(), "--scenes", "2000000000"}, "--scenes: must be in [1, 10000], got 2000000000"},
+      // 37 749 GB of depth maps.
+      {{"synth", "--out", (dir_ / "new" / "big").string(), "--scenes", "10000", "--size", "4096x3072"},
+       "--out: the scenes need at least 37748.7 GB (their depth maps alone) and " + dir_.string() + " has "},
       {{"convert-dataset", "--dataset", dir_.string(), "--format", "kapture", "--out", loop.string()},
        "--out: " + loop.string() + ": cannot examine the output folder: Too many levels of symbolic links"},
       {{"serve", "--map", "m.ffmap", "--max-waiting", "100000"}, "--max-waiting: Value 100000 not in range 0 to 256"}};
@@ -453,6 +458,8 @@ TEST_F(Cli, OutputFoldersAndServerCountsAreRefusedNamingTheFlag) {
     EXPECT_TRUE(contains(run.output, message)) << run.output;
   }
   EXPECT_EQ(std::distance(fs::directory_iterator(dir_ / "earlier"), fs::directory_iterator()), 1);
+  EXPECT_FALSE(fs::exists(dir_ / "many"));
+  EXPECT_FALSE(fs::exists(dir_ / "new"));
 }
 
 // With --port 0 the start said "every client that reaches 127.0.0.1:0", not the port it took.

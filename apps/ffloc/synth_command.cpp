@@ -1,4 +1,5 @@
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <string>
 
@@ -33,8 +34,28 @@ void parseSize(const std::string& text, int& width, int& height) {
   }
 }
 
+// Refused up front rather than failing when the disk fills, hours in, and removing every scene
+// written (a failed batch leaves nothing behind).
+void requireFreeSpace(const std::filesystem::path& out, uint64_t needed) {
+  std::filesystem::path existing = std::filesystem::absolute(out);
+  while (!std::filesystem::exists(existing) && existing.has_parent_path() && existing != existing.parent_path())
+    existing = existing.parent_path();
+  std::error_code error;
+  const std::filesystem::space_info space = std::filesystem::space(existing, error);
+  if (error || space.available >= needed) return;
+  const auto gigabytes = [](uint64_t bytes) {
+    char text[32];
+    std::snprintf(text, sizeof(text), "%.1f GB", static_cast<double>(bytes) / 1e9);
+    return std::string(text);
+  };
+  throw InputError("--out: the scenes need at least " + gigabytes(needed) + " (their depth maps alone) and " +
+                   existing.string() + " has " + gigabytes(space.available) + " free");
+}
+
 void runSynth(const SynthArguments& args) {
-  if (args.scenes < 1) throw InputError("--scenes: must be at least 1");
+  if (args.scenes < 1 || args.scenes > kMaxSyntheticScenes)
+    throw InputError("--scenes: must be in [1, " + std::to_string(kMaxSyntheticScenes) + "], got " +
+                     std::to_string(args.scenes));
   SyntheticOptions options = args.options;
   parseSize(args.size, options.width, options.height);
   const bool mixed = args.kind == "mixed";
@@ -49,6 +70,7 @@ void runSynth(const SynthArguments& args) {
   validate(options);
   // A folder of earlier scenes was written over, mixing their stale frames with the new ones.
   checkOutputFolder("--out", args.out);
+  requireFreeSpace(args.out, args.scenes * sceneDepthBytes(options));
   const auto kinds = allSceneKinds();
   writeIntoNewFolder(args.out, [&](const std::filesystem::path& out) {
     for (int i = 0; i < args.scenes; ++i) {

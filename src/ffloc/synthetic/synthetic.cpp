@@ -58,6 +58,11 @@ void validate(const SyntheticOptions& o) {
     throwInputError("depth_noise", 0, "must be in [0, 0.5]");
 }
 
+uint64_t sceneDepthBytes(const SyntheticOptions& options) {
+  const uint64_t frames = static_cast<uint64_t>(options.mapping_frames) + static_cast<uint64_t>(options.query_frames);
+  return frames * static_cast<uint64_t>(options.width) * static_cast<uint64_t>(options.height) * sizeof(float);
+}
+
 uint64_t sceneSeed(uint64_t seed, int index) {
   return mix64(seed * 0x9e3779b97f4a7c15ULL + static_cast<uint64_t>(index) + 1);
 }

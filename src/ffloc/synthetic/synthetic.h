@@ -73,6 +73,14 @@ synthetic::RenderedView renderSyntheticFrame(const SyntheticScene& scene, int fr
 // empty, and a failed run leaves nothing in it (writeIntoNewFolder).
 Scene generateSyntheticScene(const SyntheticOptions& options, const std::filesystem::path& out_dir);
 
+// The most scenes one batch writes (`ffloc synth --scenes`): 10 000 at the default size take about
+// 180 GB.
+constexpr int kMaxSyntheticScenes = 10000;
+
+// A lower bound on the bytes one scene takes on disk: its depth maps, float32 and uncompressed
+// (at the default size 14.7 MB of a scene's 18 MB; the PNG images are the rest).
+uint64_t sceneDepthBytes(const SyntheticOptions& options);
+
 // The seed of the i-th scene of a batch started from `seed`.
 uint64_t sceneSeed(uint64_t seed, int index);
 
