@@ -9,6 +9,7 @@
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/data/scene_test_util.h"
+#include "ffloc/geometry/camera.h"
 
 namespace ffloc {
 namespace {
@@ -284,7 +285,7 @@ TEST(BadInput, StrechaErrors) {
   expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera", "expected 9"});
   writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
                 "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n16 12\n");
-  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera", "16x12", "8x6"});
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:9:", "says the image is 16x12", "0000.jpg is 8x6"});
   writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
                 "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 1 1\n1 2 3\n8 6\n");
   expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:5", "not orthonormal"});
@@ -427,6 +428,73 @@ TEST(BadInput, FifosAndSymbolicLinkLoopsAreRefused) {
   fs::create_directories(base / "manifest");
   fs::create_symlink("manifest.json", base / "manifest/manifest.json");
   expectInputError([&] { loadDataset(base / "manifest"); }, {"manifest.json", "Too many levels of symbolic links"});
+}
+
+// COLMAP's ids are unsigned: a negative one was read as any other key. -1 stays what COLMAP writes
+// for a keypoint without a 3D point (makeColmap has one).
+TEST(BadInput, ColmapIdsMustNotBeNegative) {
+  struct Case {
+    std::string file, text, expected;
+  };
+  const std::vector<Case> cases = {
+      {"cameras.txt", "-1 PINHOLE 8 6 5 5 4 3\n", "cameras.txt:1: CAMERA_ID -1 is negative"},
+      {"images.txt", "-1 1 0 0 0 0 0 0 1 a.png\n\n", "images.txt:1: IMAGE_ID -1 is negative"},
+      {"images.txt", "1 1 0 0 0 0 0 0 -1 a.png\n\n", "images.txt:1: CAMERA_ID -1 is negative"},
+      {"images.txt", "1 1 0 0 0 0 0 0 1 a.png\n1.5 2.5 -2\n", "images.txt:2: POINT3D_ID -2 is negative"},
+      {"points3D.txt", "-7 0 0 1 255 255 255 0.1 1 0\n", "points3D.txt:1: POINT3D_ID -7 is negative"},
+      {"points3D.txt", "7 0 0 1 255 255 255 0.1 -1 0\n", "points3D.txt:1: IMAGE_ID -1 is negative"},
+  };
+  for (const auto& bad : cases) {
+    SCOPED_TRACE(bad.text);
+    const auto dir = makeColmap();
+    writeTextFile(dir / "sparse/0" / bad.file, bad.text);
+    expectInputError([&] { loadDataset(dir); }, {bad.expected});
+  }
+}
+
+// Every error of a .camera file names its line, as the other text readers' do; the image size and
+// the camera centre named the file alone, or the dataset folder.
+TEST(BadInput, StrechaErrorsNameTheLine) {
+  const auto dir = makeStrecha();
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1e12 2 3\n8 6\n");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:8:", "camera centre is 1e+12 from the origin"});
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n\n8 6\n");
+  fs::remove(dir / "images/0000.jpg");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:10:", "0000.jpg not found"});
+}
+
+// A coefficient beyond any lens's (k1 = 1e10) was read as a lens, and NaN passed every reader that
+// reads distortion; each now names its file and line or field.
+TEST(BadInput, DistortionBeyondAnyLensIsRefusedNamingFileAndField) {
+  auto dir = makeColmap();
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 OPENCV 8 6 5 5 4 3 1e10 0 0 0\n");
+  expectInputError([&] { loadDataset(dir); },
+                   {"cameras.txt:1: k1 1e+10: no lens's distortion coefficient exceeds 100 in magnitude"});
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 RADIAL 8 6 5 4 3 0.1 -100.5\n");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1: k2 -100.5"});
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 FULL_OPENCV 8 6 5 5 4 3 0 0 0 0 0 0 nan 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1: k5 nan: distortion coefficients must be finite"});
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 OPENCV 8 6 5 5 4 3 100 -100 0 0\n");
+  EXPECT_EQ(loadDataset(dir).frames[0].intrinsics.distortion, (std::vector<double>{100, -100, 0, 0}));
+
+  expectInputError([&] { loadDataset(makeNerf("", R"(, "k1": 1e10)")); },
+                   {"transforms_train.json", "field 'k1': 1e+10: no lens's distortion coefficient"});
+  expectInputError([&] { loadDataset(makeNerf(R"(, "p2": -300)")); }, {"transforms_train.json", "frames[0].p2", "-300"});
+
+  dir = makeStrecha();
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 1e10\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n8 6\n");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:4: k3 1e+10"});
+
+  // Queries pass the same bound.
+  Intrinsics query;
+  query.fx = query.fy = 5;
+  query.cx = 3.5;
+  query.cy = 2.5;
+  query.distortion = {1e10, 0, 0, 0};
+  expectInputError([&] { checkIntrinsicsFitImage(query, 8, 6); }, {"distortion: k1 1e+10"});
 }
 
 }  // namespace

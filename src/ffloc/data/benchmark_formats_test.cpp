@@ -420,5 +420,100 @@ TEST(Kapture, BadInputNamesFileAndLine) {
   expectInputError([&] { loadDataset(dir); }, {"trajectories.txt:3:", "a second pose for timestamp 7, device 'rig'"});
 }
 
+// The depth map of an instant goes to its image of the same size; one that fits none of its
+// instant's images was dropped, and the frame went on without depth.
+TEST(Kapture, DepthOfAnotherSizeThanItsImageIsRefused) {
+  const fs::path dir = kaptureSample();
+  const fs::path mapping = dir / "mapping/sensors";
+  writeTextFile(mapping / "sensors.txt", std::string(kKaptureHeader) +
+                                             "kinect_rgb, kinect, camera, PINHOLE, 64, 48, 100, 100, 32, 24\n"
+                                             "kinect_depth, kinect, depth, PINHOLE, 32, 24, 50, 50, 16, 12\n");
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_depth.txt:2:", "frame-000000.depth is 32x24 (sensor 'kinect_depth')",
+                    "frame-000000.color.jpg, is 64x48"});
+  // A rig's camera of another size at the same instant is no reason to refuse: the depth map goes
+  // to the image its size fits.
+  writeTextFile(mapping / "sensors.txt", std::string(kKaptureHeader) +
+                                             "kinect_rgb, kinect, camera, PINHOLE, 64, 48, 100, 100, 32, 24\n"
+                                             "kinect_depth, kinect, depth, PINHOLE, 64, 48, 100, 100, 32, 24\n"
+                                             "side, , camera, PINHOLE, 32, 24, 50, 50, 16, 12\n");
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader) +
+                                                    "0, kinect_rgb, seq-01/frame-000000.color.jpg\n0, side, side.jpg\n");
+  writeTextFile(mapping / "trajectories.txt",
+                std::string(kKaptureHeader) + "0, kinect_rgb, 1, 0, 0, 0, 0, 0, 0\n0, side, 1, 0, 0, 0, 1, 0, 0\n");
+  writeImage(mapping / "records_data/side.jpg", 32, 24);
+  const Scene scene = loadDataset(dir);
+  EXPECT_TRUE(frameNamed(scene, "mapping/sensors/records_data/seq-01/frame-000000.color.jpg").depth.has_value());
+  EXPECT_FALSE(frameNamed(scene, "mapping/sensors/records_data/side.jpg").depth.has_value());
+}
+
+// kapture's timestamps are unsigned integers, compared as numbers: compared as text, the depth
+// record "0000" missed the image "0" (as the format's own examples write them, padded), and text
+// or negative timestamps passed.
+TEST(Kapture, TimestampsAreUnsignedIntegers) {
+  const fs::path dir = kaptureSample();
+  const fs::path mapping = dir / "mapping/sensors";
+  writeTextFile(mapping / "records_depth.txt", std::string(kKaptureHeader) + "0000, kinect_depth, seq-01/frame-000000.depth\n");
+  const Scene scene = loadDataset(dir);
+  EXPECT_TRUE(frameNamed(scene, "mapping/sensors/records_data/seq-01/frame-000000.color.jpg").depth.has_value());
+
+  for (const std::string timestamp : {"t0", "0.5", "99999999999999999999"}) {
+    writeTextFile(mapping / "records_camera.txt",
+                  std::string(kKaptureHeader) + timestamp + ", kinect_rgb, seq-01/frame-000000.color.jpg\n");
+    expectInputError([&] { loadDataset(dir); },
+                     {"records_camera.txt:2:", "expected an integer for timestamp, got '" + timestamp + "'"});
+  }
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader) + "-1, kinect_rgb, seq-01/frame-000000.color.jpg\n");
+  expectInputError([&] { loadDataset(dir); }, {"records_camera.txt:2:", "timestamp -1 is negative"});
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader) + "0, kinect_rgb, seq-01/frame-000000.color.jpg\n");
+  writeTextFile(mapping / "records_depth.txt", std::string(kKaptureHeader) + "-3, kinect_depth, seq-01/frame-000000.depth\n");
+  expectInputError([&] { loadDataset(dir); }, {"records_depth.txt:2:", "timestamp -3 is negative"});
+  writeTextFile(mapping / "records_depth.txt", std::string(kKaptureHeader) + "0, kinect_depth, seq-01/frame-000000.depth\n");
+  writeTextFile(mapping / "trajectories.txt", std::string(kKaptureHeader) + "zero, kinect_rgb, 1, 0, 0, 0, 0, 0, 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"trajectories.txt:2:", "expected an integer for timestamp, got 'zero'"});
+}
+
+// Two records of one camera at one instant both took that instant's pose, so one image was scored
+// against the other's; of two depth maps of one instant, the second was dropped.
+TEST(Kapture, ASecondRecordOfOneInstantIsRefused) {
+  const fs::path dir = kaptureSample();
+  const fs::path mapping = dir / "mapping/sensors";
+  writeImage(mapping / "records_data/seq-01/frame-000001.color.jpg", 64, 48);
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader) +
+                                                    "0, kinect_rgb, seq-01/frame-000000.color.jpg\n"
+                                                    "0, kinect_rgb, seq-01/frame-000001.color.jpg\n");
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_camera.txt:3:", "a second record for timestamp 0, device 'kinect_rgb' (first on line 2)"});
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader) + "0, kinect_rgb, seq-01/frame-000000.color.jpg\n");
+  writeTextFile(mapping / "records_depth.txt", std::string(kKaptureHeader) +
+                                                   "0, kinect_depth, seq-01/frame-000000.depth\n"
+                                                   "0, kinect_depth, seq-01/frame-000001.depth\n");
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_depth.txt:3:", "a second record for timestamp 0, device 'kinect_depth' (first on line 2)"});
+}
+
+// The version line was a comment like any other: a later format, whose columns may differ, was
+// read as 1.1. 1.0's sensors files differ from 1.1's only in that line.
+TEST(Kapture, OnlyVersionsWhoseSensorFilesReadAlikeAreRead) {
+  const fs::path dir = kaptureSample();
+  const fs::path query = dir / "query/sensors";
+  const std::string sensor = "phone, , camera, SIMPLE_RADIAL, 64, 48, 120, 30.5, 22.5, 0.01\n";
+  writeTextFile(query / "sensors.txt", "# kapture format: 2.0\n" + sensor);
+  expectInputError([&] { loadDataset(dir); }, {"sensors.txt:1:", "kapture format '2.0' is not one ffloc reads (1.0, 1.1)"});
+  writeTextFile(query / "records_camera.txt", "# kapture format: 1.2\n7, phone, query/0007.jpg\n");
+  writeTextFile(query / "sensors.txt", "# kapture format: 1.0\n" + sensor);
+  expectInputError([&] { loadDataset(dir); }, {"records_camera.txt:1:", "kapture format '1.2'"});
+  writeTextFile(query / "records_camera.txt", "7, phone, query/0007.jpg\n");
+  EXPECT_EQ(loadDataset(dir).frames.size(), 2u);
+}
+
+TEST(Kapture, DistortionBeyondAnyLensIsRefused) {
+  const fs::path dir = kaptureSample();
+  writeTextFile(dir / "query/sensors/sensors.txt",
+                std::string(kKaptureHeader) + "phone, , camera, SIMPLE_RADIAL, 64, 48, 120, 30.5, 22.5, 1e10\n");
+  expectInputError([&] { loadDataset(dir); },
+                   {"sensors.txt:2:", "k1 1e+10: no lens's distortion coefficient exceeds 100 in magnitude"});
+}
+
 }  // namespace
 }  // namespace ffloc

@@ -24,6 +24,18 @@ double parseDouble(std::string_view token, const fs::path& file, int line, const
   return ffloc::parseDouble(std::string(token), file, line, field);
 }
 
+// COLMAP's ids are unsigned; -1 appears only as a keypoint's POINT3D_ID, for a keypoint without a
+// 3D point (`none_allowed`).
+long colmapId(std::string_view token, const fs::path& file, int line, const std::string& field,
+              bool none_allowed = false) {
+  const long id = parseInteger(token, file, line, field);
+  if (id < 0 && !(none_allowed && id == -1))
+    throwInputError(file.string(), line,
+                    field + " " + std::to_string(id) + " is negative (COLMAP ids are unsigned" +
+                        (none_allowed ? "; -1 marks a keypoint without a 3D point)" : ")"));
+  return id;
+}
+
 int imageSide(const std::string& token, const fs::path& file, int line, const std::string& field) {
   const long side = parseInteger(token, file, line, field);
   if (side < 1 || side > kMaxImageSide)
@@ -44,7 +56,7 @@ std::map<long, Intrinsics> readCameras(const fs::path& file) {
     const auto tokens = splitWhitespace(line.text);
     if (tokens.size() < 4)
       throwInputError(file.string(), line.number, "expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS[]");
-    const long id = parseInteger(tokens[0], file, line.number, "CAMERA_ID");
+    const long id = colmapId(tokens[0], file, line.number, "CAMERA_ID");
     const std::string& model = tokens[1];
     const auto parameter_count = colmapModelParameterCount(model);
     if (!parameter_count)
@@ -58,6 +70,7 @@ std::map<long, Intrinsics> readCameras(const fs::path& file) {
     for (size_t i = 4; i < tokens.size(); ++i)
       parameters.push_back(parseDouble(tokens[i], file, line.number, "parameter " + std::to_string(i - 3)));
     Intrinsics K = colmapIntrinsics(model, parameters);
+    requireLensDistortion(K.distortion, file, line.number);
     K.width = imageSide(tokens[2], file, line.number, "WIDTH");
     K.height = imageSide(tokens[3], file, line.number, "HEIGHT");
     if (!K.isValid()) throwInputError(file.string(), line.number, "invalid camera (size and focal length must be positive)");
@@ -105,7 +118,7 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
       throwInputError(file.string(), pose_line.number, "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
     ColmapImage image;
     image.line = pose_line.number;
-    image.id = parseInteger(tokens[0], file, pose_line.number, "IMAGE_ID");
+    image.id = colmapId(tokens[0], file, pose_line.number, "IMAGE_ID");
     double q[4], t[3];
     const char* q_names[] = {"QW", "QX", "QY", "QZ"};
     const char* t_names[] = {"TX", "TY", "TZ"};
@@ -114,7 +127,7 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     const double q_norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
     if (!std::isfinite(q_norm) || std::abs(q_norm - 1.0) > 1e-2 || !Eigen::Vector3d(t[0], t[1], t[2]).allFinite())
       throwInputError(file.string(), pose_line.number, "invalid pose (quaternion must be finite and unit length)");
-    const long camera_id = parseInteger(tokens[8], file, pose_line.number, "CAMERA_ID");
+    const long camera_id = colmapId(tokens[8], file, pose_line.number, "CAMERA_ID");
     const auto camera = cameras.find(camera_id);
     if (camera == cameras.end())
       throwInputError(file.string(), pose_line.number, "CAMERA_ID " + std::to_string(camera_id) + " is not in cameras.txt");
@@ -137,7 +150,7 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
           throwInputError(file.string(), points_line.number,
                           "more than " + std::to_string(kMaxPointsPerImage) + " POINTS2D for image '" + image.name +
                               "' (COLMAP's extractors keep tens of thousands)");
-        parseInteger(point_id, file, points_line.number, "POINT3D_ID");
+        colmapId(point_id, file, points_line.number, "POINT3D_ID", true);
         image.points2d.emplace_back(parseDouble(x, file, points_line.number, "X"),
                                     parseDouble(y, file, points_line.number, "Y"));
       }
@@ -158,7 +171,7 @@ void readPoints(const fs::path& file, const std::map<long, size_t>& frame_of_ima
     TokenReader point_tokens(line.text);
     std::string_view tokens[8];
     if (point_tokens.next(tokens, 8) < 8) malformed();
-    const long point_id = parseInteger(tokens[0], file, line.number, "POINT3D_ID");
+    const long point_id = colmapId(tokens[0], file, line.number, "POINT3D_ID");
     if (const auto [first, inserted] = line_of_point.emplace(point_id, line.number); !inserted)
       throwInputError(file.string(), line.number,
                       "duplicate POINT3D_ID " + std::to_string(point_id) + " (first on line " +
@@ -172,7 +185,7 @@ void readPoints(const fs::path& file, const std::map<long, size_t>& frame_of_ima
     if (!point.position.allFinite()) throwInputError(file.string(), line.number, "point position is not finite");
     for (std::string_view image_token, index_token; point_tokens.next(&image_token);) {
       if (!point_tokens.next(&index_token)) malformed();
-      const long image_id = parseInteger(image_token, file, line.number, "IMAGE_ID");
+      const long image_id = colmapId(image_token, file, line.number, "IMAGE_ID");
       const auto image = image_of_id.find(image_id);
       if (image == image_of_id.end())
         throwInputError(file.string(), line.number, "track names IMAGE_ID " + std::to_string(image_id) + ", not in images.txt");

@@ -27,23 +27,49 @@ struct CsvLine {
   std::vector<std::string> fields;
 };
 
+std::string trimmed(const std::string& text) {
+  const size_t first = text.find_first_not_of(" \t\r");
+  return first == std::string::npos ? "" : text.substr(first, text.find_last_not_of(" \t\r") + 1 - first);
+}
+
+// The versions whose sensors/ files read alike: kapture's 1.0 -> 1.1 upgrade rewrites only their
+// header line. A later version may lay its columns out otherwise, and was read as 1.1.
+void requireReadableVersion(const std::vector<TextLine>& lines, const fs::path& file) {
+  constexpr std::string_view kVersionPrefix = "# kapture format:";
+  if (lines.empty() || lines[0].text.rfind(kVersionPrefix, 0) != 0) return;
+  const std::string version = trimmed(lines[0].text.substr(kVersionPrefix.size()));
+  if (version != "1.0" && version != "1.1")
+    throwInputError(file.string(), lines[0].number,
+                    "kapture format '" + version + "' is not one ffloc reads (1.0, 1.1)");
+}
+
 std::vector<CsvLine> readCsv(const fs::path& file) {
+  std::vector<TextLine> lines = readTextLines(file);
+  requireReadableVersion(lines, file);
   std::vector<CsvLine> rows;
-  for (const auto& line : contentLines(readTextLines(file), true)) {
+  for (const auto& line : contentLines(std::move(lines), true)) {
     CsvLine row{line.number, {}};
     size_t start = 0;
     while (true) {
       const size_t comma = line.text.find(',', start);
-      std::string field = line.text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-      const size_t first = field.find_first_not_of(" \t\r");
-      field = first == std::string::npos ? "" : field.substr(first, field.find_last_not_of(" \t\r") + 1 - first);
-      row.fields.push_back(field);
+      row.fields.push_back(trimmed(line.text.substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
       if (comma == std::string::npos) break;
       start = comma + 1;
     }
     rows.push_back(std::move(row));
   }
   return rows;
+}
+
+// Timestamps are unsigned integers and compared as numbers, as kapture's own reader does ("0000" is
+// "0"): compared as text, a depth record at "0000" missed the image at "0", which went on without
+// depth.
+long readTimestamp(const CsvLine& row, const fs::path& file) {
+  const long timestamp = parseInteger(row.fields[0], file, row.number, "timestamp");
+  if (timestamp < 0)
+    throwInputError(file.string(), row.number,
+                    "timestamp " + row.fields[0] + " is negative (kapture timestamps are unsigned integers)");
+  return timestamp;
 }
 
 struct Sensor {
@@ -79,6 +105,7 @@ std::map<std::string, Sensor> readSensors(const fs::path& file) {
       for (size_t i = 6; i < row.fields.size(); ++i)
         parameters.push_back(parseDouble(row.fields[i], file, row.number, "parameter " + std::to_string(i - 5)));
       sensor.intrinsics = colmapIntrinsics(model, parameters);
+      requireLensDistortion(sensor.intrinsics.distortion, file, row.number);
       sensor.intrinsics.width = static_cast<int>(parseInteger(row.fields[4], file, row.number, "width"));
       sensor.intrinsics.height = static_cast<int>(parseInteger(row.fields[5], file, row.number, "height"));
       if (!sensor.intrinsics.isValid())
@@ -99,7 +126,7 @@ Pose readDeviceToWorld(const CsvLine& row, size_t first, const fs::path& file) {
   return cameraToWorldFromQuaternion(v, Eigen::Vector3d(v[4], v[5], v[6]), file, row.number);
 }
 
-using TimedDevice = std::pair<std::string, std::string>;  // (timestamp, device_id)
+using TimedDevice = std::pair<long, std::string>;  // (timestamp, device_id)
 
 struct KaptureFolder {
   fs::path root;  // the folder holding sensors/
@@ -127,8 +154,8 @@ KaptureFolder readFolderGeometry(const fs::path& root) {
         throwInputError(trajectories.string(), row.number, "expected 'timestamp, device_id, qw, qx, qy, qz, tx, ty, tz'");
       // The last of two poses for one (timestamp, device) won: a frame got another frame's pose as
       // its ground truth, and was scored against it.
-      const auto [entry, added] =
-          folder.device_to_world.emplace(TimedDevice{row.fields[0], row.fields[1]}, readDeviceToWorld(row, 2, trajectories));
+      const auto [entry, added] = folder.device_to_world.emplace(TimedDevice{readTimestamp(row, trajectories), row.fields[1]},
+                                                                 readDeviceToWorld(row, 2, trajectories));
       if (!added)
         throwInputError(trajectories.string(), row.number,
                         "a second pose for timestamp " + row.fields[0] + ", device '" + row.fields[1] + "'");
@@ -138,7 +165,7 @@ KaptureFolder readFolderGeometry(const fs::path& root) {
 
 // The sensor's pose at `timestamp`: its own trajectory entry, or its rig's composed with its
 // place on the rig.
-std::optional<Pose> sensorToWorld(const KaptureFolder& folder, const std::string& timestamp, const std::string& sensor) {
+std::optional<Pose> sensorToWorld(const KaptureFolder& folder, long timestamp, const std::string& sensor) {
   if (const auto own = folder.device_to_world.find({timestamp, sensor}); own != folder.device_to_world.end())
     return own->second;
   const auto rig = folder.rig_of_sensor.find(sensor);
@@ -148,34 +175,55 @@ std::optional<Pose> sensorToWorld(const KaptureFolder& folder, const std::string
   return rig_pose->second * rig->second.second;
 }
 
+// A second record of one (timestamp, device) is refused: both images got the pose of that instant,
+// so one of them was scored against the other's (records_camera.txt), or one depth map was paired
+// and the other dropped (records_depth.txt).
+void requireFirstRecord(std::map<TimedDevice, int>& line_of_record, const TimedDevice& record, const CsvLine& row,
+                        const fs::path& file) {
+  const auto [first, added] = line_of_record.emplace(record, row.number);
+  if (!added)
+    throwInputError(file.string(), row.number,
+                    "a second record for timestamp " + row.fields[0] + ", device '" + record.second + "' (first on line " +
+                        std::to_string(first->second) + ")");
+}
+
 struct DepthRecord {
+  long timestamp = 0;
   std::string sensor;
   fs::path path;
+  int line = 0;
 };
 
 void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, Scene& scene) {
   const KaptureFolder folder = readFolderGeometry(root);
   const fs::path sensors_dir = root / "sensors";
   const fs::path data_dir = sensors_dir / "records_data";
-  std::multimap<std::string, DepthRecord> depth_at;  // timestamp -> depth records
+  std::vector<DepthRecord> depth_records;
   const fs::path depth_file = sensors_dir / "records_depth.txt";
-  if (fs::exists(depth_file))
+  if (fs::exists(depth_file)) {
+    std::map<TimedDevice, int> line_of_record;
     for (const CsvLine& row : readCsv(depth_file)) {
       if (row.fields.size() != 3) throwInputError(depth_file.string(), row.number, "expected 'timestamp, device_id, depth_map_path'");
       const auto sensor = folder.sensors.find(row.fields[1]);
       if (sensor == folder.sensors.end() || sensor->second.type != "depth")
         throwInputError(depth_file.string(), row.number, "'" + row.fields[1] + "' is not a depth sensor in sensors.txt");
-      depth_at.insert({row.fields[0], {row.fields[1], (data_dir / row.fields[2]).lexically_normal()}});
+      const long timestamp = readTimestamp(row, depth_file);
+      requireFirstRecord(line_of_record, {timestamp, row.fields[1]}, row, depth_file);
+      depth_records.push_back({timestamp, row.fields[1], (data_dir / row.fields[2]).lexically_normal(), row.number});
     }
+  }
 
   const fs::path records = sensors_dir / "records_camera.txt";
+  std::multimap<long, size_t> frames_at;  // timestamp -> index into scene.frames
+  std::map<TimedDevice, int> line_of_record;
   for (const CsvLine& row : readCsv(records)) {
     if (row.fields.size() != 3) throwInputError(records.string(), row.number, "expected 'timestamp, device_id, image_path'");
-    const std::string& timestamp = row.fields[0];
+    const long timestamp = readTimestamp(row, records);
     const std::string& device = row.fields[1];
     const auto sensor = folder.sensors.find(device);
     if (sensor == folder.sensors.end() || sensor->second.type != "camera")
       throwInputError(records.string(), row.number, "'" + device + "' is not a camera in sensors.txt");
+    requireFirstRecord(line_of_record, {timestamp, device}, row, records);
     Frame frame;
     frame.image_path = (data_dir / row.fields[2]).lexically_normal();
     frame.name = frameName(frame.image_path, dataset_dir);
@@ -185,22 +233,40 @@ void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, 
     const auto pose = sensorToWorld(folder, timestamp, device);
     if (!pose)
       throwInputError(records.string(), row.number,
-                      "no pose for image '" + row.fields[2] + "' (timestamp " + timestamp + ", device " + device +
+                      "no pose for image '" + row.fields[2] + "' (timestamp " + row.fields[0] + ", device " + device +
                           ") in trajectories.txt");
     frame.camera_to_world = *pose;
-    // The depth map of the same instant from a depth sensor of the same image size.
-    for (auto [it, end] = depth_at.equal_range(timestamp); it != end; ++it) {
-      const Intrinsics& depth_camera = folder.sensors.at(it->second.sensor).intrinsics;
+    frame.split = split;
+    frames_at.emplace(timestamp, scene.frames.size());
+    scene.frames.push_back(std::move(frame));
+  }
+
+  // A depth map goes to the images of its instant of its size (a rig's other cameras may differ),
+  // the first depth record of an instant to each; one that fits none of its instant's images was
+  // dropped, and its frame went on without depth.
+  for (const DepthRecord& record : depth_records) {
+    const Intrinsics& depth_camera = folder.sensors.at(record.sensor).intrinsics;
+    const auto [first, end] = frames_at.equal_range(record.timestamp);
+    bool paired = false;
+    for (auto it = first; it != end; ++it) {
+      Frame& frame = scene.frames[it->second];
       if (depth_camera.width != frame.intrinsics.width || depth_camera.height != frame.intrinsics.height) continue;
+      paired = true;
+      if (frame.depth) continue;
       DepthSource depth;
-      depth.path = it->second.path;
+      depth.path = record.path;
       depth.scale = 1.0;  // float32 metres
       depth.invalid_values.clear();
       frame.depth = depth;
-      break;
     }
-    frame.split = split;
-    scene.frames.push_back(std::move(frame));
+    if (!paired && first != end) {
+      const Frame& frame = scene.frames[first->second];
+      throwInputError(depth_file.string(), record.line,
+                      "depth map " + record.path.string() + " is " + std::to_string(depth_camera.width) + "x" +
+                          std::to_string(depth_camera.height) + " (sensor '" + record.sensor + "'), but the image of its timestamp, " +
+                          frame.image_path.string() + ", is " + std::to_string(frame.intrinsics.width) + "x" +
+                          std::to_string(frame.intrinsics.height));
+    }
   }
 }
 

@@ -10,6 +10,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/format_io.h"
+#include "ffloc/geometry/camera.h"
 #include "ffloc/io/image_size.h"
 #include "ffloc/io/json_fields.h"
 #include "ffloc/data/pose_check.h"
@@ -32,6 +33,8 @@ Intrinsics readCamera(const JsonFields& camera) {
     intrinsics.distortion = camera.numbers("distortion");
     const size_t n = intrinsics.distortion.size();
     if (n != 4 && n != 5 && n != 8) camera.fail("distortion", "expected 4, 5 or 8 OpenCV coefficients");
+    const std::string problem = distortionProblem(intrinsics.distortion);
+    if (!problem.empty()) camera.fail("distortion", problem);
   }
   if (!intrinsics.isValid()) camera.fail("", "invalid intrinsics (need positive focal lengths and image size)");
   return intrinsics;

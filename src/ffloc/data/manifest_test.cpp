@@ -158,6 +158,9 @@ TEST(Manifest, RejectsBadFieldsNamingThem) {
       {"\"cy\": 1}", "\"cy\": 1, \"k1\": 0.1}", "field 'cameras.0.k1': unknown field (known here: width, height"},
       {"\"split\": \"query\"", "\"spilt\": \"query\"", "field 'frames[0].spilt': unknown field"},
       {"\"metric\": true", "\"metric\": true, \"units\": \"cm\"", "field 'units': unknown field"},
+      // Read as a lens, without a word.
+      {"\"cy\": 1}", "\"cy\": 1, \"distortion\": [1e10, 0, 0, 0]}",
+       "field 'cameras.0.distortion': k1 1e+10: no lens's distortion coefficient exceeds 100 in magnitude"},
   };
   const auto dir = testing::makeTempDir("ffloc-manifest");
   writeImage(dir / "a.png", 4, 3);

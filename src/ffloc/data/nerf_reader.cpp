@@ -5,6 +5,7 @@
 #include "ffloc/io/json_fields.h"
 #include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
+#include "ffloc/geometry/camera.h"
 
 namespace ffloc {
 namespace {
@@ -98,8 +99,11 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
   intrinsics.cy = (keys.has("cy") ? keys.number("cy") : 0.5 * h) - 0.5;
 
   std::vector<double> distortion;
-  for (const char* key : {"k1", "k2", "p1", "p2", "k3"})
+  for (const char* key : {"k1", "k2", "p1", "p2", "k3"}) {
     distortion.push_back(keys.has(key) ? keys.number(key) : 0.0);
+    const std::string problem = distortionCoefficientProblem(distortion.back());
+    if (!problem.empty()) keys.owner(key).fail(key, problem);
+  }
   if (distortion[4] == 0.0) distortion.pop_back();
   bool distorted = false;
   for (double d : distortion) distorted = distorted || d != 0.0;

@@ -2,7 +2,7 @@
 #include <cmath>
 
 #include "ffloc/core/error.h"
-#include "ffloc/io/image_size.h"
+#include "ffloc/data/format_io.h"
 #include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
 #include "ffloc/data/text_file.h"
@@ -26,8 +26,8 @@ std::vector<fs::path> cameraFiles(const fs::path& dir) {
   return files;
 }
 
-// K (3 lines), radial distortion k1 k2 k3, R camera-to-world (3 lines), centre C, "w h".
-Frame readCameraFile(const fs::path& file) {
+// K (3 lines), radial distortion k1 k2 k3, R camera-to-world (3 lines), centre C, "w h" of `image`.
+Frame readCameraFile(const fs::path& file, const fs::path& image) {
   const auto lines = contentLines(readTextLines(file), false);
   if (lines.size() != 9)
     throwInputError(file.string(), lines.empty() ? 0 : lines.back().number,
@@ -52,10 +52,13 @@ Frame readCameraFile(const fs::path& file) {
   K.cy = rows[1][2];
   const std::vector<double>& radial = rows[3];
   if (radial[0] != 0 || radial[1] != 0 || radial[2] != 0) K.distortion = {radial[0], radial[1], 0, 0, radial[2]};
+  requireLensDistortion(K.distortion, file, lines[3].number);
   Eigen::Matrix3d R;
   for (int r = 0; r < 3; ++r) R.row(r) = Eigen::RowVector3d(rows[4 + r][0], rows[4 + r][1], rows[4 + r][2]);
   frame.camera_to_world.R = validatedRotation(R, file, lines[4].number);
   frame.camera_to_world.t = Eigen::Vector3d(rows[7][0], rows[7][1], rows[7][2]);
+  const std::string centre = cameraCentreProblem(frame.camera_to_world.t);
+  if (!centre.empty()) throwInputError(file.string(), lines[7].number, centre);
   // Checked before the conversion to int, which is undefined for values an int cannot hold.
   for (const double side : rows[8])
     if (!(side >= 1 && side <= kMaxImageSide) || side != std::floor(side))
@@ -64,6 +67,8 @@ Frame readCameraFile(const fs::path& file) {
   K.width = static_cast<int>(rows[8][0]);
   K.height = static_cast<int>(rows[8][1]);
   if (!K.isValid()) throwInputError(file.string(), lines[8].number, "invalid image size or focal length");
+  requireImageSize(image, K.width, K.height, file.string(), lines[8].number);
+  frame.image_path = image;
   return frame;
 }
 
@@ -76,17 +81,8 @@ Scene readStrecha(const fs::path& dir) {
   const auto files = cameraFiles(dir);
   if (files.empty()) throwInputError((dir / kCameraFolder).string(), 0, "no .camera files");
   for (const auto& file : files) {
-    Frame frame = readCameraFile(file);
-    const std::string image_name = file.stem().string();  // "0000.jpg.camera" -> "0000.jpg"
-    frame.image_path = dir / "images" / image_name;
-    if (!fs::exists(frame.image_path))
-      throwInputError(file.string(), 0, "its image " + frame.image_path.string() + " is missing");
-    const cv::Size size = readImageSize(frame.image_path);
-    if (size.width != frame.intrinsics.width || size.height != frame.intrinsics.height)
-      throwInputError(file.string(), 0,
-                      "says the image is " + std::to_string(frame.intrinsics.width) + "x" +
-                          std::to_string(frame.intrinsics.height) + " but " + frame.image_path.string() + " is " +
-                          std::to_string(size.width) + "x" + std::to_string(size.height));
+    // "0000.jpg.camera" -> "0000.jpg"
+    Frame frame = readCameraFile(file, dir / "images" / file.stem());
     frame.name = frameName(frame.image_path, dir);
     scene.frames.push_back(std::move(frame));
   }

@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/geometry/camera.h"
 #include "ffloc/io/input_file.h"
 
 namespace ffloc {
@@ -87,6 +88,11 @@ std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::pa
   for (std::string_view token; reader.next(&token);)
     values.push_back(parseDouble(std::string(token), file, line.number, "value " + std::to_string(values.size() + 1)));
   return values;
+}
+
+void requireLensDistortion(const std::vector<double>& coefficients, const std::filesystem::path& file, int line) {
+  const std::string problem = distortionProblem(coefficients);
+  if (!problem.empty()) throwInputError(file.string(), line, problem);
 }
 
 MatrixFile readMatrixFile(const std::filesystem::path& file, int rows, int cols) {

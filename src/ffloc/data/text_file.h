@@ -48,6 +48,10 @@ long parseInteger(const std::string& token, const std::filesystem::path& file, i
 // Every token of the line as a number.
 std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::path& file);
 
+// Throws "<file>:<line>: <distortionProblem>" (geometry/camera.h) when a coefficient is not
+// finite or beyond any lens's.
+void requireLensDistortion(const std::vector<double>& coefficients, const std::filesystem::path& file, int line);
+
 // A rows x cols matrix of finite numbers written one row per non-empty line (7-Scenes pose and
 // intrinsics files), with the line number of each row for later messages.
 struct MatrixFile {

@@ -95,6 +95,29 @@ cv::Mat undistortImage(const cv::Mat& image, const Intrinsics& camera) {
   return out;
 }
 
+std::string distortionCoefficientProblem(double coefficient) {
+  if (std::isfinite(coefficient) && std::abs(coefficient) <= kMaxDistortionCoefficient) return "";
+  std::ostringstream what;
+  what << coefficient << ": ";
+  if (std::isfinite(coefficient))
+    what << "no lens's distortion coefficient exceeds " << kMaxDistortionCoefficient << " in magnitude";
+  else
+    what << "distortion coefficients must be finite";
+  return what.str();
+}
+
+std::string distortionProblem(const std::vector<double>& coefficients) {
+  // OpenCV's order, up to its longest form (thin prism and tilt terms).
+  static const char* const kNames[] = {"k1", "k2", "p1", "p2", "k3", "k4", "k5",
+                                       "k6", "s1", "s2", "s3", "s4", "taux", "tauy"};
+  for (size_t i = 0; i < coefficients.size(); ++i) {
+    const std::string problem = distortionCoefficientProblem(coefficients[i]);
+    if (!problem.empty())
+      return (i < std::size(kNames) ? kNames[i] : "coefficient " + std::to_string(i + 1)) + " " + problem;
+  }
+  return "";
+}
+
 void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
   if ((k.width != 0 || k.height != 0) && (k.width != width || k.height != height))
     throw InputError("width, height: the intrinsics are for a " + std::to_string(k.width) + "x" +
@@ -119,8 +142,8 @@ void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
          << " image (intrinsics must be in pixels of the image given)";
     throw InputError(what.str());
   }
-  for (double c : k.distortion)
-    if (!std::isfinite(c)) throw InputError("distortion: coefficients must be finite");
+  const std::string distortion = distortionProblem(k.distortion);
+  if (!distortion.empty()) throw InputError("distortion: " + distortion);
 }
 
 }  // namespace ffloc

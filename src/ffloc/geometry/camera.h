@@ -2,6 +2,7 @@
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 namespace ffloc {
@@ -38,10 +39,25 @@ struct Intrinsics {
 std::vector<Eigen::Vector2d> undistortPixels(const Intrinsics& camera,
                                              const std::vector<Eigen::Vector2d>& pixels);
 
+// The bound on the magnitude of every OpenCV distortion coefficient. The coefficients act on
+// normalised image coordinates (x/z, y/z), so no image size enters: ordinary lenses' radial
+// coefficients stay below 1 and the rational model's numerator and denominator terms of wide-angle
+// lenses reach tens, while a pixel value in a coefficient's place (a column out of place: a focal
+// length, a principal point) exceeds 100 for any image wider than 200 pixels. k1 = 1e10 was read
+// as a lens without a word.
+inline constexpr double kMaxDistortionCoefficient = 100;
+
+// What is wrong with one distortion coefficient, not finite or beyond kMaxDistortionCoefficient
+// ("1e+10: no lens's distortion coefficient exceeds 100 in magnitude"); "" when nothing is.
+std::string distortionCoefficientProblem(double coefficient);
+// The same for the first such coefficient in OpenCV's order (k1 k2 p1 p2 [k3 [k4 k5 k6]]), named
+// ("k1 1e+10: ...").
+std::string distortionProblem(const std::vector<double>& coefficients);
+
 // The checks intrinsics must pass for a `width` x `height` image, a query's or a mapping frame's:
 // the size they give (when they give one) is the image's, finite focal lengths in
-// (0, 1000 * long side], the principal point inside the image, finite distortion. InputError
-// naming width, fx, fy, cx, cy or distortion.
+// (0, 1000 * long side], the principal point inside the image, distortion that passes
+// distortionProblem. InputError naming width, fx, fy, cx, cy or distortion.
 void checkIntrinsicsFitImage(const Intrinsics& intrinsics, int width, int height);
 
 // Resamples an image so it follows camera.undistorted(). Returns the input when not distorted.
