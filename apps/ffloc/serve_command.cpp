@@ -73,7 +73,8 @@ class StopOnSignal {
       } while (got < 0 && errno == EINTR);
       if (got != 1 || signal == 0) return;
       restoreHandlers();  // a second Ctrl-C ends the process at once
-      std::cerr << "signal " << int(signal) << ": stopping after the requests in flight (again to quit now)\n";
+      std::cerr << "signal " << int(signal)
+                << ": stopping once the query being localized is answered (again to quit now)\n";
       server.stop();
     });
   }

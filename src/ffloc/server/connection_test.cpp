@@ -88,21 +88,34 @@ std::string receiveUntilClosed(int socket_fd) {
   return answer;
 }
 
-// Sends `head`, then `piece` every 100 ms, at most `pieces` times, as a slow client does, and
+// Reads one answer whose body has a Content-Length, leaving the connection open.
+std::string receiveAnswer(int socket_fd) {
+  timeval timeout = {5, 0};
+  setsockopt(socket_fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+  std::string answer;
+  char byte;
+  while (answer.find("\r\n\r\n") == std::string::npos && recv(socket_fd, &byte, 1, 0) == 1) answer += byte;
+  const size_t length_at = answer.find("Content-Length: ");
+  const size_t length = length_at == std::string::npos ? 0 : std::stoul(answer.substr(length_at + 16));
+  for (size_t left = length; left > 0 && recv(socket_fd, &byte, 1, 0) == 1; --left) answer += byte;
+  return answer;
+}
+
+// Sends `piece` every 100 ms on a connection, at most `pieces` times, as a slow client does, and
 // returns what the server answered once it answers or closes; empty when it let the client send
 // everything without a word.
+std::string trickleOn(int socket_fd, const std::string& piece, int pieces) {
+  for (int i = 0; i < pieces; ++i) {
+    pollfd entry = {socket_fd, POLLIN, 0};
+    if (poll(&entry, 1, 100) > 0 || !sendAll(socket_fd, piece)) return receiveUntilClosed(socket_fd);
+  }
+  return "";
+}
+
+// The same on a new connection, after `head`.
 std::string trickle(int port, const std::string& head, const std::string& piece, int pieces) {
   const int socket_fd = connectTo(port);
-  std::string answer;
-  if (sendAll(socket_fd, head)) {
-    for (int i = 0; i < pieces; ++i) {
-      pollfd entry = {socket_fd, POLLIN, 0};
-      if (poll(&entry, 1, 100) > 0 || !sendAll(socket_fd, piece)) {
-        answer = receiveUntilClosed(socket_fd);
-        break;
-      }
-    }
-  }
+  const std::string answer = sendAll(socket_fd, head) ? trickleOn(socket_fd, piece, pieces) : "";
   close(socket_fd);
   return answer;
 }
@@ -247,6 +260,89 @@ TEST_F(ConnectionTest, SlowBodyIsCutAtItsDeadline) {
   EXPECT_NE(answer.find("request timeout: the request's body did not arrive within 0.3 s"), std::string::npos)
       << answer;
   EXPECT_TRUE(localizer_.names().empty());
+}
+
+// A client sending its body a byte at a time held a stop until the body's deadline: a POST
+// announcing 1,000,000 bytes and sending one a second kept `ffloc serve` running 58.6 s after
+// SIGTERM, and one trickling its headers 8.6 s. Once the server stops it waits for no client:
+// both are answered 503 and the stop returns at once.
+TEST_F(ConnectionTest, StopDoesNotWaitForClientsStillSending) {
+  start(ServerOptions{});  // 10 s for the headers, 60 s for a body
+  // A connection the server serves (it has answered a first request on it), its next request's
+  // headers begun.
+  const int headers_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(headers_fd, "GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+  ASSERT_EQ(receiveAnswer(headers_fd).rfind("HTTP/1.1 200", 0), 0u);
+  ASSERT_TRUE(sendAll(headers_fd, "GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n"));
+  // A body the server reads: it has asked for it (100 Continue).
+  const int body_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(body_fd, "POST " + kQueryPath + "slow HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: image/png\r\n"
+                               "Content-Length: 1000000\r\nExpect: 100-continue\r\n\r\n"));
+  ASSERT_EQ(receiveAnswer(body_fd).rfind("HTTP/1.1 100 Continue", 0), 0u);
+  std::string headers_answer;
+  std::string body_answer;
+  // Each sends a piece every 100 ms for 30 s, keeping clear of the library's per-read timeout.
+  clients_.emplace_back([&] { headers_answer = trickleOn(headers_fd, "X-Slow: 1\r\n", 300); });
+  clients_.emplace_back([&] { body_answer = trickleOn(body_fd, "x", 300); });
+
+  const auto stop_at = std::chrono::steady_clock::now();
+  stop();
+  const double stopped_after_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - stop_at).count();
+  for (std::thread& client : clients_) client.join();
+  clients_.clear();
+  close(headers_fd);
+  close(body_fd);
+  EXPECT_LT(stopped_after_s, 5.0);
+  EXPECT_EQ(headers_answer.rfind("HTTP/1.1 503", 0), 0u) << "'" << headers_answer << "'";
+  EXPECT_NE(headers_answer.find("server stopping: the request's headers had not all arrived"), std::string::npos)
+      << headers_answer;
+  EXPECT_EQ(body_answer.rfind("HTTP/1.1 503", 0), 0u) << "'" << body_answer << "'";
+  EXPECT_NE(body_answer.find("server stopping: the request's body had not all arrived"), std::string::npos)
+      << body_answer;
+  EXPECT_TRUE(localizer_.names().empty());
+}
+
+// A stop waited for every query queued for the model (up to --max-waiting, each as long as a
+// query takes). The query being localized still finishes and is answered; the one waiting its
+// turn is answered 503 at once and never runs.
+TEST_F(ConnectionTest, StopAnswersTheRunningQueryAndRefusesTheWaitingOne) {
+  start(ServerOptions{});
+  int running_status = 0;
+  std::string running_body;
+  clients_.emplace_back([&] {
+    httplib::Client client("127.0.0.1", port_);
+    client.set_read_timeout(30);
+    if (const auto answer = client.Post((kQueryPath + "runs").c_str(), pngBytes(), "image/png")) {
+      running_status = answer->status;
+      running_body = answer->body;
+    }
+  });
+  localizer_.awaitQueries(1);
+  // On a connection the server serves (a first request answered), so that the query reaches
+  // the server whenever the stop comes.
+  const int socket_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(socket_fd, "GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n"));
+  ASSERT_EQ(receiveAnswer(socket_fd).rfind("HTTP/1.1 200", 0), 0u);
+  const std::string image = pngBytes();
+  ASSERT_TRUE(sendAll(socket_fd, "POST " + kQueryPath + "waits HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                 "Content-Type: image/png\r\nContent-Length: " +
+                                     std::to_string(image.size()) + "\r\n\r\n" + image));
+
+  const auto stop_at = std::chrono::steady_clock::now();
+  std::thread stopping([this] { stop(); });
+  const std::string waited = receiveUntilClosed(socket_fd);
+  const double refused_after_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - stop_at).count();
+  close(socket_fd);
+  localizer_.open();
+  stopping.join();
+  for (std::thread& client : clients_) client.join();
+  clients_.clear();
+  EXPECT_EQ(waited.rfind("HTTP/1.1 503", 0), 0u) << "'" << waited << "'";
+  EXPECT_NE(waited.find("server stopping: the query had not started when the server began to stop"), std::string::npos)
+      << waited;
+  EXPECT_LT(refused_after_s, 5.0) << "refused once the stop came, not once the running query ended";
+  EXPECT_EQ(running_status, 200) << running_body;
+  EXPECT_EQ(localizer_.names(), std::vector<std::string>{"runs"});
 }
 
 // A client that sends its query and leaves while another runs: its query is never run. Whether

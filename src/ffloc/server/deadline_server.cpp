@@ -31,6 +31,24 @@ int pollFor(int socket, short events, Clock::duration wait) {
   }
 }
 
+// How often a wait on a client looks whether the server has stopped.
+constexpr milliseconds kStopCheckInterval{100};
+
+// Waits as pollFor does while the server listens; once it has stopped (its listening socket
+// closed), only what the client has already sent, or the room already free for an answer,
+// counts: a stopping server waits for no client. A slow client held a stop until its request's
+// deadline (a body sent a byte a second: 58.6 s).
+int pollUnlessStopped(int socket, short events, Clock::duration wait, const std::atomic<socket_t>& server_socket) {
+  const Clock::time_point until = Clock::now() + wait;
+  for (;;) {
+    const bool stopped = server_socket == INVALID_SOCKET;
+    const Clock::duration left =
+        stopped ? Clock::duration::zero() : std::min<Clock::duration>(until - Clock::now(), kStopCheckInterval);
+    const int ready = pollFor(socket, events, std::max(left, Clock::duration::zero()));
+    if (ready != 0 || stopped || Clock::now() >= until) return ready;
+  }
+}
+
 void numericAddress(const sockaddr_storage& address, socklen_t length, std::string& ip, int& port) {
   char host[NI_MAXHOST];
   char service[NI_MAXSERV];
@@ -43,11 +61,13 @@ void numericAddress(const sockaddr_storage& address, socklen_t length, std::stri
 
 // One connection's socket, read through a buffer (the library reads headers a byte at a time)
 // and held to the deadline of the request part being read. Each read also keeps the library's
-// own per-read timeout.
+// own per-read timeout. Once the server stops, no read or write waits for the client
+// (pollUnlessStopped), and a request that has not all arrived is cut.
 class DeadlineStream : public httplib::Stream {
  public:
-  DeadlineStream(socket_t socket, Clock::duration read_timeout, Clock::duration write_timeout)
-      : socket_(socket), read_timeout_(read_timeout), write_timeout_(write_timeout) {}
+  DeadlineStream(socket_t socket, Clock::duration read_timeout, Clock::duration write_timeout,
+                 const std::atomic<socket_t>& server_socket)
+      : socket_(socket), read_timeout_(read_timeout), write_timeout_(write_timeout), server_socket_(server_socket) {}
 
   // The part of the request read from now on, and how long it may take.
   void startPart(const char* part, milliseconds limit) {
@@ -57,34 +77,32 @@ class DeadlineStream : public httplib::Stream {
   }
   void startRequest(milliseconds header_limit) {
     startPart("headers", header_limit);
-    timed_out_ = false;
+    cut_ = Cut::kNone;
     written_ = 0;
   }
-  bool timedOut() const { return timed_out_; }
-  std::string timeoutMessage() const {
-    const auto seconds = std::chrono::duration<double>(limit_).count();
+  bool cut() const { return cut_ != Cut::kNone; }
+  // 408 past the deadline, 503 when the server stopped first (the client may retry elsewhere).
+  DeadlineServer::RequestCut cutAnswer() const {
     char text[160];
-    std::snprintf(text, sizeof(text), "request timeout: the request's %s did not arrive within %g s", part_, seconds);
-    return text;
+    if (cut_ == Cut::kStopping) {
+      std::snprintf(text, sizeof(text),
+                    "server stopping: the request's %s had not all arrived when the server began to stop; retry later",
+                    part_);
+      return {503, text};
+    }
+    std::snprintf(text, sizeof(text), "request timeout: the request's %s did not arrive within %g s", part_,
+                  std::chrono::duration<double>(limit_).count());
+    return {408, text};
   }
   bool answered() const { return written_ > 0; }
   void closeAfterAnswer() { close_after_answer_ = true; }
   bool closingAfterAnswer() const { return close_after_answer_; }
 
   // Waits for the next request of a kept-alive connection: true when bytes (or the end of the
-  // stream, which the library then reads as such) arrive within `idle`, false when the server
-  // stops first.
-  bool awaitRequest(Clock::duration idle, const std::atomic<socket_t>& server_socket) {
-    if (begin_ < end_) return true;
-    const Clock::time_point until = Clock::now() + idle;
-    // In slices, so that a stopping server does not wait out every idle connection.
-    while (server_socket != INVALID_SOCKET) {
-      const Clock::duration left = until - Clock::now();
-      if (left <= Clock::duration::zero()) return false;
-      const int ready = pollFor(socket_, POLLIN, std::min<Clock::duration>(left, milliseconds(100)));
-      if (ready != 0) return ready > 0;
-    }
-    return false;
+  // stream, which the library then reads as such) arrive within `idle`, false when they have not
+  // by then or by the server's stop.
+  bool awaitRequest(Clock::duration idle) {
+    return begin_ < end_ || pollUnlessStopped(socket_, POLLIN, idle, server_socket_) > 0;
   }
 
   // The client closed its side (or reset the connection): nothing it sent is still to be read,
@@ -101,12 +119,18 @@ class DeadlineStream : public httplib::Stream {
   bool is_readable() const override {
     if (begin_ < end_) return true;
     const Clock::duration left = deadline_ - Clock::now();
-    if (left > Clock::duration::zero() && pollFor(socket_, POLLIN, std::min(left, read_timeout_)) > 0) return true;
-    if (Clock::now() >= deadline_) timed_out_ = true;
+    if (left > Clock::duration::zero() &&
+        pollUnlessStopped(socket_, POLLIN, std::min(left, read_timeout_), server_socket_) > 0)
+      return true;
+    if (server_socket_ == INVALID_SOCKET) {
+      cut_ = Cut::kStopping;
+    } else if (Clock::now() >= deadline_) {
+      cut_ = Cut::kDeadline;
+    }
     return false;
   }
 
-  bool is_writable() const override { return pollFor(socket_, POLLOUT, write_timeout_) > 0; }
+  bool is_writable() const override { return pollUnlessStopped(socket_, POLLOUT, write_timeout_, server_socket_) > 0; }
 
   ssize_t read(char* ptr, size_t size) override {
     if (begin_ == end_) {
@@ -155,10 +179,12 @@ class DeadlineStream : public httplib::Stream {
   socket_t socket_;
   Clock::duration read_timeout_;
   Clock::duration write_timeout_;
+  const std::atomic<socket_t>& server_socket_;
   const char* part_ = "headers";
   milliseconds limit_{0};
   Clock::time_point deadline_ = Clock::time_point::max();
-  mutable bool timed_out_ = false;
+  enum class Cut { kNone, kDeadline, kStopping };
+  mutable Cut cut_ = Cut::kNone;
   size_t written_ = 0;
   bool close_after_answer_ = false;
   char buffer_[16384];
@@ -170,10 +196,13 @@ class DeadlineStream : public httplib::Stream {
 // its handlers on one thread of its pool, and gives handlers no way to reach the socket.
 thread_local DeadlineStream* current_connection = nullptr;
 
-void writeTimeoutAnswer(DeadlineStream& stream) {
-  const std::string body = "{\"error\":\"" + stream.timeoutMessage() + "\"}";
-  const std::string answer = "HTTP/1.1 408 Request Timeout\r\nContent-Type: application/json\r\nContent-Length: " +
-                             std::to_string(body.size()) + "\r\nConnection: close\r\n\r\n" + body;
+void writeCutAnswer(DeadlineStream& stream) {
+  const DeadlineServer::RequestCut cut = stream.cutAnswer();
+  const std::string body = "{\"error\":\"" + cut.message + "\"}";
+  const std::string answer = "HTTP/1.1 " + std::to_string(cut.status) +
+                             (cut.status == 503 ? " Service Unavailable" : " Request Timeout") +
+                             "\r\nContent-Type: application/json\r\nContent-Length: " + std::to_string(body.size()) +
+                             "\r\nConnection: close\r\n\r\n" + body;
   stream.write(answer.data(), answer.size());
 }
 
@@ -217,12 +246,13 @@ void writeTooManyConnectionsAnswer(socket_t socket) {
 
 // Closing a socket that holds unread bytes resets the connection, and the reset can destroy
 // an answer the client has not read yet. So the client is first told the answer is complete
-// (our FIN), and what it still sends is read and dropped, for at most a second.
-void closeLeavingUnreadBody(socket_t socket) {
+// (our FIN), and what it still sends is read and dropped, for at most a second; a stopping
+// server drops only what has arrived.
+void closeLeavingUnreadBody(socket_t socket, const std::atomic<socket_t>& server_socket) {
   shutdown(socket, SHUT_WR);
   const Clock::time_point until = Clock::now() + std::chrono::seconds(1);
   char dropped[16384];
-  while (Clock::now() < until && pollFor(socket, POLLIN, until - Clock::now()) > 0 &&
+  while (Clock::now() < until && pollUnlessStopped(socket, POLLIN, until - Clock::now(), server_socket) > 0 &&
          recv(socket, dropped, sizeof(dropped), 0) > 0) {
   }
   close(socket);
@@ -234,8 +264,8 @@ void DeadlineServer::setConnectionLimits(size_t threads, size_t max_pending) {
   new_task_queue = [threads, max_pending] { return new BoundedConnectionPool(threads, max_pending); };
 }
 
-std::string DeadlineServer::timeoutMessage() {
-  return current_connection && current_connection->timedOut() ? current_connection->timeoutMessage() : std::string();
+DeadlineServer::RequestCut DeadlineServer::requestCut() {
+  return current_connection && current_connection->cut() ? current_connection->cutAnswer() : RequestCut{};
 }
 
 bool DeadlineServer::clientDisconnected() { return current_connection && current_connection->peerClosed(); }
@@ -256,19 +286,19 @@ bool DeadlineServer::process_and_close_socket(socket_t sock) {
     return std::chrono::seconds(seconds) + std::chrono::microseconds(microseconds);
   };
   DeadlineStream stream(sock, timeout(read_timeout_sec_, read_timeout_usec_),
-                        timeout(write_timeout_sec_, write_timeout_usec_));
+                        timeout(write_timeout_sec_, write_timeout_usec_), svr_sock_);
   current_connection = &stream;
   bool ok = false;
   for (size_t left = keep_alive_max_count_; left > 0; --left) {
-    if (!stream.awaitRequest(std::chrono::seconds(keep_alive_timeout_sec_), svr_sock_)) break;
+    if (!stream.awaitRequest(std::chrono::seconds(keep_alive_timeout_sec_))) break;
     stream.startRequest(header_deadline_);
     bool closed = false;
     // Called once the headers are parsed, before the body is read.
     ok = process_request(stream, left == 1, closed,
                          [&](httplib::Request&) { stream.startPart("body", body_deadline_); });
-    if (stream.timedOut()) {
+    if (stream.cut()) {
       // Cut in the request line, the library answers nothing; later, the error handler has.
-      if (!stream.answered()) writeTimeoutAnswer(stream);
+      if (!stream.answered()) writeCutAnswer(stream);
       ok = false;
       break;
     }
@@ -276,7 +306,7 @@ bool DeadlineServer::process_and_close_socket(socket_t sock) {
   }
   current_connection = nullptr;
   if (stream.closingAfterAnswer()) {
-    closeLeavingUnreadBody(sock);
+    closeLeavingUnreadBody(sock, svr_sock_);
     return ok;
   }
   shutdown(sock, SHUT_RDWR);

@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <chrono>
+#include <condition_variable>
 #include <deque>
 #include <map>
+#include <mutex>
+#include <optional>
 #include <regex>
 #include <stdexcept>
 #include <thread>
@@ -22,12 +25,69 @@
 
 namespace ffloc {
 
+namespace {
+
+// One query at a time on the model: each already uses every torch thread, and the model is
+// shared. Unlike a mutex, the wait for a turn ends when the server stops: a query that has not
+// started by then is not run, so a stop waits for the query running, not for every query
+// waiting behind it (up to --max-waiting, each as long as a query takes).
+class QueryTurns {
+ public:
+  // Waits for the model; false when the server stopped first.
+  bool take() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    changed_.wait(lock, [this] { return !running_ || stopping_; });
+    if (stopping_) return false;
+    running_ = true;
+    return true;
+  }
+  void give() {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      running_ = false;
+    }
+    changed_.notify_one();
+  }
+  void stop() {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      stopping_ = true;
+    }
+    changed_.notify_all();
+  }
+
+ private:
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  bool running_ = false;
+  bool stopping_ = false;
+};
+
+// A query's turn on the model, given back when the query ends.
+class QueryTurn {
+ public:
+  explicit QueryTurn(QueryTurns& turns) : turns_(turns), taken_(turns.take()) {}
+  ~QueryTurn() {
+    if (taken_) turns_.give();
+  }
+  QueryTurn(const QueryTurn&) = delete;
+  QueryTurn& operator=(const QueryTurn&) = delete;
+  bool taken() const { return taken_; }
+
+ private:
+  QueryTurns& turns_;
+  bool taken_;
+};
+
+}  // namespace
+
 struct LocalizationServer::Http {
   explicit Http(const ServerOptions& options) : server(options.header_timeout, options.body_timeout) {}
   DeadlineServer server;
   // Every route with its method ("GET" also answers HEAD), for telling a wrong method (405) from
   // a wrong path (404) before the library reads a body.
   std::vector<std::pair<std::string, std::regex>> routes;
+  QueryTurns turns;
   std::mutex log_mutex;
   // The last answers of each map, oldest first, each with the query's intrinsics (the viewer
   // draws the query camera with them).
@@ -62,10 +122,34 @@ std::map<std::string, std::string> requestFields(const httplib::Request& request
   return fields;
 }
 
-std::string notFoundMessage(const httplib::Request& request) {
-  return "not found: " + request.method + " " + request.path +
+std::string notFoundMessage(const httplib::Request& request, const std::string& path) {
+  return "not found: " + request.method + " " + path +
          " (known: GET /, GET /health, GET /maps, GET /maps/NAME, GET /maps/NAME/scene, POST /maps/NAME/localize, "
          "and GET /map, GET /map/scene, POST /localize on a server of one map)";
+}
+
+// cpp-httplib decodes the whole path before routing, so an encoded slash split a segment in two:
+// GET /maps/s%2Fscene was answered with the scene of map 's', POST /maps/s%2Flocalize
+// localized against it. For a path with an encoded slash (%2F, or the library's %u002F), the
+// path as the routes must see it: each segment decoded on its own (by the library's decoder, as
+// every other path is), with a '/' or '%' inside a segment encoded again so that it stays
+// there. nullopt for a path without one, which request.path routes right.
+std::optional<std::string> pathWithEncodedSlashes(const std::string& target) {
+  const std::string sent = target.substr(0, target.find('?'));
+  std::string path;
+  bool slash_inside = false;
+  for (size_t start = 0;;) {
+    const size_t end = sent.find('/', start);
+    for (const char c : httplib::detail::decode_url(sent.substr(start, end - start), false)) {
+      slash_inside = slash_inside || c == '/';
+      path += c == '/' ? "%2F" : c == '%' ? "%25" : std::string(1, c);
+    }
+    if (end == std::string::npos) break;
+    path += '/';
+    start = end + 1;
+  }
+  if (!slash_inside) return std::nullopt;
+  return path;
 }
 
 // The message for an error status the HTTP library set itself, with no body.
@@ -360,15 +444,26 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   // route does not answer (405): the library would read a PUT's body first, and refuse a form
   // body as too large (413).
   const auto refusalBeforeBody = [this](const httplib::Request& request) -> Refusal {
+    const std::optional<std::string> split_path = pathWithEncodedSlashes(request.target);
+    const std::string& path = split_path ? *split_path : request.path;
     std::string allow;
     for (const auto& [method, pattern] : http_->routes) {
-      if (!std::regex_match(request.path, pattern)) continue;
+      std::smatch match;
+      if (!std::regex_match(path, match, pattern)) continue;
+      // A route that matches a path with an encoded slash holds it in its map's name (NAME is
+      // the one part of a route that is not fixed text, and no fixed text holds '%'). No map
+      // has that name, whatever the method, as names hold no '/'. Where the slash falls
+      // elsewhere, no route matches (404 below).
+      if (split_path) {
+        return {404, "map '" + httplib::detail::decode_url(match[1], false) +
+                         "': no such map (map names hold no '/'; GET /maps lists them)"};
+      }
       if (method == request.method || (method == "GET" && request.method == "HEAD"))
         return request.method == "POST" ? postRefusal(request, options_.max_body_bytes) : Refusal{};
       allow += (allow.empty() ? "" : ", ") + (method == "GET" ? std::string("GET, HEAD") : method);
     }
-    if (allow.empty()) return {404, notFoundMessage(request)};
-    return {405, "method not allowed: " + request.method + " " + request.path + "; this route answers " + allow, allow};
+    if (allow.empty()) return {404, notFoundMessage(request, path)};
+    return {405, "method not allowed: " + request.method + " " + path + "; this route answers " + allow, allow};
   };
   const auto reply = [](httplib::Response& response, const Refusal& refusal) {
     replyError(response, refusal.status, refusal.message);
@@ -417,7 +512,13 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     query.options.stop_requested = [] { return DeadlineServer::clientDisconnected(); };
     nlohmann::json body;
     try {
-      std::lock_guard<std::mutex> lock(localize_mutex_);
+      const QueryTurn turn(http_->turns);
+      if (!turn.taken()) {
+        replyError(response, 503,
+                   "server stopping: the query had not started when the server began to stop; retry later");
+        response.set_header("Connection", "close");
+        return;
+      }
       // A client that left while its query waited (a timeout, a user giving up) would never
       // read the answer: the query is dropped rather than holding the model for nothing. One
       // that leaves while its query runs is stopped at the next stage (stop_requested).
@@ -452,8 +553,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
 
   // Every status >= 400, ours and the library's (404, 413, ...), answers JSON and is logged.
   server.set_error_handler([this, log](const httplib::Request& request, httplib::Response& response) {
-    // The library reports a request cut at its deadline as malformed (400).
-    if (const std::string timeout = DeadlineServer::timeoutMessage(); !timeout.empty()) replyError(response, 408, timeout);
+    // The library reports a request cut at its deadline, or by a stop, as malformed (400); the
+    // connection ends after the answer.
+    if (const DeadlineServer::RequestCut cut = DeadlineServer::requestCut(); cut.status != 0) {
+      replyError(response, cut.status, cut.message);
+      response.set_header("Connection", "close");
+    }
     if (response.body.empty())
       replyError(response, response.status, libraryErrorMessage(response.status, options_.max_body_bytes));
     const nlohmann::json body = nlohmann::json::parse(response.body, nullptr, false);
@@ -503,6 +608,7 @@ void LocalizationServer::serve() {
 
 void LocalizationServer::stop() {
   stop_requested_ = true;
+  http_->turns.stop();
   while (serving_ && !http_->server.is_running()) std::this_thread::yield();
   http_->server.stop();
 }

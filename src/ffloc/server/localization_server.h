@@ -4,7 +4,6 @@
 #include <chrono>
 #include <cstddef>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <ostream>
 #include <string>
@@ -82,8 +81,10 @@ class LocalizationServer {
   // Answers requests until stop(); binds first when bind() was not called. std::runtime_error
   // when the socket fails for another reason than stop().
   void serve();
-  // From any thread, before or while serve() runs: finishes the requests in flight, then serve()
-  // returns (at once, when it had not started listening yet).
+  // From any thread, before or while serve() runs: the query being localized finishes and is
+  // answered; requests still arriving and queries waiting their turn are answered 503 without
+  // waiting for their clients; then serve() returns (at once, when it had not started listening
+  // yet).
   void stop();
 
  private:
@@ -94,8 +95,6 @@ class LocalizationServer {
   int bound_port_ = -1;
   std::atomic<bool> stop_requested_{false};
   std::atomic<bool> serving_{false};
-  // One query at a time: each already uses every torch thread, and the model is shared.
-  std::mutex localize_mutex_;
   std::atomic<size_t> queries_in_flight_{0};  // running and waiting
 };
 

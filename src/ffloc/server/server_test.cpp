@@ -610,6 +610,40 @@ TEST_F(ServerTest, AMethodTheRouteDoesNotAnswerIs405NamingTheMethodsItDoes) {
   EXPECT_EQ(head->status, 200);
 }
 
+// cpp-httplib decodes the whole path before routing, so an encoded slash split its segment:
+// GET /maps/scene%2Fscene answered the scene of map 'scene' and POST /maps/scene%2Flocalize
+// localized against it. The slash stays in its segment: in a map's name it names a map that
+// cannot exist (names hold no '/'), elsewhere a path no route serves.
+TEST_F(ServerTest, AnEncodedSlashStaysInsideItsSegment) {
+  const auto expectNoSuchMap = [](const httplib::Result& answer, const std::string& name) {
+    ASSERT_TRUE(answer);
+    EXPECT_EQ(answer->status, 404) << answer->body;
+    EXPECT_EQ(body(answer)["error"], "map '" + name + "': no such map (map names hold no '/'; GET /maps lists them)");
+  };
+  expectNoSuchMap(client_->Get("/maps/scene%2Fscene"), "scene/scene");
+  expectNoSuchMap(client_->Get("/maps/scene%2fscene"), "scene/scene");
+  expectNoSuchMap(client_->Get("/maps/scene%u002Fscene"), "scene/scene");  // the library's %uXXXX
+  expectNoSuchMap(client_->Post(("/maps/scene%2Flocalize?" + intrinsicsParameters()).c_str(), queryFileBytes(),
+                                "image/png"),
+                  "scene/localize");
+  expectNoSuchMap(client_->Post(("/maps/a%2Fb/localize?" + intrinsicsParameters()).c_str(), queryFileBytes(),
+                                "image/png"),
+                  "a/b");
+  const auto nowhere = client_->Get("/maps%2Fscene");
+  ASSERT_TRUE(nowhere);
+  EXPECT_EQ(nowhere->status, 404) << nowhere->body;
+  EXPECT_EQ(body(nowhere)["error"].get<std::string>().rfind("not found: GET /maps%2Fscene (known:", 0), 0u)
+      << nowhere->body;
+  // Other escapes are decoded as before, and an escaped '%' is not a slash.
+  const auto escaped = client_->Get("/maps/sc%65ne/scene");
+  ASSERT_TRUE(escaped);
+  EXPECT_EQ(escaped->status, 200) << escaped->body;
+  const auto percent = client_->Get("/maps/scene%252Fscene");
+  ASSERT_TRUE(percent);
+  EXPECT_EQ(percent->status, 404) << percent->body;
+  EXPECT_EQ(body(percent)["error"], "map 'scene%2Fscene': no such map (GET /maps lists them)");
+}
+
 // A server over `catalog` that logs to a string, serving on its own thread until stopped.
 class LoggingServer {
  public:
