@@ -10,6 +10,7 @@
 #include "ffloc/io/json_fields.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/io/tensor_archive.h"
+#include "ffloc/io/tensor_checksums.h"
 
 namespace ffloc {
 namespace {
@@ -70,7 +71,7 @@ void writeClassicalMap(const ClassicalMap& map, const std::filesystem::path& pat
   nlohmann::json images = nlohmann::json::array();
   nlohmann::json checksums = nlohmann::json::object();
   auto add = [&](TensorView view) {
-    checksums[view.name] = hex64(fnv1a64(view.data, view.nbytes));
+    checksums[view.name] = tensorChecksum(view);
     tensors.push_back(std::move(view));
   };
 
@@ -157,12 +158,7 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   if (body_entry == archive->metadata().end()) throwInputError(file, 0, "classical map: metadata body missing");
   if (JsonFields(header_json, file, "").string("body_checksum") != hex64(fnv1a64(body_entry->second)))
     throwInputError(file, 0, "classical map: metadata checksum mismatch (the file is corrupted)");
-  nlohmann::json body;
-  try {
-    body = nlohmann::json::parse(body_entry->second);
-  } catch (const nlohmann::json::exception& e) {
-    throwInputError(file, 0, std::string("classical map metadata is not valid JSON: ") + e.what());
-  }
+  const nlohmann::json body = parseJson(body_entry->second, file + ": classical map metadata");
 
   ClassicalMap map;
   const JsonFields top(body, file, "");
@@ -191,10 +187,7 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   auto tensor = [&](const std::string& name, DType dtype, const std::vector<int64_t>& shape) -> const TensorView& {
     if (!archive->contains(name)) throwInputError(file, 0, "tensor '" + name + "' missing");
     const TensorView& view = archive->at(name);
-    if (!checksums.contains(name) || !checksums[name].is_string())
-      throwInputError(file, 0, "tensor '" + name + "': no checksum recorded");
-    if (hex64(fnv1a64(view.data, view.nbytes)) != checksums[name].get<std::string>())
-      throwInputError(file, 0, "tensor '" + name + "': checksum mismatch (the file is corrupted)");
+    checkTensorChecksum(name, tensorChecksum(view), checksums, file);
     if (view.dtype != dtype || view.shape != shape)
       throwInputError(file, 0, "tensor '" + name + "' has shape " + view.shapeString() + " " + toString(view.dtype) +
                                    ", expected another");

@@ -7,7 +7,9 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
+#include "ffloc/core/threads.h"
 #include "ffloc/io/half.h"
+#include "ffloc/io/tensor_checksums.h"
 
 namespace ffloc {
 
@@ -34,6 +36,8 @@ ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
   if (std::filesystem::equivalent(input, output, ignored))
     throwInputError(output.string(), 0, "output: is the input file; write the converted weights to another path");
   const std::unique_ptr<TensorArchive> archive = openTensorArchive(input);
+  // Converted unchecked, a damaged checkpoint would come out as a file with nothing to check.
+  verifyChecksums(*archive, resolveThreadCount(0));
   ConvertWeightsSummary summary;
   summary.tensors_read = archive->names().size();
 
@@ -69,6 +73,8 @@ ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
   std::map<std::string, std::string> metadata = archive->metadata();
   metadata.emplace("format", "pt");
   metadata["source"] = input.filename().string();
+  // The input's checksums are of its own tensors and metadata, which casts and aliases change.
+  if (metadata.count(kChecksumsMetadataKey)) metadata = withChecksums(views, metadata);
 
   ProgressBar progress("convert " + input.filename().string(), views.size(), options.quiet);
   writeSafetensors(output, views, metadata, [&](size_t written) { progress.update(written); });

@@ -26,7 +26,9 @@ struct ConvertWeightsSummary {
 // file) into a safetensors file in the Hugging Face hub layout: tensors in name order, exact
 // aliases (names sharing the same bytes, dtype and shape) stored once under the
 // lexicographically first name, metadata {"format": "pt", "source": <input file name>} on top
-// of the input's own metadata. The output is written atomically.
+// of the input's own metadata. An input that carries checksums (io/tensor_checksums.h: training's
+// models) is verified first, and the output carries checksums of its own. The output is written
+// atomically.
 ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
                                      const std::filesystem::path& output,
                                      const ConvertWeightsOptions& options = {});

@@ -10,6 +10,11 @@
 // Every failure is an InputError "<file>: field '<path>.<key>': <what>".
 namespace ffloc {
 
+// `text` as JSON; InputError naming `source` when it is not JSON or an object gives a key twice
+// ("field 'frames[2].camera': duplicated key"): nlohmann keeps the last of the two silently, so
+// {"steps": 10, "steps": 20} trained 20 steps without a word.
+nlohmann::json parseJson(const std::string& text, const std::string& source);
+// parseJson of a file's text, once requireRegularFile accepts the file.
 nlohmann::json parseJsonFile(const std::filesystem::path& file);
 
 // 4 rows of 4 numbers: what JsonFields::matrix4 reads back.

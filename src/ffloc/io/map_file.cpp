@@ -12,8 +12,8 @@
 #include "ffloc/core/hash.h"
 #include "ffloc/io/input_file.h"
 #include "ffloc/io/json_fields.h"
-#include "ffloc/io/mapped_file.h"
 #include "ffloc/io/tensor_archive.h"
+#include "ffloc/io/tensor_checksums.h"
 
 namespace ffloc {
 namespace {
@@ -78,19 +78,6 @@ bool allFinite(const TensorView& view) {
   return true;
 }
 
-// FNV-1a of a tensor's bytes read through the file mapping a stretch at a time, each stretch
-// released from the process's memory once hashed.
-uint64_t mappedChecksum(const TensorView& view) {
-  constexpr size_t kStretch = size_t{4} << 20;
-  uint64_t hash = fnv1a64(nullptr, 0);  // the offset basis
-  for (size_t offset = 0; offset < view.nbytes; offset += kStretch) {
-    const size_t size = std::min(kStretch, view.nbytes - offset);
-    hash = fnv1a64(view.data + offset, size, hash);
-    releaseMappedPages(view.data + offset, size);
-  }
-  return hash;
-}
-
 }  // namespace
 
 bool StoredTokens::operator==(const StoredTokens& other) const {
@@ -121,7 +108,7 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
     view.shape = {static_cast<int64_t>(image.tokenCount()), map.token_dim};
     view.data = reinterpret_cast<const uint8_t*>(image.tokens.data());
     view.nbytes = image.tokens.size() * sizeof(uint16_t);
-    checksums[view.name] = hex64(fnv1a64(view.data, view.nbytes));
+    checksums[view.name] = tensorChecksum(view);
     tensors.push_back(view);
     descriptors.insert(descriptors.end(), image.descriptor.begin(), image.descriptor.end());
     if (!image.token_points.empty()) {
@@ -134,7 +121,7 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
       points.shape = {static_cast<int64_t>(image.tokenCount()), 3};
       points.data = reinterpret_cast<const uint8_t*>(image.token_points.data());
       points.nbytes = image.token_points.size() * sizeof(float);
-      checksums[points.name] = hex64(fnv1a64(points.data, points.nbytes));
+      checksums[points.name] = tensorChecksum(points);
       tensors.push_back(points);
     }
 
@@ -170,7 +157,7 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
       view.shape = {static_cast<int64_t>(rows), static_cast<int64_t>(cols)};
       view.data = reinterpret_cast<const uint8_t*>(values->data());
       view.nbytes = values->size() * sizeof(float);
-      checksums[view.name] = hex64(fnv1a64(view.data, view.nbytes));
+      checksums[view.name] = tensorChecksum(view);
       tensors.push_back(view);
     }
   }
@@ -180,7 +167,7 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
   descriptor_view.shape = {static_cast<int64_t>(map.images.size()), static_cast<int64_t>(descriptor_dim)};
   descriptor_view.data = reinterpret_cast<const uint8_t*>(descriptors.data());
   descriptor_view.nbytes = descriptors.size() * sizeof(float);
-  checksums[descriptor_view.name] = hex64(fnv1a64(descriptor_view.data, descriptor_view.nbytes));
+  checksums[descriptor_view.name] = tensorChecksum(descriptor_view);
   tensors.push_back(descriptor_view);
 
   const nlohmann::json metadata = {{"method", kMethod}, {"version", MapFile::kVersion}, {"model_id", map.model_id},
@@ -207,11 +194,7 @@ nlohmann::json readMapMetadata(const TensorArchive& archive, const std::string& 
   const auto checksum = archive.metadata().find(kMapMetadataChecksumKey);
   if (checksum != archive.metadata().end() && checksum->second != hex64(fnv1a64(entry->second)))
     throwInputError(file, 0, "map metadata checksum mismatch (the file is corrupted)");
-  try {
-    return nlohmann::json::parse(entry->second);
-  } catch (const nlohmann::json::exception& e) {
-    throwInputError(file, 0, std::string("map metadata is not valid JSON: ") + e.what());
-  }
+  return parseJson(entry->second, file + ": map metadata");
 }
 
 MapHeader mapHeader(const nlohmann::json& metadata, const std::string& file) {
@@ -268,11 +251,7 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
   if (!checksums.is_object()) top.fail("checksums", "expected an object of tensor name -> checksum");
   auto verified = [&](const std::string& name) -> const TensorView& {
     const TensorView& view = archive->at(name);
-    const auto expected = checksums.find(name);
-    if (expected == checksums.end() || !expected->is_string())
-      throwInputError(file, 0, "tensor '" + name + "': no checksum recorded");
-    if (hex64(mappedChecksum(view)) != expected->get<std::string>())
-      throwInputError(file, 0, "tensor '" + name + "': checksum mismatch (the file is corrupted)");
+    checkTensorChecksum(name, mappedTensorChecksum(view), checksums, file);
     return view;
   };
 

@@ -15,8 +15,11 @@
 #include "ffloc/core/hash.h"
 #include "ffloc/core/random.h"
 #include "ffloc/io/input_file.h"
+#include "ffloc/io/json_fields.h"
+#include "ffloc/io/tensor_checksums.h"
 #include "ffloc/model/parameter_table.h"
 #include "ffloc/model/tensor_conversion.h"
+#include "ffloc/model/torch_threads.h"
 
 namespace ffloc {
 namespace {
@@ -195,16 +198,12 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   } else {
     requireRegularFile(spec, "model weights: file");
     const auto archive = openTensorArchive(spec);
+    verifyChecksums(*archive, torchThreadCount());
     const auto architecture = archive->metadata().find("architecture");
     FastForwardConfig config;
     if (architecture != archive->metadata().end() && archive->contains("map_head.weight")) {
-      nlohmann::json json;
-      try {
-        json = nlohmann::json::parse(architecture->second);
-      } catch (const nlohmann::json::exception&) {
-        throwInputError(spec, 0, "metadata 'architecture': not JSON");
-      }
-      config = fastForwardConfigFromJson(json, spec + ": metadata 'architecture'");
+      const std::string source = spec + ": metadata 'architecture'";
+      config = fastForwardConfigFromJson(parseJson(architecture->second, source), source);
       loaded.model = std::make_unique<FastForwardModel>(config);
       loaded.model->loadWeights(*archive);
       loaded.id = "fastforward/" + sizesName(config) + "/" + hex64(parameterFingerprint(*loaded.model));

@@ -40,12 +40,13 @@ struct LoadedModel {
 // The file "default" stands for.
 std::string defaultModelPath();
 
-// InputError naming the file (or the spec) when it cannot be read or is neither kind of checkpoint.
+// InputError naming the file (or the spec) when it cannot be read or is neither kind of checkpoint,
+// and naming the tensor when a file that carries checksums (saveModel's) no longer matches them.
 LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options = {});
 
 // Writes every parameter as float32 safetensors (atomically) with the model's architecture and
-// input size in the metadata, so that loadModel reads it back as the same model; `metadata` adds
-// entries (a training checkpoint's step and settings).
+// input size in the metadata, and checksums of both, so that loadModel reads it back as the same
+// model or refuses it damaged; `metadata` adds entries (a training checkpoint's step and settings).
 void saveModel(FastForwardModel& model, const std::filesystem::path& path,
                std::map<std::string, std::string> metadata = {});
 

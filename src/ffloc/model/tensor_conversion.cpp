@@ -6,6 +6,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/io/tensor_archive.h"
+#include "ffloc/io/tensor_checksums.h"
 
 namespace ffloc {
 
@@ -56,7 +57,7 @@ void writeFloatTensors(const std::filesystem::path& path, const std::vector<std:
     view.nbytes = static_cast<size_t>(t.numel()) * sizeof(float);
     views.push_back(view);
   }
-  writeSafetensors(path, views, metadata);
+  writeSafetensors(path, views, withChecksums(views, metadata));
 }
 
 }  // namespace ffloc

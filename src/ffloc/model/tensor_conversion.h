@@ -20,7 +20,9 @@ at::ScalarType torchScalarType(DType dtype, const std::string& what);
 // dtype and shape. Handles F32, F16, BF16, F64, I64, I32, I16, I8, U8 and BOOL.
 at::Tensor toTorch(const TensorView& view);
 
-// Writes named tensors as float32 safetensors (io/safetensors.h: atomic), with `metadata`.
+// Writes named tensors as float32 safetensors (writeSafetensors: atomic), with `metadata` and the
+// checksums of both (io/tensor_checksums.h): the models and optimiser states that training writes,
+// which every reader verifies.
 void writeFloatTensors(const std::filesystem::path& path, const std::vector<std::pair<std::string, at::Tensor>>& tensors,
                        const std::map<std::string, std::string>& metadata);
 

@@ -92,6 +92,12 @@ TEST_F(TrainCommandInput, RefusesARunFolderItCannotUseAndAnOverflowingRateBefore
   EXPECT_EQ(train("--config " + bad_rate + " --out " + run.string()), 2) << output();
   EXPECT_TRUE(contains("error: " + bad_rate + ": field 'learning_rate': must be in (0, 1], got 1e+300")) << output();
   EXPECT_FALSE(fs::exists(run));
+
+  // The second of two equal keys won silently: this trained 1 step.
+  const std::string twice = config(R"({"steps": 10, "warmup_steps": 0, "steps": 1})");
+  EXPECT_EQ(train("--config " + twice + " --out " + run.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + twice + ": field 'steps': duplicated key")) << output();
+  EXPECT_FALSE(fs::exists(run));
 }
 
 // Flags that override the config are named as typed: --lr inf wrote "learning_rate": null, which

@@ -16,6 +16,8 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
+#include "ffloc/io/tensor_checksums.h"
+#include "ffloc/io/testing/safetensors_edit.h"
 #include "ffloc/synthetic/synthetic.h"
 #include "ffloc/model/image_tensor.h"
 #include "ffloc/model/model_loader.h"
@@ -70,6 +72,13 @@ TEST(TrainingConfig, ReadsJsonAndNamesBadFields) {
   const TrainingConfig head_only = trainingConfigFromJson({{"trained_parameters", {"match_head.", "decoder_embed."}}}, "cfg.json");
   EXPECT_EQ(head_only.trained_parameters, (std::vector<std::string>{"match_head.", "decoder_embed."}));
   EXPECT_TRUE(contains(errorOf([] { readTrainingConfig("/nonexistent/cfg.json"); }), "/nonexistent/cfg.json"));
+}
+
+// The second of two equal keys won silently: {"steps": 10, "steps": 20} trained 20 steps.
+TEST(TrainingConfig, RefusesAKeyGivenTwice) {
+  const fs::path file = testing::makeTempDir("ffloc-train-config") / "cfg.json";
+  std::ofstream(file) << R"({"steps": 10, "steps": 20})";
+  EXPECT_EQ(errorOf([&] { readTrainingConfig(file); }), file.string() + ": field 'steps': duplicated key");
 }
 
 // nlohmann's get<int>() truncated 1.5 to 1, turned a seed of 1e30 into 0 and wrapped -1 to
@@ -482,6 +491,62 @@ TEST(Trainer, RefusesAnIncompatibleResume) {
   EXPECT_TRUE(contains(errorOf([&] { Trainer(config, {smallScene()}, run, true); }), "field 'batch_size'"));
   std::ofstream(run / "checkpoints" / "latest") << "../etc\n";
   EXPECT_TRUE(contains(errorOf([&] { Trainer(smallConfig(), {smallScene()}, run, true); }), "latest:1"));
+}
+
+// A checkpoint with a flipped byte resumed with other weights or moments, without a word.
+TEST(Trainer, RefusesToResumeFromADamagedCheckpoint) {
+  const TrainingConfig config = smallConfigOfSteps(2);
+  const fs::path run = testing::makeTempDir("ffloc-train-damaged");
+  fs::path folder;
+  {
+    Trainer trainer(config, {smallScene()}, run);
+    trainer.step();
+    folder = trainer.saveCheckpoint();
+  }
+  const fs::path model = folder / "model.safetensors", optimizer = folder / "optimizer.safetensors";
+  const fs::path kept = testing::makeTempDir("ffloc-train-damaged-kept");
+  fs::copy(folder, kept, fs::copy_options::recursive);
+  const auto restore = [&] { fs::copy(kept, folder, fs::copy_options::recursive | fs::copy_options::overwrite_existing); };
+  const auto resume = [&] { return errorOf([&] { Trainer(config, {smallScene()}, run, true); }); };
+
+  testing::flipTensorByte(model, "dec_blocks.0.attn.qkv.weight", 6);
+  EXPECT_EQ(resume(), model.string() + ": tensor 'dec_blocks.0.attn.qkv.weight': checksum mismatch (the file is corrupted)");
+  restore();
+  testing::flipTensorByte(optimizer, "exp_avg_sq.map_head.weight", 1);
+  EXPECT_EQ(resume(), optimizer.string() + ": tensor 'exp_avg_sq.map_head.weight': checksum mismatch (the file is corrupted)");
+  restore();
+  // The settings a resume is checked against, edited as a whole entry.
+  testing::editMetadata(model, [](nlohmann::json& metadata) {
+    nlohmann::json settings = nlohmann::json::parse(metadata["training_config"].get<std::string>());
+    settings["learning_rate"] = 0.5;
+    metadata["training_config"] = settings.dump();
+  });
+  EXPECT_EQ(resume(), model.string() + ": metadata checksum mismatch (the file is corrupted)");
+  restore();
+  EXPECT_EQ(Trainer(config, {smallScene()}, run, true).stepsDone(), 1);
+}
+
+// Checkpoints written before checksums have none, and resume as they did.
+TEST(Trainer, ResumesACheckpointWithoutChecksumsAsBefore) {
+  const TrainingConfig config = smallConfigOfSteps(2);
+  const fs::path checked = testing::makeTempDir("ffloc-train-checked");
+  fs::path folder;
+  {
+    Trainer trainer(config, {smallScene()}, checked);
+    trainer.step();
+    folder = trainer.saveCheckpoint();
+  }
+  const fs::path unchecked = testing::makeTempDir("ffloc-train-unchecked");
+  fs::copy(checked, unchecked, fs::copy_options::recursive);
+  for (const char* name : {"model.safetensors", "optimizer.safetensors"}) {
+    testing::editMetadata(unchecked / "checkpoints" / folder.filename() / name,
+                          [](nlohmann::json& metadata) { metadata.erase(kChecksumsMetadataKey); });
+  }
+  Trainer a(config, {smallScene()}, checked, true), b(config, {smallScene()}, unchecked, true);
+  EXPECT_EQ(b.stepsDone(), 1);
+  EXPECT_EQ(a.step().loss, b.step().loss);
+  const auto x = parameterSnapshot(a.model()), y = parameterSnapshot(b.model());
+  for (size_t i = 0; i < x.size(); ++i) EXPECT_TRUE(at::equal(x[i].second, y[i].second)) << x[i].first;
 }
 
 // `--resume --steps 1` on a run at step 2 printed "steps 2 -> 1", rewrote the checkpoint and

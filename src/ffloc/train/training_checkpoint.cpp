@@ -6,8 +6,11 @@
 #include <vector>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/json_fields.h"
+#include "ffloc/io/tensor_checksums.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/model/tensor_conversion.h"
+#include "ffloc/model/torch_threads.h"
 
 namespace ffloc {
 
@@ -121,21 +124,20 @@ std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) 
     throwInputError(latest.string(), 1, "checkpoint folder '" + info.folder.string() + "' is incomplete");
   }
   const auto archive = openSafetensors(model_path);
+  // The tensors are verified as the model loads; the step and the settings are read here.
+  verifyMetadataChecksum(*archive);
   info.step = parseCount(*archive, "step", 0);
   // Checkpoints from before data-parallel training were written by one process.
   info.world_size = archive->metadata().count("world_size") ? static_cast<int>(parseCount(*archive, "world_size", 1)) : 1;
-  try {
-    info.config = trainingConfigFromJson(nlohmann::json::parse(metadataField(*archive, "training_config")),
-                                         model_path.string() + " metadata 'training_config'");
-  } catch (const nlohmann::json::exception& e) {
-    throwInputError(model_path.string(), 0, std::string("metadata 'training_config': invalid JSON: ") + e.what());
-  }
+  const std::string settings = model_path.string() + ": metadata 'training_config'";
+  info.config = trainingConfigFromJson(parseJson(metadataField(*archive, "training_config"), settings), settings);
   return info;
 }
 
 void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer) {
   const fs::path path = checkpoint.folder / "optimizer.safetensors";
   const auto archive = openSafetensors(path);
+  verifyChecksums(*archive, torchThreadCount());
   const int64_t step = parseCount(*archive, "step", 0);
   if (step != checkpoint.step) {
     throwInputError(path.string(), 0, "metadata 'step' is " + std::to_string(step) + " but model.safetensors says " +

@@ -19,7 +19,10 @@ namespace ffloc {
 // The folder is written under a temporary name and renamed, then <run_dir>/checkpoints/latest
 // (one line: the folder name) is replaced atomically, so a crash at any point leaves the
 // previous checkpoint intact and `latest` always names a complete one. Everything random in a
-// run derives from (seed, step), so the step is the whole RNG and data-position state.
+// run derives from (seed, step), so the step is the whole RNG and data-position state. Both files
+// carry checksums of every tensor and of their metadata (io/tensor_checksums.h), verified on
+// every read, so a damaged checkpoint is refused instead of resumed with other values;
+// checkpoints written before them are read unchecked.
 struct CheckpointInfo {
   std::filesystem::path folder;
   int64_t step = 0;
@@ -32,11 +35,11 @@ std::filesystem::path writeTrainingCheckpoint(const std::filesystem::path& run_d
                                               int keep_last, int world_size = 1);
 
 // The checkpoint `latest` names; nullopt when run_dir has none. InputError naming the file for a
-// broken `latest`, a missing folder or unreadable metadata.
+// broken `latest`, a missing folder or unreadable or damaged metadata.
 std::optional<CheckpointInfo> latestTrainingCheckpoint(const std::filesystem::path& run_dir);
 
 // Restores AdamW's moments and step from a checkpoint folder (after the model weights were
-// loaded from its model.safetensors).
+// loaded from its model.safetensors); InputError naming the file and the tensor for a damaged one.
 void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer);
 
 }  // namespace ffloc

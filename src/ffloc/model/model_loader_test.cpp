@@ -1,0 +1,72 @@
+#include "ffloc/model/model_loader.h"
+
+#include <gtest/gtest.h>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+#include "ffloc/data/scene_test_util.h"
+#include "ffloc/io/tensor_checksums.h"
+#include "ffloc/io/testing/safetensors_edit.h"
+
+namespace ffloc {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::expectInputError;
+
+// The head count, which no tensor's shape shows, changed in a saved model's metadata.
+void setEncoderHeads(const fs::path& file, int heads) {
+  testing::editMetadata(file, [heads](nlohmann::json& metadata) {
+    nlohmann::json architecture = nlohmann::json::parse(metadata["architecture"].get<std::string>());
+    architecture["enc_heads"] = heads;
+    metadata["architecture"] = architecture.dump();
+  });
+}
+
+void removeChecksums(const fs::path& file) {
+  testing::editMetadata(file, [](nlohmann::json& metadata) { metadata.erase(kChecksumsMetadataKey); });
+}
+
+// A flipped byte in a saved model loaded as other weights, without a word.
+TEST(ModelLoader, RefusesASavedModelWhoseTensorsOrMetadataChanged) {
+  const fs::path dir = testing::makeTempDir("ffloc-model-checksums");
+  LoadedModel original = loadModel("random:tiny:3");
+  const fs::path file = dir / "model.safetensors";
+  saveModel(*original.model, file);
+  LoadedModel reloaded = loadModel(file.string());
+  EXPECT_EQ(parameterFingerprint(*reloaded.model), parameterFingerprint(*original.model));
+
+  const fs::path flipped = dir / "flipped.safetensors";
+  fs::copy_file(file, flipped);
+  testing::flipTensorByte(flipped, "map_head.weight", 3);
+  expectInputError([&] { loadModel(flipped.string()); },
+                   {flipped.string() + ": tensor 'map_head.weight': checksum mismatch (the file is corrupted)"});
+
+  const fs::path heads = dir / "heads.safetensors";
+  fs::copy_file(file, heads);
+  setEncoderHeads(heads, 2);
+  expectInputError([&] { loadModel(heads.string()); },
+                   {heads.string() + ": metadata checksum mismatch (the file is corrupted)"});
+}
+
+// The shipped models, DUSt3R's checkpoints and models saved before checksums have none, and
+// load as they did, damage included.
+TEST(ModelLoader, FilesWithoutChecksumsLoadAsBefore) {
+  EXPECT_EQ(openSafetensors(defaultModelPath())->metadata().count(kChecksumsMetadataKey), 0u);
+  EXPECT_EQ(loadModel("default").id.rfind("fastforward/sift-e256x0-d128x4/", 0), 0u);
+
+  const fs::path dir = testing::makeTempDir("ffloc-model-unchecked");
+  LoadedModel original = loadModel("random:tiny:3");
+  const fs::path file = dir / "model.safetensors";
+  saveModel(*original.model, file);
+  removeChecksums(file);
+  EXPECT_EQ(parameterFingerprint(*loadModel(file.string()).model), parameterFingerprint(*original.model));
+  setEncoderHeads(file, 2);
+  testing::flipTensorByte(file, "map_head.weight", 3);
+  LoadedModel damaged = loadModel(file.string());
+  EXPECT_EQ(damaged.model->config().dust3r.enc_heads, 2);
+  EXPECT_NE(parameterFingerprint(*damaged.model), parameterFingerprint(*original.model));
+}
+
+}  // namespace
+}  // namespace ffloc
