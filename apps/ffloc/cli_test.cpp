@@ -219,6 +219,25 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
       << run.output;
 }
 
+// eval --map of another scene's map scored its poses against this scene's truth without a word.
+TEST_F(Cli, EvalWarnsWhenTheMapIsOfAnotherCapture) {
+  const auto [scene, map] = mappedSyntheticScene(6, "classical");
+  ASSERT_FALSE(HasFailure());
+  const CliRun own = runCli({"eval", "--dataset", scene.string(), "--map", map.string(), "--quiet"});
+  EXPECT_EQ(own.exit_code, 0) << own.output;
+  EXPECT_FALSE(contains(own.output, "warning")) << own.output;
+  // Seed 4: the same frame names, other poses.
+  const fs::path other = dir_ / "other";
+  ASSERT_EQ(runCli({"synth", "--out", other.string(), "--seed", "4", "--mapping-frames", "6", "--query-frames", "1",
+                    "--kind", "indoor", "--quiet"}).exit_code, 0);
+  const CliRun elsewhere =
+      runCli({"eval", "--dataset", (other / "scene_000_indoor").string(), "--map", map.string(), "--quiet"});
+  EXPECT_EQ(elsewhere.exit_code, 0) << elsewhere.output;
+  EXPECT_TRUE(contains(elsewhere.output, "warning: --map '" + map.string() +
+                                             "': the map holds none of the 6 mapping frames of scene_000_indoor"))
+      << elsewhere.output;
+}
+
 // A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a
 // principal point outside the image) was reported without its line: in a long list, no telling which.
 TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {

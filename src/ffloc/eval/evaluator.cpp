@@ -1,8 +1,8 @@
 #include "ffloc/eval/evaluator.h"
 
+#include <algorithm>
 #include <chrono>
 #include <limits>
-#include <unordered_map>
 
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
@@ -114,14 +114,26 @@ std::vector<FrameResult> evaluateLocalizer(const Scene& scene, const Localizer& 
 }
 
 std::vector<std::string> mapScoringWarnings(const Scene& scene, const std::vector<MapCamera>& map_cameras) {
-  std::unordered_map<std::string, const Pose*> mapped;
-  for (const MapCamera& camera : map_cameras) mapped.emplace(camera.name, &camera.camera_to_world);
+  // By pose, not by name: names depend on the reader (a dataset converted to another format and
+  // mapped from there is the same capture under other names), while synthetic scenes of other
+  // seeds share every name. Sorted by the centre's x, a frame compares with the few map cameras
+  // near its own.
+  std::vector<const Pose*> mapped;
+  for (const MapCamera& camera : map_cameras) mapped.push_back(&camera.camera_to_world);
+  std::sort(mapped.begin(), mapped.end(), [](const Pose* a, const Pose* b) { return a->t.x() < b->t.x(); });
+  const auto is_mapped = [&](const Pose& pose) {
+    const double window = 2e-5 * std::max(1.0, pose.t.norm());
+    auto it = std::lower_bound(mapped.begin(), mapped.end(), pose.t.x() - window,
+                               [](const Pose* a, double x) { return a->t.x() < x; });
+    for (; it != mapped.end() && (*it)->t.x() <= pose.t.x() + window; ++it)
+      if (isSamePoseAsMapped(**it, pose)) return true;
+    return false;
+  };
   const auto count_mapped = [&](Split split, std::string& first) {
     size_t count = 0;
     for (const size_t index : scene.indices(split)) {
       const Frame& frame = scene.frames[index];
-      const auto found = mapped.find(frame.name);
-      if (found == mapped.end() || !isSamePoseAsMapped(*found->second, frame.camera_to_world)) continue;
+      if (!is_mapped(frame.camera_to_world)) continue;
       if (count++ == 0) first = frame.name;
     }
     return count;

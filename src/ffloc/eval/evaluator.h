@@ -35,8 +35,8 @@ std::vector<FrameResult> evaluateLocalizer(const Scene& scene, const Localizer& 
 // What makes a saved map's scores mislead on `scene`, one sentence each, or none: query frames
 // the map holds (each is then localized against itself), or none of the scene's mapping frames
 // (a map of another capture is scored against this one's ground truth, right only when both share
-// a coordinate frame). A frame is the map's when the map holds its name with its pose (synthetic
-// scenes of other seeds share every name). Not refused: a map of the same scene's other
+// a coordinate frame). A frame is the map's when the map holds a camera of its pose, whatever its
+// name. Not refused: a map of the same scene's other
 // capture, or of every frame, is a deliberate choice; the caller warns.
 std::vector<std::string> mapScoringWarnings(const Scene& scene, const std::vector<MapCamera>& map_cameras);
 
