@@ -30,7 +30,7 @@ namespace {
 // One query at a time on the model: each already uses every torch thread, and the model is
 // shared. Unlike a mutex, the wait for a turn ends when the server stops: a query that has not
 // started by then is not run, so a stop waits for the query running, not for every query
-// waiting behind it (up to --max-waiting, each as long as a query takes).
+// waiting behind it (up to max_waiting_queries, each as long as a query takes).
 class QueryTurns {
  public:
   // Waits for the model; false when the server stopped first.
@@ -516,7 +516,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       if (!turn.taken()) {
         replyError(response, 503,
                    "server stopping: the query had not started when the server began to stop; retry later");
-        response.set_header("Connection", "close");
+        DeadlineServer::closeAfterAnswer(response);
         return;
       }
       // A client that left while its query waited (a timeout, a user giving up) would never
@@ -557,7 +557,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     // connection ends after the answer.
     if (const DeadlineServer::RequestCut cut = DeadlineServer::requestCut(); cut.status != 0) {
       replyError(response, cut.status, cut.message);
-      response.set_header("Connection", "close");
+      DeadlineServer::closeAfterAnswer(response);
     }
     if (response.body.empty())
       replyError(response, response.status, libraryErrorMessage(response.status, options_.max_body_bytes));

@@ -73,8 +73,7 @@ synthetic::RenderedView renderSyntheticFrame(const SyntheticScene& scene, int fr
 // empty, and a failed run leaves nothing in it (writeIntoNewFolder).
 Scene generateSyntheticScene(const SyntheticOptions& options, const std::filesystem::path& out_dir);
 
-// The most scenes one batch writes (`ffloc synth --scenes`): 10 000 at the default size take about
-// 180 GB.
+// The most scenes one batch writes: 10 000 at the default size take about 180 GB.
 constexpr int kMaxSyntheticScenes = 10000;
 
 // A lower bound on the bytes one scene takes on disk: its depth maps, float32 and uncompressed
