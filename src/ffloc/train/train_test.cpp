@@ -493,16 +493,18 @@ TEST(Trainer, RefusesAnIncompatibleResume) {
   EXPECT_TRUE(contains(errorOf([&] { Trainer(smallConfig(), {smallScene()}, run, true); }), "latest:1"));
 }
 
+// The checkpoint folder of a run of `config` in `run` after one step.
+fs::path checkpointAfterOneStep(const TrainingConfig& config, const fs::path& run) {
+  Trainer trainer(config, {smallScene()}, run);
+  trainer.step();
+  return trainer.saveCheckpoint();
+}
+
 // A checkpoint with a flipped byte resumed with other weights or moments, without a word.
 TEST(Trainer, RefusesToResumeFromADamagedCheckpoint) {
   const TrainingConfig config = smallConfigOfSteps(2);
   const fs::path run = testing::makeTempDir("ffloc-train-damaged");
-  fs::path folder;
-  {
-    Trainer trainer(config, {smallScene()}, run);
-    trainer.step();
-    folder = trainer.saveCheckpoint();
-  }
+  const fs::path folder = checkpointAfterOneStep(config, run);
   const fs::path model = folder / "model.safetensors", optimizer = folder / "optimizer.safetensors";
   const fs::path kept = testing::makeTempDir("ffloc-train-damaged-kept");
   fs::copy(folder, kept, fs::copy_options::recursive);
@@ -530,12 +532,7 @@ TEST(Trainer, RefusesToResumeFromADamagedCheckpoint) {
 TEST(Trainer, ResumesACheckpointWithoutChecksumsAsBefore) {
   const TrainingConfig config = smallConfigOfSteps(2);
   const fs::path checked = testing::makeTempDir("ffloc-train-checked");
-  fs::path folder;
-  {
-    Trainer trainer(config, {smallScene()}, checked);
-    trainer.step();
-    folder = trainer.saveCheckpoint();
-  }
+  const fs::path folder = checkpointAfterOneStep(config, checked);
   const fs::path unchecked = testing::makeTempDir("ffloc-train-unchecked");
   fs::copy(checked, unchecked, fs::copy_options::recursive);
   for (const char* name : {"model.safetensors", "optimizer.safetensors"}) {
