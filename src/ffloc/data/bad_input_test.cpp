@@ -1,6 +1,7 @@
 // Bad input of every kind is an InputError naming the file and the line or field. Each test
 // writes a small dataset into a temporary folder and breaks one thing.
 #include <gtest/gtest.h>
+#include <limits>
 #include <sys/stat.h>
 
 #include <opencv2/imgcodecs.hpp>
@@ -167,7 +168,7 @@ TEST(BadInput, ColmapCameraModelsMapToOpenCv) {
   const auto dir = makeColmap();
   writeTextFile(dir / "sparse/0/cameras.txt",
                 "1 SIMPLE_PINHOLE 8 6 5 4 3\n2 PINHOLE 8 6 5 6 4 3\n3 SIMPLE_RADIAL 8 6 5 4 3 0.1\n"
-                "4 RADIAL 8 6 5 4 3 0.1 0.2\n5 OPENCV 8 6 5 6 4 3 0.1 0.2 0.3 0.4\n");
+                "4 RADIAL 8 6 5 4 3 0.1 0.2\n5 OPENCV 8 6 5 6 4 3 0.1 0.2 0.003 0.004\n");
   std::string images;
   for (int id = 1; id <= 5; ++id) {
     writeImage(dir / "images" / (std::to_string(id) + ".png"), 8, 6);
@@ -178,7 +179,7 @@ TEST(BadInput, ColmapCameraModelsMapToOpenCv) {
   const Scene scene = loadDataset(dir);
   ASSERT_EQ(scene.frames.size(), 5u);
   const std::vector<std::vector<double>> distortion = {
-      {}, {}, {0.1, 0, 0, 0}, {0.1, 0.2, 0, 0}, {0.1, 0.2, 0.3, 0.4}};
+      {}, {}, {0.1, 0, 0, 0}, {0.1, 0.2, 0, 0}, {0.1, 0.2, 0.003, 0.004}};
   for (size_t i = 0; i < 5; ++i) {
     const Intrinsics& K = scene.frames[i].intrinsics;
     EXPECT_EQ(K.fx, 5.0);
@@ -465,36 +466,47 @@ TEST(BadInput, StrechaErrorsNameTheLine) {
   expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:10:", "0000.jpg not found"});
 }
 
-// A coefficient beyond any lens's (k1 = 1e10) was read as a lens, and NaN passed every reader that
-// reads distortion; each now names its file and line or field.
+// A distortion beyond any lens's (k1 = 1e10) was read as a lens, and NaN passed every reader that
+// reads distortion; each now names its file and line or field. What is refused is what the model
+// does over the image, not a coefficient's size: a narrow lens's k2 = -500 is read.
 TEST(BadInput, DistortionBeyondAnyLensIsRefusedNamingFileAndField) {
   auto dir = makeColmap();
   writeTextFile(dir / "sparse/0/cameras.txt", "1 OPENCV 8 6 5 5 4 3 1e10 0 0 0\n");
   expectInputError([&] { loadDataset(dir); },
-                   {"cameras.txt:1: k1 1e+10: no lens's distortion coefficient exceeds 100 in magnitude"});
-  writeTextFile(dir / "sparse/0/cameras.txt", "1 RADIAL 8 6 5 4 3 0.1 -100.5\n");
-  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1: k2 -100.5"});
+                   {"cameras.txt:1: k1 1e+10: moves the image corner (0, 0) by 3.2e+10 px, more than the 8x6 "
+                    "image's diagonal (10 px)"});
+  // Every digit read: six significant digits printed "100".
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 RADIAL 8 6 5 4 3 0.1 -100.0000001\n");
+  expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1: k1 0.1, k2 -100.0000001: moves the image corner"});
   writeTextFile(dir / "sparse/0/cameras.txt", "1 FULL_OPENCV 8 6 5 5 4 3 0 0 0 0 0 0 nan 0\n");
   expectInputError([&] { loadDataset(dir); }, {"cameras.txt:1: k5 nan: distortion coefficients must be finite"});
-  writeTextFile(dir / "sparse/0/cameras.txt", "1 OPENCV 8 6 5 5 4 3 100 -100 0 0\n");
-  EXPECT_EQ(loadDataset(dir).frames[0].intrinsics.distortion, (std::vector<double>{100, -100, 0, 0}));
+  // A 60 mm macro lens (fx = 8000 px on 640 x 480, here scaled to 8 x 6) and a wide-angle
+  // rational-model calibration.
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 FULL_OPENCV 8 6 100 100 4 3 0 -500 0 0 300 0 0 0\n");
+  EXPECT_EQ(loadDataset(dir).frames[0].intrinsics.distortion, (std::vector<double>{0, -500, 0, 0, 300, 0, 0, 0}));
+  writeTextFile(dir / "sparse/0/cameras.txt", "1 FULL_OPENCV 8 6 4 4 4 3 25 10 0 0 0 25 15 0\n");
+  EXPECT_EQ(loadDataset(dir).frames[0].intrinsics.distortion, (std::vector<double>{25, 10, 0, 0, 0, 25, 15, 0}));
 
   expectInputError([&] { loadDataset(makeNerf("", R"(, "k1": 1e10)")); },
-                   {"transforms_train.json", "field 'k1': 1e+10: no lens's distortion coefficient"});
-  expectInputError([&] { loadDataset(makeNerf(R"(, "p2": -300)")); }, {"transforms_train.json", "frames[0].p2", "-300"});
+                   {"transforms_train.json", "field 'k1': k1 1e+10: moves the image corner"});
+  expectInputError([&] { loadDataset(makeNerf(R"(, "k1": 0.01, "p2": -300)")); },
+                   {"transforms_train.json", "field 'frames[0].p2': k1 0.01, p2 -300: moves"});
 
   dir = makeStrecha();
   writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
                 "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 1e10\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n8 6\n");
-  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:4: k3 1e+10"});
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:4: k3 1e+10: moves the image corner"});
 
-  // Queries pass the same bound.
-  Intrinsics query;
-  query.fx = query.fy = 5;
-  query.cx = 3.5;
-  query.cy = 2.5;
-  query.distortion = {1e10, 0, 0, 0};
-  expectInputError([&] { checkIntrinsicsFitImage(query, 8, 6); }, {"distortion: k1 1e+10"});
+  // Queries pass the same check, for the size of their image.
+  Intrinsics query{500, 500, 319.5, 239.5, 0, 0, {320, 0, 0, 0}};
+  expectInputError([&] { checkIntrinsicsFitImage(query, 640, 480); },
+                   {"distortion: k1 320: moves the image corner (0, 0) by 8.1e+04 px, more than the 640x480 image's "
+                    "diagonal (800 px)"});
+  query.distortion = {std::numeric_limits<double>::infinity(), 0, 0, 0};
+  expectInputError([&] { checkIntrinsicsFitImage(query, 640, 480); }, {"distortion: k1 inf: distortion coefficients must be finite"});
+  query.fx = query.fy = 8000;
+  query.distortion = {0, -500, 0, 0, 300};
+  EXPECT_NO_THROW(checkIntrinsicsFitImage(query, 640, 480));
 }
 
 }  // namespace

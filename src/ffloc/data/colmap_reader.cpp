@@ -70,9 +70,9 @@ std::map<long, Intrinsics> readCameras(const fs::path& file) {
     for (size_t i = 4; i < tokens.size(); ++i)
       parameters.push_back(parseDouble(tokens[i], file, line.number, "parameter " + std::to_string(i - 3)));
     Intrinsics K = colmapIntrinsics(model, parameters);
-    requireLensDistortion(K.distortion, file, line.number);
     K.width = imageSide(tokens[2], file, line.number, "WIDTH");
     K.height = imageSide(tokens[3], file, line.number, "HEIGHT");
+    requireLensDistortion(K, file, line.number);
     if (!K.isValid()) throwInputError(file.string(), line.number, "invalid camera (size and focal length must be positive)");
     if (!cameras.emplace(id, K).second)
       throwInputError(file.string(), line.number, "duplicate CAMERA_ID " + std::to_string(id));

@@ -1,6 +1,5 @@
 #include "ffloc/data/format_io.h"
 
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -15,12 +14,6 @@
 namespace ffloc {
 
 namespace fs = std::filesystem;
-
-std::string formatNumber(double value) {
-  char buffer[64];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
-}
 
 Pose cameraToWorldFromQuaternion(const double q[4], const Eigen::Vector3d& t, const fs::path& file, int line) {
   const double norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);

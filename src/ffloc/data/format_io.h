@@ -4,15 +4,13 @@
 #include <string>
 #include <vector>
 
+#include "ffloc/core/number_text.h"
 #include "ffloc/data/scene.h"
 
 // What the benchmark-format readers and writers (mapfree, ace, rio10, indoor6, kapture) share:
-// number formatting that round-trips, pose conversions with their checks, and copying a frame's
+// number formatting that round-trips (core/number_text.h), pose conversions with their checks, and copying a frame's
 // image and depth into another layout.
 namespace ffloc {
-
-// The shortest decimal text that parses back to exactly `value`, so write -> read is lossless.
-std::string formatNumber(double value);
 
 // A world-to-camera pose given as a Hamilton quaternion (scalar first) and a translation, as
 // COLMAP, kapture and map-free write it, turned into the camera-to-world pose a Frame holds.

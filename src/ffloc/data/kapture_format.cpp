@@ -105,9 +105,9 @@ std::map<std::string, Sensor> readSensors(const fs::path& file) {
       for (size_t i = 6; i < row.fields.size(); ++i)
         parameters.push_back(parseDouble(row.fields[i], file, row.number, "parameter " + std::to_string(i - 5)));
       sensor.intrinsics = colmapIntrinsics(model, parameters);
-      requireLensDistortion(sensor.intrinsics.distortion, file, row.number);
       sensor.intrinsics.width = static_cast<int>(parseInteger(row.fields[4], file, row.number, "width"));
       sensor.intrinsics.height = static_cast<int>(parseInteger(row.fields[5], file, row.number, "height"));
+      requireLensDistortion(sensor.intrinsics, file, row.number);
       if (!sensor.intrinsics.isValid())
         throwInputError(file.string(), row.number, "invalid camera (size and focal length must be positive)");
     }

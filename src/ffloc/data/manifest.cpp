@@ -33,10 +33,10 @@ Intrinsics readCamera(const JsonFields& camera) {
     intrinsics.distortion = camera.numbers("distortion");
     const size_t n = intrinsics.distortion.size();
     if (n != 4 && n != 5 && n != 8) camera.fail("distortion", "expected 4, 5 or 8 OpenCV coefficients");
-    const std::string problem = distortionProblem(intrinsics.distortion);
-    if (!problem.empty()) camera.fail("distortion", problem);
   }
   if (!intrinsics.isValid()) camera.fail("", "invalid intrinsics (need positive focal lengths and image size)");
+  const std::string problem = distortionProblem(intrinsics);
+  if (!problem.empty()) camera.fail("distortion", problem);
   return intrinsics;
 }
 

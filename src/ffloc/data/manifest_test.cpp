@@ -160,7 +160,7 @@ TEST(Manifest, RejectsBadFieldsNamingThem) {
       {"\"metric\": true", "\"metric\": true, \"units\": \"cm\"", "field 'units': unknown field"},
       // Read as a lens, without a word.
       {"\"cy\": 1}", "\"cy\": 1, \"distortion\": [1e10, 0, 0, 0]}",
-       "field 'cameras.0.distortion': k1 1e+10: no lens's distortion coefficient exceeds 100 in magnitude"},
+       "field 'cameras.0.distortion': k1 1e+10: moves the image corner"},
   };
   const auto dir = testing::makeTempDir("ffloc-manifest");
   writeImage(dir / "a.png", 4, 3);

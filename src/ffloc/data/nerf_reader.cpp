@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 
 #include "ffloc/core/error.h"
@@ -98,12 +99,9 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
   intrinsics.cx = (keys.has("cx") ? keys.number("cx") : 0.5 * w) - 0.5;
   intrinsics.cy = (keys.has("cy") ? keys.number("cy") : 0.5 * h) - 0.5;
 
+  const char* const distortion_keys[] = {"k1", "k2", "p1", "p2", "k3"};
   std::vector<double> distortion;
-  for (const char* key : {"k1", "k2", "p1", "p2", "k3"}) {
-    distortion.push_back(keys.has(key) ? keys.number(key) : 0.0);
-    const std::string problem = distortionCoefficientProblem(distortion.back());
-    if (!problem.empty()) keys.owner(key).fail(key, problem);
-  }
+  for (const char* key : distortion_keys) distortion.push_back(keys.has(key) ? keys.number(key) : 0.0);
   if (distortion[4] == 0.0) distortion.pop_back();
   bool distorted = false;
   for (double d : distortion) distorted = distorted || d != 0.0;
@@ -114,6 +112,15 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
 
   if (!intrinsics.isValid())
     keys.owner("fl_x").fail("", "invalid intrinsics (need positive focal length and image size)");
+  const std::string problem = distortionProblem(intrinsics);
+  if (!problem.empty()) {
+    // The coefficients act together; the field named is the one farthest from 0, the likeliest
+    // culprit (the message names every coefficient that is not 0).
+    const size_t culprit = std::max_element(distortion.begin(), distortion.end(),
+                                            [](double a, double b) { return std::abs(a) < std::abs(b); }) -
+                           distortion.begin();
+    keys.owner(distortion_keys[culprit]).fail(distortion_keys[culprit], problem);
+  }
   return intrinsics;
 }
 

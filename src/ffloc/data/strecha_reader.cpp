@@ -52,7 +52,6 @@ Frame readCameraFile(const fs::path& file, const fs::path& image) {
   K.cy = rows[1][2];
   const std::vector<double>& radial = rows[3];
   if (radial[0] != 0 || radial[1] != 0 || radial[2] != 0) K.distortion = {radial[0], radial[1], 0, 0, radial[2]};
-  requireLensDistortion(K.distortion, file, lines[3].number);
   Eigen::Matrix3d R;
   for (int r = 0; r < 3; ++r) R.row(r) = Eigen::RowVector3d(rows[4 + r][0], rows[4 + r][1], rows[4 + r][2]);
   frame.camera_to_world.R = validatedRotation(R, file, lines[4].number);
@@ -67,6 +66,7 @@ Frame readCameraFile(const fs::path& file, const fs::path& image) {
   K.width = static_cast<int>(rows[8][0]);
   K.height = static_cast<int>(rows[8][1]);
   if (!K.isValid()) throwInputError(file.string(), lines[8].number, "invalid image size or focal length");
+  requireLensDistortion(K, file, lines[3].number);
   requireImageSize(image, K.width, K.height, file.string(), lines[8].number);
   frame.image_path = image;
   return frame;

@@ -90,8 +90,8 @@ std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::pa
   return values;
 }
 
-void requireLensDistortion(const std::vector<double>& coefficients, const std::filesystem::path& file, int line) {
-  const std::string problem = distortionProblem(coefficients);
+void requireLensDistortion(const Intrinsics& camera, const std::filesystem::path& file, int line) {
+  const std::string problem = distortionProblem(camera);
   if (!problem.empty()) throwInputError(file.string(), line, problem);
 }
 

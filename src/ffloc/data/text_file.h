@@ -9,6 +9,8 @@
 // Helpers the text-format readers share. Every failure is an InputError naming file and line.
 namespace ffloc {
 
+struct Intrinsics;
+
 struct TextLine {
   int number = 0;    // 1-based line number in the file
   std::string text;  // without the line end (LF or CRLF)
@@ -48,9 +50,11 @@ long parseInteger(const std::string& token, const std::filesystem::path& file, i
 // Every token of the line as a number.
 std::vector<double> parseNumbers(const TextLine& line, const std::filesystem::path& file);
 
-// Throws "<file>:<line>: <distortionProblem>" (geometry/camera.h) when a coefficient is not
-// finite or beyond any lens's.
-void requireLensDistortion(const std::vector<double>& coefficients, const std::filesystem::path& file, int line);
+// Throws "<file>:<line>: <distortionProblem>" (geometry/camera.h) when a coefficient is not finite
+// or the distortion moves the image's points beyond any lens's. Called once the camera's size and
+// focal lengths are read; without them only finiteness is checked here, and checkIntrinsicsFitImage
+// checks the rest for every frame.
+void requireLensDistortion(const Intrinsics& camera, const std::filesystem::path& file, int line);
 
 // A rows x cols matrix of finite numbers written one row per non-empty line (7-Scenes pose and
 // intrinsics files), with the line number of each row for later messages.

@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <sstream>
+#include <tuple>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 
 namespace ffloc {
 
@@ -95,25 +98,77 @@ cv::Mat undistortImage(const cv::Mat& image, const Intrinsics& camera) {
   return out;
 }
 
-std::string distortionCoefficientProblem(double coefficient) {
-  if (std::isfinite(coefficient) && std::abs(coefficient) <= kMaxDistortionCoefficient) return "";
-  std::ostringstream what;
-  what << coefficient << ": ";
-  if (std::isfinite(coefficient))
-    what << "no lens's distortion coefficient exceeds " << kMaxDistortionCoefficient << " in magnitude";
-  else
-    what << "distortion coefficients must be finite";
-  return what.str();
+namespace {
+
+// OpenCV's order, up to its longest form (thin prism and tilt terms).
+const char* const kDistortionNames[] = {"k1", "k2", "p1", "p2", "k3", "k4", "k5",
+                                        "k6", "s1", "s2", "s3", "s4", "taux", "tauy"};
+
+std::string coefficientName(size_t i) {
+  return i < std::size(kDistortionNames) ? kDistortionNames[i] : "coefficient " + std::to_string(i + 1);
 }
 
-std::string distortionProblem(const std::vector<double>& coefficients) {
-  // OpenCV's order, up to its longest form (thin prism and tilt terms).
-  static const char* const kNames[] = {"k1", "k2", "p1", "p2", "k3", "k4", "k5",
-                                       "k6", "s1", "s2", "s3", "s4", "taux", "tauy"};
-  for (size_t i = 0; i < coefficients.size(); ++i) {
-    const std::string problem = distortionCoefficientProblem(coefficients[i]);
-    if (!problem.empty())
-      return (i < std::size(kNames) ? kNames[i] : "coefficient " + std::to_string(i + 1)) + " " + problem;
+std::string pixelText(const cv::Point2d& p) { return "(" + formatNumber(p.x) + ", " + formatNumber(p.y) + ")"; }
+
+}  // namespace
+
+std::string distortionProblem(const Intrinsics& camera) {
+  const std::vector<double>& d = camera.distortion;
+  for (size_t i = 0; i < d.size(); ++i)
+    if (!std::isfinite(d[i])) return coefficientName(i) + " " + formatNumber(d[i]) + ": distortion coefficients must be finite";
+  if (!camera.hasDistortion() || !camera.isValid()) return "";
+  std::string named;
+  for (size_t i = 0; i < d.size(); ++i)
+    if (d[i] != 0.0) named += (named.empty() ? "" : ", ") + coefficientName(i) + " " + formatNumber(d[i]);
+  const size_t n = d.size();
+  if (n != 4 && n != 5 && n != 8 && n != 12 && n != 14)
+    return named + ": " + std::to_string(n) + " coefficients, where OpenCV's model takes 4, 5, 8, 12 or 14";
+
+  // Corners and edge midpoints (pixel centres), each approached from the principal point in steps
+  // fine enough to see a radial term turn back between the centre and the border.
+  const double right = camera.width - 1, bottom = camera.height - 1;
+  const cv::Point2d border[] = {{0, 0},         {right, 0},          {right, bottom},     {0, bottom},
+                                {right / 2, 0}, {right, bottom / 2}, {right / 2, bottom}, {0, bottom / 2}};
+  constexpr int kSteps = 32;
+  const cv::Point2d centre(camera.cx, camera.cy);
+  std::vector<cv::Point2d> undistorted;
+  std::vector<cv::Point3d> rays;
+  for (const cv::Point2d& end : border)
+    for (int step = 1; step <= kSteps; ++step) {
+      undistorted.push_back(centre + (end - centre) * (static_cast<double>(step) / kSteps));
+      rays.emplace_back((undistorted.back().x - camera.cx) / camera.fx, (undistorted.back().y - camera.cy) / camera.fy, 1);
+    }
+  std::vector<cv::Point2d> distorted;
+  cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), camera.cvK(), camera.cvDistortion(), distorted);
+
+  const auto where = [&](size_t i) {
+    if ((i + 1) % kSteps != 0) return "the pixel " + pixelText(undistorted[i]);
+    return std::string(i / kSteps < 4 ? "the image corner " : "the image edge's midpoint ") + pixelText(undistorted[i]);
+  };
+  size_t worst = 0;
+  double worst_shift = -1;
+  for (size_t i = 0; i < distorted.size(); ++i) {
+    const double shift = cv::norm(distorted[i] - undistorted[i]);
+    if (!std::isfinite(shift)) return named + ": sends " + where(i) + " to infinity";
+    if (shift > worst_shift) std::tie(worst, worst_shift) = std::tie(i, shift);
+  }
+  const double diagonal = std::hypot(camera.width, camera.height);
+  if (worst_shift > kMaxDistortionShift * diagonal) {
+    std::ostringstream what;
+    what << named << ": moves " << where(worst) << " by " << std::setprecision(2) << worst_shift
+         << " px, more than the " << camera.width << "x" << camera.height << " image's diagonal (" << std::setprecision(4)
+         << diagonal << " px): no lens's distortion does";
+    return what.str();
+  }
+  for (size_t i = 0; i < distorted.size(); i += kSteps) {
+    double reach = 0;
+    for (size_t j = i; j < i + kSteps; ++j) {
+      const double next = cv::norm(distorted[j] - centre);
+      if (!(next > reach))
+        return named + ": folds the image: on the way from the principal point to " + where(i + kSteps - 1) +
+               ", " + where(j) + " lands no farther out than the point before it (no lens's distortion does)";
+      reach = next;
+    }
   }
   return "";
 }
@@ -142,7 +197,10 @@ void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
          << " image (intrinsics must be in pixels of the image given)";
     throw InputError(what.str());
   }
-  const std::string distortion = distortionProblem(k.distortion);
+  Intrinsics sized = k;
+  sized.width = width;
+  sized.height = height;
+  const std::string distortion = distortionProblem(sized);
   if (!distortion.empty()) throw InputError("distortion: " + distortion);
 }
 

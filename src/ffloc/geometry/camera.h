@@ -39,25 +39,28 @@ struct Intrinsics {
 std::vector<Eigen::Vector2d> undistortPixels(const Intrinsics& camera,
                                              const std::vector<Eigen::Vector2d>& pixels);
 
-// The bound on the magnitude of every OpenCV distortion coefficient. The coefficients act on
-// normalised image coordinates (x/z, y/z), so no image size enters: ordinary lenses' radial
-// coefficients stay below 1 and the rational model's numerator and denominator terms of wide-angle
-// lenses reach tens, while a pixel value in a coefficient's place (a column out of place: a focal
-// length, a principal point) exceeds 100 for any image wider than 200 pixels. k1 = 1e10 was read
-// as a lens without a word.
-inline constexpr double kMaxDistortionCoefficient = 100;
+// How far distortion may move a point of the image, in image diagonals. The model is evaluated at
+// the normalised coordinates of the image's own points: there, barrel distortion that does not fold
+// the image moves a point by less than its distance from the principal point (under a diagonal),
+// and pincushion moves a telephoto's corner a few percent. No coefficient alone is bounded, as
+// narrow lenses' high-order terms are huge but harmless (a 60 mm macro lens's k2 = -500, k3 = 300
+// at fx = 8000 px move a 640 x 480 image's corner 1.2 px). A pixel value in a coefficient's place
+// is far beyond: k1 = 320 at fx = 500 moves that corner 100 diagonals, k1 = 1e10 by 3e9.
+inline constexpr double kMaxDistortionShift = 1.0;
 
-// What is wrong with one distortion coefficient, not finite or beyond kMaxDistortionCoefficient
-// ("1e+10: no lens's distortion coefficient exceeds 100 in magnitude"); "" when nothing is.
-std::string distortionCoefficientProblem(double coefficient);
-// The same for the first such coefficient in OpenCV's order (k1 k2 p1 p2 [k3 [k4 k5 k6]]), named
-// ("k1 1e+10: ...").
-std::string distortionProblem(const std::vector<double>& coefficients);
+// What is wrong with the distortion coefficients of `camera` (OpenCV's, k1 k2 p1 p2 [k3 [k4 k5 k6
+// [s1 s2 s3 s4 [taux tauy]]]]), "" when nothing is: a coefficient that is not finite ("k5 nan:
+// ..."), and, when the camera has a size and positive focal lengths, a model that, evaluated along
+// the lines from the principal point to the image's corners and edge midpoints, moves a point more
+// than kMaxDistortionShift diagonals or folds the image (a point farther out lands nearer the
+// principal point: two directions seen at one pixel, no lens's image). The coefficients that are
+// not 0 are named with every digit ("k1 320: moves the image corner (639, 479) by 8.2e+04 px ...").
+std::string distortionProblem(const Intrinsics& camera);
 
 // The checks intrinsics must pass for a `width` x `height` image, a query's or a mapping frame's:
 // the size they give (when they give one) is the image's, finite focal lengths in
 // (0, 1000 * long side], the principal point inside the image, distortion that passes
-// distortionProblem. InputError naming width, fx, fy, cx, cy or distortion.
+// distortionProblem for this size. InputError naming width, fx, fy, cx, cy or distortion.
 void checkIntrinsicsFitImage(const Intrinsics& intrinsics, int width, int height);
 
 // Resamples an image so it follows camera.undistorted(). Returns the input when not distorted.

@@ -108,6 +108,44 @@ TEST(Intrinsics, UndistortPixelsInvertsDistortion) {
   EXPECT_FALSE(c.undistorted().hasDistortion());
 }
 
+// Distortion is judged by what it does over the image, not coefficient by coefficient.
+TEST(Intrinsics, DistortionProblemJudgesWhatTheModelDoesOverTheImage) {
+  const auto camera = [](double f, std::vector<double> distortion) {
+    return Intrinsics{f, f, 319.5, 239.5, 640, 480, std::move(distortion)};
+  };
+  // A 60 mm macro lens's weakly constrained high-order terms: huge, and 1.2 px at the corner.
+  EXPECT_EQ(distortionProblem(camera(8000, {0, -500, 0, 0, 300})), "");
+  // A wide-angle rational-model calibration (k1 k2 p1 p2 k3 k4 k5 k6).
+  EXPECT_EQ(distortionProblem(camera(300, {25, 10, 0, 0, 0, 25, 15, 0})), "");
+  EXPECT_EQ(distortionProblem(camera(500, {-0.28, 0.07, 1e-4, -2e-4})), "");
+  // instant_ngp_fox's phone camera.
+  EXPECT_EQ(distortionProblem({1375.52, 1374.49, 554.058, 964.768, 1080, 1920,
+                               {0.0578421, -0.0805099, -0.000980296, 0.00015575}}),
+            "");
+
+  EXPECT_EQ(distortionProblem(camera(500, {1e10, 0, 0, 0})),
+            "k1 1e+10: moves the image corner (0, 0) by 2.5e+12 px, more than the 640x480 image's diagonal "
+            "(800 px): no lens's distortion does");
+  // A principal point in k1's column, printed as read.
+  EXPECT_NE(distortionProblem(camera(500, {320.0000001, 0, 0, 0})).find("k1 320.0000001: moves the image corner"),
+            std::string::npos);
+  EXPECT_NE(distortionProblem(camera(500, {-320, 0, 0, 0})).find("k1 -320: moves the image corner"), std::string::npos);
+  EXPECT_EQ(distortionProblem(camera(500, {0.1, std::nan(""), 0, 0})), "k2 nan: distortion coefficients must be finite");
+  EXPECT_EQ(distortionProblem(camera(500, {0.1, 0, 0, 0, 0, 0, 0, -std::numeric_limits<double>::infinity()})),
+            "k6 -inf: distortion coefficients must be finite");
+  // Within the diagonal at the border, but turning back on the way there: k1 = -1 at r = 0.8.
+  const std::string fold = distortionProblem(camera(500, {-1, 0, 0, 0}));
+  EXPECT_NE(fold.find("k1 -1: folds the image: on the way from the principal point to the image corner"),
+            std::string::npos)
+      << fold;
+  // A rational model whose denominator vanishes inside the image.
+  EXPECT_NE(distortionProblem(camera(500, {0, 0, 0, 0, 0, -2, 0, 0})).find("k4 -2: "), std::string::npos);
+  // Without a size only the numbers themselves can be judged.
+  EXPECT_EQ(distortionProblem(Intrinsics{500, 500, 319.5, 239.5, 0, 0, {1e10, 0, 0, 0}}), "");
+  EXPECT_THROW(checkIntrinsicsFitImage(Intrinsics{500, 500, 319.5, 239.5, 0, 0, {1e10, 0, 0, 0}}, 640, 480),
+               InputError);
+}
+
 TEST(Normalization, ReferenceAtOriginAndUnitScale) {
   std::mt19937 rng(3);
   std::vector<Pose> poses;
