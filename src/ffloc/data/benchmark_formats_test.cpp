@@ -345,6 +345,15 @@ TEST(Indoor6, BadInputNamesFileAndKeyOrLine) {
 
 constexpr const char* kKaptureHeader = "# kapture format: 1.1\n";
 
+// kapture's .depth: raw float32 metres, row-major; (0, 0) holds no depth.
+void writeRawDepth(const fs::path& path, int width, int height, float metres) {
+  fs::create_directories(path.parent_path());
+  std::vector<float> depth(static_cast<size_t>(width) * height, metres);
+  depth[0] = 0.0f;
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(depth.data()), static_cast<std::streamsize>(depth.size() * sizeof(float)));
+}
+
 fs::path kaptureSample() {
   const fs::path dir = testing::makeTempDir("ffloc-kapture") / "stairs";
   // mapping/: one RGB-D camera whose depth sensor shares its timestamps, identity pose.
@@ -357,12 +366,7 @@ fs::path kaptureSample() {
   writeTextFile(mapping / "records_depth.txt", std::string(kKaptureHeader) + "0, kinect_depth, seq-01/frame-000000.depth\n");
   writeTextFile(mapping / "trajectories.txt", std::string(kKaptureHeader) + "0, kinect_rgb, 1, 0, 0, 0, 0, 0, 0\n");
   writeImage(mapping / "records_data/seq-01/frame-000000.color.jpg", 64, 48);
-  {
-    std::vector<float> depth(64 * 48, 1.75f);
-    depth[0] = 0.0f;
-    std::ofstream(mapping / "records_data/seq-01/frame-000000.depth", std::ios::binary)
-        .write(reinterpret_cast<const char*>(depth.data()), static_cast<std::streamsize>(depth.size() * sizeof(float)));
-  }
+  writeRawDepth(mapping / "records_data/seq-01/frame-000000.depth", 64, 48, 1.75f);
   // query/: the trajectory gives the rig's world-to-device pose (rig centre (1, 2, 2.9)); rigs.txt
   // the rig-to-camera transform, whose translation +0.1 puts the camera at the rig's -x.
   const fs::path query = dir / "query/sensors";
@@ -420,19 +424,22 @@ TEST(Kapture, BadInputNamesFileAndLine) {
   expectInputError([&] { loadDataset(dir); }, {"trajectories.txt:3:", "a second pose for timestamp 7, device 'rig'"});
 }
 
-// The depth map of an instant goes to its image of the same size; one that fits none of its
-// instant's images was dropped, and the frame went on without depth.
-TEST(Kapture, DepthOfAnotherSizeThanItsImageIsRefused) {
+// ffloc reads registered depth only, whose sensor has its colour camera's intrinsics. Paired by
+// size, a depth sensor of another resolution (an Azure Kinect's 640x576 beside 1280x720 colour)
+// refused the whole dataset, and one of the image's size but another focal length was read as if
+// in the image's grid.
+TEST(Kapture, DepthGoesToTheImageWhoseCameraHasItsIntrinsics) {
   const fs::path dir = kaptureSample();
   const fs::path mapping = dir / "mapping/sensors";
-  writeTextFile(mapping / "sensors.txt", std::string(kKaptureHeader) +
-                                             "kinect_rgb, kinect, camera, PINHOLE, 64, 48, 100, 100, 32, 24\n"
-                                             "kinect_depth, kinect, depth, PINHOLE, 32, 24, 50, 50, 16, 12\n");
-  expectInputError([&] { loadDataset(dir); },
-                   {"records_depth.txt:2:", "frame-000000.depth is 32x24 (sensor 'kinect_depth')",
-                    "frame-000000.color.jpg, is 64x48"});
-  // A rig's camera of another size at the same instant is no reason to refuse: the depth map goes
-  // to the image its size fits.
+  const std::string image = "mapping/sensors/records_data/seq-01/frame-000000.color.jpg";
+  for (const std::string depth_sensor : {"kinect_depth, kinect, depth, PINHOLE, 32, 24, 50, 50, 16, 12\n",
+                                         "kinect_depth, kinect, depth, PINHOLE, 64, 48, 90, 90, 32, 24\n"}) {
+    writeTextFile(mapping / "sensors.txt", std::string(kKaptureHeader) +
+                                               "kinect_rgb, kinect, camera, PINHOLE, 64, 48, 100, 100, 32, 24\n" +
+                                               depth_sensor);
+    EXPECT_FALSE(frameNamed(loadDataset(dir), image).depth.has_value()) << depth_sensor;
+  }
+  // A rig's camera of other intrinsics at the same instant goes without.
   writeTextFile(mapping / "sensors.txt", std::string(kKaptureHeader) +
                                              "kinect_rgb, kinect, camera, PINHOLE, 64, 48, 100, 100, 32, 24\n"
                                              "kinect_depth, kinect, depth, PINHOLE, 64, 48, 100, 100, 32, 24\n"
@@ -443,8 +450,63 @@ TEST(Kapture, DepthOfAnotherSizeThanItsImageIsRefused) {
                 std::string(kKaptureHeader) + "0, kinect_rgb, 1, 0, 0, 0, 0, 0, 0\n0, side, 1, 0, 0, 0, 1, 0, 0\n");
   writeImage(mapping / "records_data/side.jpg", 32, 24);
   const Scene scene = loadDataset(dir);
-  EXPECT_TRUE(frameNamed(scene, "mapping/sensors/records_data/seq-01/frame-000000.color.jpg").depth.has_value());
+  EXPECT_TRUE(frameNamed(scene, image).depth.has_value());
   EXPECT_FALSE(frameNamed(scene, "mapping/sensors/records_data/side.jpg").depth.has_value());
+}
+
+// Two RGB-D cameras of one size on a rig: paired by size, both images took depth0's map and depth1's
+// was dropped without a word. The sensors' poses tell which map is whose; without them the record
+// is refused, naming both images.
+TEST(Kapture, ARigOfTwoRgbdCamerasGivesEachImageItsOwnDepth) {
+  const fs::path dir = kaptureSample();
+  const fs::path mapping = dir / "mapping/sensors";
+  const std::string intrinsics = "PINHOLE, 64, 48, 100, 100, 32, 24\n";
+  writeTextFile(mapping / "sensors.txt", std::string(kKaptureHeader) + "cam0, , camera, " + intrinsics +
+                                             "cam1, , camera, " + intrinsics + "depth0, , depth, " + intrinsics +
+                                             "depth1, , depth, " + intrinsics);
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader) + "0, cam0, cam0.jpg\n0, cam1, cam1.jpg\n");
+  writeTextFile(mapping / "records_depth.txt", std::string(kKaptureHeader) + "0, depth0, depth0.depth\n0, depth1, depth1.depth\n");
+  const std::string cam0_pose = "1, 0, 0, 0, 0, 0, 0\n", cam1_pose = "1, 0, 0, 0, -0.2, 0, 0\n";
+  writeTextFile(mapping / "trajectories.txt",
+                std::string(kKaptureHeader) + "0, cam0, " + cam0_pose + "0, cam1, " + cam1_pose);
+  writeImage(mapping / "records_data/cam0.jpg", 64, 48);
+  writeImage(mapping / "records_data/cam1.jpg", 64, 48);
+  writeRawDepth(mapping / "records_data/depth0.depth", 64, 48, 1.0f);
+  writeRawDepth(mapping / "records_data/depth1.depth", 64, 48, 2.0f);
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_depth.txt:2:", "depth0.depth (sensor 'depth0') could be the depth of",
+                    "cam0.jpg and ", "cam1.jpg of its timestamp", "the sensor has no pose"});
+
+  // As ffloc's writer gives them, and as a rig gives them (depth1 beside cam1 on the rig).
+  writeTextFile(mapping / "rigs.txt", std::string(kKaptureHeader) + "rig, depth1, " + cam1_pose);
+  writeTextFile(mapping / "trajectories.txt", std::string(kKaptureHeader) + "0, cam0, " + cam0_pose + "0, cam1, " +
+                                                  cam1_pose + "0, depth0, " + cam0_pose + "0, rig, " + cam0_pose);
+  const Scene scene = loadDataset(dir);
+  for (const auto& [camera, metres] : {std::pair{"cam0", 1.0f}, {"cam1", 2.0f}}) {
+    const Frame& frame = frameNamed(scene, "mapping/sensors/records_data/" + std::string(camera) + ".jpg");
+    ASSERT_TRUE(frame.depth.has_value()) << camera;
+    EXPECT_FLOAT_EQ(readDepthMetres(frame)(20, 30), metres) << camera;
+  }
+
+  // A pose that is neither camera's puts the map in neither image's grid.
+  writeTextFile(mapping / "rigs.txt", std::string(kKaptureHeader) + "rig, depth1, 1, 0, 0, 0, 0.5, 0, 0\n");
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_depth.txt:3:", "depth1.depth (sensor 'depth1') has the intrinsics of", "cam0.jpg and ",
+                    "cam1.jpg of its timestamp but another pose"});
+  // Two sensors of one image's intrinsics and pose at one instant: the second map was dropped.
+  writeTextFile(mapping / "rigs.txt", std::string(kKaptureHeader) + "rig, depth1, " + cam0_pose);
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_depth.txt:3:", "depth1.depth (sensor 'depth1') belongs to", "cam0.jpg, which has the depth map of line 2"});
+}
+
+// The depth file is the sensor's width x height of float32: one of another size is corrupt (read as
+// the image's size, its rows were sheared).
+TEST(Kapture, ADepthFileOfAnotherSizeThanItsSensorIsRefused) {
+  const fs::path dir = kaptureSample();
+  writeRawDepth(dir / "mapping/sensors/records_data/seq-01/frame-000000.depth", 32, 24, 1.0f);
+  expectInputError([&] { loadDataset(dir); },
+                   {"records_depth.txt:2:", "frame-000000.depth (sensor 'kinect_depth') has 3072 bytes",
+                    "the sensor is 64x48 (12288 bytes of float32)"});
 }
 
 // kapture's timestamps are unsigned integers, compared as numbers: compared as text, the depth
@@ -505,6 +567,22 @@ TEST(Kapture, OnlyVersionsWhoseSensorFilesReadAlikeAreRead) {
   expectInputError([&] { loadDataset(dir); }, {"records_camera.txt:1:", "kapture format '1.2'"});
   writeTextFile(query / "records_camera.txt", "7, phone, query/0007.jpg\n");
   EXPECT_EQ(loadDataset(dir).frames.size(), 2u);
+}
+
+// The version is found as kapture finds it, searching the first line for digits.digits: an exact
+// string refused '# kapture format: 1.1 (note)' and read '#kapture format: 2.0' as 1.1.
+TEST(Kapture, TheVersionIsFoundAsKaptureFindsIt) {
+  const fs::path dir = kaptureSample();
+  const fs::path query = dir / "query/sensors";
+  const std::string sensor = "phone, , camera, SIMPLE_RADIAL, 64, 48, 120, 30.5, 22.5, 0.01\n";
+  for (const std::string header : {"# kapture format: 1.1 (note)", "# kapture format:1.0", "#  kapture format : 1.1"}) {
+    writeTextFile(query / "sensors.txt", header + "\n" + sensor);
+    EXPECT_EQ(loadDataset(dir).frames.size(), 2u) << header;
+  }
+  for (const auto& [header, version] : {std::pair{"#kapture format: 2.0", "2.0"}, {"# kapture format: 1.10", "1.10"}}) {
+    writeTextFile(query / "sensors.txt", std::string(header) + "\n" + sensor);
+    expectInputError([&] { loadDataset(dir); }, {"sensors.txt:1:", "kapture format '" + std::string(version) + "'"});
+  }
 }
 
 TEST(Kapture, DistortionBeyondAnyLensIsRefused) {

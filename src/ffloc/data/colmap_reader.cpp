@@ -81,8 +81,8 @@ std::map<long, Intrinsics> readCameras(const fs::path& file) {
 }
 
 bool isComment(const std::string& text) {
-  const size_t first = text.find_first_not_of(" \t");
-  return first != std::string::npos && text[first] == '#';
+  const std::string_view content = trimmed(text);
+  return !content.empty() && content.front() == '#';
 }
 
 // Keypoints of one image: far beyond any extractor's, and a bound on what a hostile line costs
@@ -108,7 +108,7 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     // A pose line; blank lines between images are tolerated, but the POINTS2D line that follows
     // a pose line may itself be blank (an image without keypoints).
     skipComments();
-    while (i < lines.size() && lines[i].text.find_first_not_of(" \t\r") == std::string::npos) ++i;
+    while (i < lines.size() && trimmed(lines[i].text).empty()) ++i;
     if (i >= lines.size()) break;
     const TextLine& pose_line = lines[i++];
     // Every line is read a token at a time: a hostile line may be megabytes long.

@@ -2,8 +2,9 @@
 // them), records_camera.txt, trajectories.txt (world-to-device), optional rigs.txt and
 // records_depth.txt, files under sensors/records_data/. A dataset is one such folder, or
 // mapping/ and query/ folders each holding one.
+#include <algorithm>
 #include <map>
-#include <set>
+#include <regex>
 
 #include "ffloc/core/error.h"
 #include "ffloc/data/colmap_camera.h"
@@ -27,17 +28,16 @@ struct CsvLine {
   std::vector<std::string> fields;
 };
 
-std::string trimmed(const std::string& text) {
-  const size_t first = text.find_first_not_of(" \t\r");
-  return first == std::string::npos ? "" : text.substr(first, text.find_last_not_of(" \t\r") + 1 - first);
-}
-
 // The versions whose sensors/ files read alike: kapture's 1.0 -> 1.1 upgrade rewrites only their
-// header line. A later version may lay its columns out otherwise, and was read as 1.1.
+// header line. A later version may lay its columns out otherwise, and was read as 1.1. The version
+// is found as kapture's readers find it, a search of the first line for digits.digits after
+// 'kapture format:' (so '# kapture format: 1.1 (note)' was refused), spaces around '#' and ':'
+// allowed as kapture's C++ reader allows them (so '#kapture format: 2.0' was read as 1.1).
 void requireReadableVersion(const std::vector<TextLine>& lines, const fs::path& file) {
-  constexpr std::string_view kVersionPrefix = "# kapture format:";
-  if (lines.empty() || lines[0].text.rfind(kVersionPrefix, 0) != 0) return;
-  const std::string version = trimmed(lines[0].text.substr(kVersionPrefix.size()));
+  static const std::regex kVersionLine(R"(#\s*kapture format\s*:\s*(\d+\.\d+))");
+  std::smatch match;
+  if (lines.empty() || !std::regex_search(lines[0].text, match, kVersionLine)) return;
+  const std::string version = match[1];
   if (version != "1.0" && version != "1.1")
     throwInputError(file.string(), lines[0].number,
                     "kapture format '" + version + "' is not one ffloc reads (1.0, 1.1)");
@@ -52,7 +52,8 @@ std::vector<CsvLine> readCsv(const fs::path& file) {
     size_t start = 0;
     while (true) {
       const size_t comma = line.text.find(',', start);
-      row.fields.push_back(trimmed(line.text.substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
+      row.fields.emplace_back(
+          trimmed(std::string_view(line.text).substr(start, comma == std::string::npos ? std::string::npos : comma - start)));
       if (comma == std::string::npos) break;
       start = comma + 1;
     }
@@ -194,6 +195,72 @@ struct DepthRecord {
   int line = 0;
 };
 
+// Poses as text agree only to their printed digits.
+bool samePose(const Pose& a, const Pose& b) { return (a.matrix() - b.matrix()).cwiseAbs().maxCoeff() <= 1e-6; }
+
+std::string listed(const std::vector<size_t>& frames, const Scene& scene) {
+  std::string text;
+  for (size_t i : frames) text += (text.empty() ? "" : " and ") + scene.frames[i].image_path.string();
+  return text;
+}
+
+// ffloc reads only registered depth, a map in its colour image's pixel grid: what a depth sensor
+// with its colour camera's intrinsics records. A record belongs to the image of its instant whose
+// camera has its sensor's intrinsics and, where the data gives the sensor a pose (ffloc's writer
+// gives it its camera's), that pose. A sensor whose intrinsics are no camera's (an Azure Kinect's
+// 640x576 depth beside its 1280x720 colour) records in a grid of its own, which ffloc does not
+// read: its records are not used, and its images go without depth. Paired by size instead, two
+// cameras of one size both took the first depth map of their instant and the second was dropped.
+void pairDepthRecords(const std::vector<DepthRecord>& records, const KaptureFolder& folder,
+                      const std::multimap<long, size_t>& frames_at, const fs::path& depth_file, Scene& scene) {
+  std::map<size_t, int> depth_line_of_frame;
+  for (const DepthRecord& record : records) {
+    const Intrinsics& depth_camera = folder.sensors.at(record.sensor).intrinsics;
+    std::vector<size_t> same_grid;
+    const auto [first, end] = frames_at.equal_range(record.timestamp);
+    for (auto it = first; it != end; ++it)
+      if (sameIntrinsics(scene.frames[it->second].intrinsics, depth_camera)) same_grid.push_back(it->second);
+    if (same_grid.empty()) continue;
+    std::vector<size_t> owners = same_grid;
+    const std::optional<Pose> pose = sensorToWorld(folder, record.timestamp, record.sensor);
+    if (pose)
+      owners.erase(std::remove_if(owners.begin(), owners.end(),
+                                  [&](size_t i) { return !samePose(scene.frames[i].camera_to_world, *pose); }),
+                   owners.end());
+    const std::string map_name = "depth map " + record.path.string() + " (sensor '" + record.sensor + "')";
+    if (owners.empty())
+      throwInputError(depth_file.string(), record.line,
+                      map_name + " has the intrinsics of " + listed(same_grid, scene) +
+                          " of its timestamp but another pose: it is not in their pixel grid");
+    if (owners.size() > 1)
+      throwInputError(depth_file.string(), record.line,
+                      map_name + " could be the depth of " + listed(owners, scene) + " of its timestamp: " +
+                          (pose ? "each has its intrinsics and pose"
+                                : "each has its intrinsics, and the sensor has no pose (trajectories.txt or rigs.txt) "
+                                  "to tell which is its own"));
+    Frame& frame = scene.frames[owners.front()];
+    const auto [earlier, added] = depth_line_of_frame.emplace(owners.front(), record.line);
+    if (!added)
+      throwInputError(depth_file.string(), record.line,
+                      map_name + " belongs to " + frame.image_path.string() + ", which has the depth map of line " +
+                          std::to_string(earlier->second));
+    // A missing file is left to readDepthMetres, which refuses it by name when the map is read.
+    std::error_code missing;
+    const std::uintmax_t bytes = fs::file_size(record.path, missing);
+    const std::uintmax_t expected = static_cast<std::uintmax_t>(depth_camera.width) * depth_camera.height * sizeof(float);
+    if (!missing && bytes != expected)
+      throwInputError(depth_file.string(), record.line,
+                      map_name + " has " + std::to_string(bytes) + " bytes, but the sensor is " +
+                          std::to_string(depth_camera.width) + "x" + std::to_string(depth_camera.height) + " (" +
+                          std::to_string(expected) + " bytes of float32)");
+    DepthSource depth;
+    depth.path = record.path;
+    depth.scale = 1.0;  // float32 metres
+    depth.invalid_values.clear();
+    frame.depth = depth;
+  }
+}
+
 void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, Scene& scene) {
   const KaptureFolder folder = readFolderGeometry(root);
   const fs::path sensors_dir = root / "sensors";
@@ -241,33 +308,7 @@ void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, 
     scene.frames.push_back(std::move(frame));
   }
 
-  // A depth map goes to the images of its instant of its size (a rig's other cameras may differ),
-  // the first depth record of an instant to each; one that fits none of its instant's images was
-  // dropped, and its frame went on without depth.
-  for (const DepthRecord& record : depth_records) {
-    const Intrinsics& depth_camera = folder.sensors.at(record.sensor).intrinsics;
-    const auto [first, end] = frames_at.equal_range(record.timestamp);
-    bool paired = false;
-    for (auto it = first; it != end; ++it) {
-      Frame& frame = scene.frames[it->second];
-      if (depth_camera.width != frame.intrinsics.width || depth_camera.height != frame.intrinsics.height) continue;
-      paired = true;
-      if (frame.depth) continue;
-      DepthSource depth;
-      depth.path = record.path;
-      depth.scale = 1.0;  // float32 metres
-      depth.invalid_values.clear();
-      frame.depth = depth;
-    }
-    if (!paired && first != end) {
-      const Frame& frame = scene.frames[first->second];
-      throwInputError(depth_file.string(), record.line,
-                      "depth map " + record.path.string() + " is " + std::to_string(depth_camera.width) + "x" +
-                          std::to_string(depth_camera.height) + " (sensor '" + record.sensor + "'), but the image of its timestamp, " +
-                          frame.image_path.string() + ", is " + std::to_string(frame.intrinsics.width) + "x" +
-                          std::to_string(frame.intrinsics.height));
-    }
-  }
+  pairDepthRecords(depth_records, folder, frames_at, depth_file, scene);
 }
 
 }  // namespace

@@ -26,8 +26,7 @@ bool applySplitFiles(Scene& scene) {
     if (!std::filesystem::exists(file)) continue;
     for (const auto& line : contentLines(readTextLines(file), true)) {
       // A whole line is one path (names may contain spaces); only the ends are trimmed.
-      const size_t first = line.text.find_first_not_of(" \t");
-      const std::string name = line.text.substr(first, line.text.find_last_not_of(" \t") + 1 - first);
+      const std::string name(trimmed(line.text));
       const auto found = index_of.find(normalised(name));
       if (found == index_of.end())
         throwInputError(file.string(), line.number, "'" + name + "' is not a frame of this dataset");

@@ -27,10 +27,16 @@ std::vector<TextLine> readTextLines(const std::filesystem::path& file) {
   return lines;
 }
 
+std::string_view trimmed(std::string_view text) {
+  constexpr std::string_view kBlank = " \t\r";
+  const size_t first = text.find_first_not_of(kBlank);
+  return first == std::string_view::npos ? std::string_view() : text.substr(first, text.find_last_not_of(kBlank) + 1 - first);
+}
+
 std::vector<TextLine> contentLines(std::vector<TextLine> lines, bool skip_comments) {
   const auto without_content = [&](const TextLine& line) {
-    const size_t first = line.text.find_first_not_of(" \t\r");
-    return first == std::string::npos || (skip_comments && line.text[first] == '#');
+    const std::string_view content = trimmed(line.text);
+    return content.empty() || (skip_comments && content.front() == '#');
   };
   lines.erase(std::remove_if(lines.begin(), lines.end(), without_content), lines.end());
   return lines;

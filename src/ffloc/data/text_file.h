@@ -23,6 +23,9 @@ std::vector<TextLine> readTextLines(const std::filesystem::path& file);
 // lines by value and keeps them in place, so a large file is not held twice.
 std::vector<TextLine> contentLines(std::vector<TextLine> lines, bool skip_comments);
 
+// The text without the spaces, tabs and CRs at its ends; a view into `text`.
+std::string_view trimmed(std::string_view text);
+
 // Whitespace-separated tokens (spaces, tabs, CR).
 std::vector<std::string> splitWhitespace(const std::string& text);
 
