@@ -160,7 +160,12 @@ std::string distortionProblem(const Intrinsics& camera) {
          << diagonal << " px): no lens's distortion does";
     return what.str();
   }
-  for (size_t i = 0; i < distorted.size(); i += kSteps) {
+  // Folds are looked for on the way to the edges' midpoints only: a calibration fitted on the
+  // image's inner part may turn back in its corners (a wide lens's k1 = -0.4 does past r = 0.91)
+  // and still be the camera's own; one that folds before reaching an edge cannot be. A principal
+  // point on an edge has no way to go there.
+  for (size_t i = 4 * kSteps; i < distorted.size(); i += kSteps) {
+    if (cv::norm(undistorted[i + kSteps - 1] - centre) < 1) continue;
     double reach = 0;
     for (size_t j = i; j < i + kSteps; ++j) {
       const double next = cv::norm(distorted[j] - centre);

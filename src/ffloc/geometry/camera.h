@@ -52,8 +52,9 @@ inline constexpr double kMaxDistortionShift = 1.0;
 // [s1 s2 s3 s4 [taux tauy]]]]), "" when nothing is: a coefficient that is not finite ("k5 nan:
 // ..."), and, when the camera has a size and positive focal lengths, a model that, evaluated along
 // the lines from the principal point to the image's corners and edge midpoints, moves a point more
-// than kMaxDistortionShift diagonals or folds the image (a point farther out lands nearer the
-// principal point: two directions seen at one pixel, no lens's image). The coefficients that are
+// than kMaxDistortionShift diagonals, or folds the image on the way to an edge's midpoint (a point
+// farther out lands nearer the principal point: two directions seen at one pixel, no lens's image;
+// the corners, where calibrations extrapolate, may turn back). The coefficients that are
 // not 0 are named with every digit ("k1 320: moves the image corner (639, 479) by 8.2e+04 px ...").
 std::string distortionProblem(const Intrinsics& camera);
 

@@ -135,9 +135,13 @@ TEST(Intrinsics, DistortionProblemJudgesWhatTheModelDoesOverTheImage) {
             "k6 -inf: distortion coefficients must be finite");
   // Within the diagonal at the border, but turning back on the way there: k1 = -1 at r = 0.8.
   const std::string fold = distortionProblem(camera(500, {-1, 0, 0, 0}));
-  EXPECT_NE(fold.find("k1 -1: folds the image: on the way from the principal point to the image corner"),
+  EXPECT_NE(fold.find("k1 -1: folds the image: on the way from the principal point to the image edge's midpoint"),
             std::string::npos)
       << fold;
+  // A wide lens's calibration turning back only in the corners (k1 = -0.4 beyond r = 0.91; the
+  // corner is at r = 1, the edges' midpoints at 0.8 and 0.6), and a principal point on an edge.
+  EXPECT_EQ(distortionProblem(camera(400, {-0.4, 0, 0, 0})), "");
+  EXPECT_EQ(distortionProblem({500, 500, 0, 239.5, 640, 480, {-0.1, 0, 0, 0}}), "");
   // A rational model whose denominator vanishes inside the image.
   EXPECT_NE(distortionProblem(camera(500, {0, 0, 0, 0, 0, -2, 0, 0})).find("k4 -2: "), std::string::npos);
   // Without a size only the numbers themselves can be judged.
