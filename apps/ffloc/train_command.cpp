@@ -137,15 +137,29 @@ std::vector<std::string> rankArguments() {
   return out;
 }
 
-// The config file's settings with the flags' overrides. A value that cannot make a run is refused
-// naming the flag that set it; a field that no flag set is named with the config file.
-TrainingConfig effectiveConfig(const TrainArguments& args, const DistributedEnvironment& environment) {
-  TrainingConfig config = args.config.empty() ? TrainingConfig{} : readTrainingConfig(args.config);
+// The config file's settings with the flags' overrides, and which flag set which field. A value
+// that cannot make a run is refused naming the flag that set it; a field that no flag set is named
+// with the config file.
+struct CommandConfig {
+  TrainingConfig config;
   std::map<std::string, std::string> flag_of_field;
+  std::string origin;  // where a field no flag set comes from
+
+  [[noreturn]] void refuse(const TrainingConfigProblem& problem) const {
+    const auto flag = flag_of_field.find(problem.field);
+    if (flag != flag_of_field.end()) throw InputError(flag->second + ": " + problem.message);
+    throwInputError(origin, 0, "field '" + problem.field + "': " + problem.message);
+  }
+};
+
+CommandConfig effectiveConfig(const TrainArguments& args, const DistributedEnvironment& environment) {
+  CommandConfig command{args.config.empty() ? TrainingConfig{} : readTrainingConfig(args.config), {},
+                        args.config.empty() ? "command line" : args.config + " with the command line"};
+  TrainingConfig& config = command.config;
   const auto overrideWith = [&](auto& field, const auto& value, const std::string& name, const std::string& flag) {
     if (!value) return;
     field = *value;
-    flag_of_field[name] = flag;
+    command.flag_of_field[name] = flag;
   };
   overrideWith(config.steps, args.steps, "steps", "--steps");
   overrideWith(config.learning_rate, args.learning_rate, "learning_rate", "--lr");
@@ -161,13 +175,8 @@ TrainingConfig effectiveConfig(const TrainArguments& args, const DistributedEnvi
   if (config.threads == 0 && environment.local_world_size > 1) {
     config.threads = std::max(1, static_cast<int>(std::thread::hardware_concurrency()) / environment.local_world_size);
   }
-  if (const auto problem = config.problem()) {
-    const auto flag = flag_of_field.find(problem->field);
-    if (flag != flag_of_field.end()) throw InputError(flag->second + ": " + problem->message);
-    throwInputError(args.config.empty() ? "command line" : args.config + " with the command line", 0,
-                    "field '" + problem->field + "': " + problem->message);
-  }
-  return config;
+  if (const auto problem = config.problem()) command.refuse(*problem);
+  return command;
 }
 
 // --out, before anything is read from it or written: the file system's own errors ("cannot
@@ -185,9 +194,13 @@ void checkRunFolder(const fs::path& run_dir) {
 
 void runTrain(const TrainArguments& args) {
   const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
-  const TrainingConfig config = effectiveConfig(args, environment);
+  const CommandConfig command = effectiveConfig(args, environment);
+  const TrainingConfig& config = command.config;
   const fs::path run_dir = args.out;
   checkRunFolder(run_dir);
+  if (const auto checkpoint = args.resume ? latestTrainingCheckpoint(run_dir) : std::nullopt) {
+    if (const auto problem = resumeProblem(*checkpoint, config)) command.refuse(*problem);
+  }
   const bool lead = environment.rank == 0;
 
   requireDistinctData(args.data, "--data");

@@ -120,6 +120,27 @@ TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
   EXPECT_FALSE(fs::exists(run));
 }
 
+// A resume asked to stop before the run's step named the config field ('steps') where the user
+// gave --steps.
+TEST_F(TrainCommandInput, ResumeBelowTheRunsStepNamesTheFlagOrTheConfig) {
+  TrainingConfig settings = testing::smallConfig();
+  settings.steps = 2;
+  settings.warmup_steps = 0;
+  settings.checkpoint_every = 2;
+  const fs::path run = root_ / "run";
+  const std::string two_steps = config(toJson(settings).dump());
+  ASSERT_EQ(train("--config " + two_steps + " --out " + run.string()), 0) << output();
+  EXPECT_EQ(train("--config " + two_steps + " --out " + run.string() + " --resume --steps 1"), 2) << output();
+  EXPECT_TRUE(contains("error: --steps: 1, but the run in " + run.string() +
+                       " is already at step 2; ask for more steps to continue it"))
+      << output();
+  settings.steps = 1;
+  const std::string one_step = config(toJson(settings).dump());
+  EXPECT_EQ(train("--config " + one_step + " --out " + run.string() + " --resume"), 2) << output();
+  EXPECT_TRUE(contains("error: " + one_step + " with the command line: field 'steps': 1, but the run in"))
+      << output();
+}
+
 // learning_rate 1 with full weight decay and no clipping diverges within a few steps (at step 2
 // on our machines; the first step's loss is the initial model's, always finite): the run stops
 // there with exit 2 and the previous step's checkpoint stays, where a run that carried on wrote

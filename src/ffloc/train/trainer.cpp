@@ -170,12 +170,8 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
     checkpoint = latestTrainingCheckpoint(run_dir_);
     if (!checkpoint) throwInputError((run_dir_ / "checkpoints" / "latest").string(), 0, "no checkpoint to resume from");
     checkResumable(*checkpoint, config_, world_size_, (checkpoint->folder / "model.safetensors").string());
-    if (checkpoint->step > config_.steps) {
-      throwInputError("training config", 0,
-                      "field 'steps': " + std::to_string(config_.steps) + ", but the run in " + run_dir_.string() +
-                          " is already at step " + std::to_string(checkpoint->step) +
-                          "; ask for more steps to continue it");
-    }
+    if (const auto problem = resumeProblem(*checkpoint, config_))
+      throwInputError("training config", 0, "field '" + problem->field + "': " + problem->message);
   }
   ModelLoadOptions load;
   load.init_seed = config_.model_seed;

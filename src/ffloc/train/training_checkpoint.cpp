@@ -134,6 +134,14 @@ std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) 
   return info;
 }
 
+std::optional<TrainingConfigProblem> resumeProblem(const CheckpointInfo& checkpoint, const TrainingConfig& config) {
+  if (checkpoint.step <= config.steps) return std::nullopt;
+  const fs::path run_dir = checkpoint.folder.parent_path().parent_path();
+  return TrainingConfigProblem{"steps", std::to_string(config.steps) + ", but the run in " + run_dir.string() +
+                                            " is already at step " + std::to_string(checkpoint.step) +
+                                            "; ask for more steps to continue it"};
+}
+
 void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer) {
   const fs::path path = checkpoint.folder / "optimizer.safetensors";
   const auto archive = openSafetensors(path);

@@ -38,6 +38,10 @@ std::filesystem::path writeTrainingCheckpoint(const std::filesystem::path& run_d
 // broken `latest`, a missing folder or unreadable or damaged metadata.
 std::optional<CheckpointInfo> latestTrainingCheckpoint(const std::filesystem::path& run_dir);
 
+// What stops `config` from continuing the run whose latest checkpoint is `checkpoint` (field and
+// message, as TrainingConfig::problem gives them): fewer steps than the run has done.
+std::optional<TrainingConfigProblem> resumeProblem(const CheckpointInfo& checkpoint, const TrainingConfig& config);
+
 // Restores AdamW's moments and step from a checkpoint folder (after the model weights were
 // loaded from its model.safetensors); InputError naming the file and the tensor for a damaged one.
 void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer);
