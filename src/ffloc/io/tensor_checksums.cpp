@@ -52,7 +52,8 @@ std::optional<nlohmann::json> recordedTensorChecksums(const TensorArchive& archi
 
 }  // namespace
 
-std::string tensorChecksum(const TensorView& view) { return checksumsOf({{view.data, view.nbytes}}).front(); }
+// One range: the four-lane hash would hash three lanes of zeros beside it.
+std::string tensorChecksum(const TensorView& view) { return hex64(fnv1a64(view.data, view.nbytes)); }
 
 std::string mappedTensorChecksum(const TensorView& view) {
   constexpr size_t kStretch = size_t{4} << 20;
