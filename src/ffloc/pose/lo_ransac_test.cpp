@@ -78,9 +78,6 @@ TEST(LoRansac, SameEngineStateGivesTheSameModel) {
   EXPECT_EQ(a.world_to_camera.t, b.world_to_camera.t);
 }
 
-// Every pixel at one spot (an outside probe, through the Python bindings): "success" with 200
-// inliers and a rotation of determinant 4e-21. No pose projects points spread in depth to one
-// pixel, so nothing is found.
 TEST(LoRansac, AQuarterOfPairsAFewPixelsOffDoesNotPullThePose) {
   // Keypoints within a fraction of a pixel, and a quarter of the pairs matched to a neighbour 3 px
   // further from the image centre: all inliers at the 8 px threshold, as SIFT's tail is. The
@@ -102,6 +99,9 @@ TEST(LoRansac, AQuarterOfPairsAFewPixelsOffDoesNotPullThePose) {
   EXPECT_LT((centre - pairs.world_to_camera.inverse().t).norm(), 2e-3);
 }
 
+// Every pixel at one spot (an outside probe, through the Python bindings): "success" with 200
+// inliers and a rotation of determinant 4e-21. No pose projects points spread in depth to one
+// pixel, so nothing is found.
 TEST(LoRansac, PixelsAtOneSpotFindNothing) {
   Pairs pairs = makePairs(200, 0.0, 9);
   for (Eigen::Vector2d& pixel : pairs.pixels) pixel = Eigen::Vector2d(300, 200);
