@@ -45,7 +45,9 @@ nlohmann::json localizationJson(const std::string& name, const LocalizationResul
                      {"predicted_centre_sigma_relative", measuredOrNull(e.predicted_centre_sigma_relative)},
                      {"predicted_rotation_sigma_deg", measuredOrNull(e.predicted_rotation_sigma_deg)},
                      {"focal_scale", measuredOrNull(e.focal_scale)},
-                     {"focal_scale_log_sigma", measuredOrNull(e.focal_scale_log_sigma)}};
+                     {"focal_scale_log_sigma", measuredOrNull(e.focal_scale_log_sigma)},
+                     {"principal_point_shift", measuredOrNull(e.principal_point_shift)},
+                     {"principal_point_shift_significance", measuredOrNull(e.principal_point_shift_significance)}};
   nlohmann::json selected = nlohmann::json::array();
   for (size_t index : result.selected) selected.push_back(localizer.cameras().at(index).name);
   out["selected"] = selected;

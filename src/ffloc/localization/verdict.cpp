@@ -7,7 +7,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
-#include "ffloc/pose/focal_fit.h"
+#include "ffloc/pose/intrinsics_fit.h"
 #include "ffloc/pose/pose_covariance.h"
 #include "ffloc/pose/reprojection.h"
 #include "ffloc/pose/select_correspondences.h"
@@ -19,6 +19,26 @@ void requireAtLeast(const char* field, double value, double lowest) {
   if (!(value >= lowest))  // NaN fails too
     throw InputError(std::string(field) + ": must be at least " + std::to_string(lowest) + ", got " +
                      std::to_string(value));
+}
+
+// A deviation counts when it is both large and significant, or small but certain.
+bool deviationCounts(double deviation, double significance, double large, double large_significance, double small) {
+  return (deviation > large && significance > large_significance) ||
+         (deviation > small && significance > VerdictOptions::kCertainSignificance);
+}
+
+bool focalLengthMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
+  if (!(evidence.focal_scale > 0)) return false;
+  const double deviation = std::abs(std::log(evidence.focal_scale));
+  const double significance = deviation / evidence.focal_scale_log_sigma;
+  return deviationCounts(deviation, significance, std::log1p(options.max_focal_deviation),
+                         VerdictOptions::kFocalSignificance, std::log1p(options.max_certain_focal_deviation));
+}
+
+bool principalPointMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
+  return deviationCounts(evidence.principal_point_shift, evidence.principal_point_shift_significance,
+                         options.max_principal_point_shift, VerdictOptions::kPrincipalPointSignificance,
+                         options.max_certain_principal_point_shift);
 }
 
 }  // namespace
@@ -43,6 +63,9 @@ void VerdictOptions::check() const {
   requireAtLeast("max_centre_sigma_m", max_centre_sigma_m, 0);
   requireAtLeast("max_rotation_sigma_deg", max_rotation_sigma_deg, 0);
   requireAtLeast("max_focal_deviation", max_focal_deviation, 0);
+  requireAtLeast("max_principal_point_shift", max_principal_point_shift, 0);
+  requireAtLeast("max_certain_focal_deviation", max_certain_focal_deviation, 0);
+  requireAtLeast("max_certain_principal_point_shift", max_certain_principal_point_shift, 0);
   requireAtLeast("max_agreement_translation", max_agreement_translation, 0);
   requireAtLeast("max_agreement_rotation_deg", max_agreement_rotation_deg, 0);
   requireAtLeast("max_agreement_distance_m", max_agreement_distance_m, 0);
@@ -101,6 +124,9 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera);
   evidence.focal_scale = focal.valid ? focal.scale : 1;
   evidence.focal_scale_log_sigma = focal.valid ? focal.log_scale_sigma : std::numeric_limits<double>::infinity();
+  const PrincipalPointFit principal_point = fitPrincipalPoint(pixels, points, inliers, camera, world_to_camera);
+  evidence.principal_point_shift = principal_point.valid ? principal_point.shift_px.norm() / camera.fx : 0;
+  evidence.principal_point_shift_significance = principal_point.valid ? principal_point.significance : 0;
 
   if (second_estimate) {
     if (second_estimate->ok()) {
@@ -146,11 +172,12 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
              evidence.predicted_rotation_sigma_deg <= options.max_rotation_sigma_deg &&
              (!metric || evidence.predicted_centre_sigma <= options.max_centre_sigma_m)))
     verdict.reason = "the inliers leave the pose too uncertain";
-  else if (const double deviation = std::abs(std::log(evidence.focal_scale));
-           evidence.focal_scale > 0 && deviation > std::log1p(options.max_focal_deviation) &&
-           deviation > VerdictOptions::kFocalSignificance * evidence.focal_scale_log_sigma)
+  else if (focalLengthMisfits(evidence, options))
     verdict.reason = "the inliers fit a focal length " + std::to_string(evidence.focal_scale) +
                      " times the one given: check the query's intrinsics";
+  else if (principalPointMisfits(evidence, options))
+    verdict.reason = "the inliers fit a principal point " + std::to_string(evidence.principal_point_shift) +
+                     " focal lengths from the one given: check the query's intrinsics";
   else if (!std::isfinite(evidence.agreement_translation) || evidence.agreement_translation < 0) {
     if (evidence.independent_second_estimate)
       verdict.reason = "the second reference frame gives no pose";

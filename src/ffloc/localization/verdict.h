@@ -36,6 +36,12 @@ struct PoseEvidence {
   // do not determine it.
   double focal_scale = -1;
   double focal_scale_log_sigma = -1;
+  // The principal point the inliers fit best (fitPrincipalPoint): its distance from the one
+  // given over the focal length fx (for small shifts, the angle it turns the view by, in
+  // radians), and that shift in predicted standard deviations. Negative without a pose, 0 when
+  // the inliers do not determine it.
+  double principal_point_shift = -1;
+  double principal_point_shift_significance = -1;
   // A second, independent estimate (another reference image, another half of the pairs): the
   // distance between the two camera centres over the median inlier depth, and the angle
   // between the two rotations. Negative when no second estimate was made or it failed.
@@ -73,6 +79,21 @@ struct VerdictOptions {
   // focal length fit 7.6-51 sigma away, at 10 sigma two of them stayed `localized`.
   double max_focal_deviation = 0.2;
   static constexpr double kFocalSignificance = 6;
+  // The same for the principal point: when the inliers fit one farther than this fraction of the
+  // focal length (for small shifts, the angle it turns the view by) from the one given, and more
+  // than kPrincipalPointSignificance predicted standard deviations away. On 919 right poses of
+  // every set (classical and sift-baseline) fits 0.1 away reached 15 sigma at most; on
+  // redkitchen fits up to 0.07 away are common (its intrinsics are nominal).
+  double max_principal_point_shift = 0.1;
+  static constexpr double kPrincipalPointSignificance = 8;
+  // Smaller deviations count once the inliers are this certain of them (kCertainSignificance):
+  // Strecha fountain's query given a principal point 5 % of the width off fit it at 289 sigma and
+  // was `localized` 37 cm off; redkitchen's frames given the 585 px of its intrinsics file
+  // instead of the colour camera's 525 fit 0.90 at 170 sigma, 22 cm off. No right pose of those
+  // 919 fit a focal length 5 % off above 13 sigma, or a principal point 0.04 away above 16.
+  double max_certain_focal_deviation = 0.05;
+  double max_certain_principal_point_shift = 0.04;
+  static constexpr double kCertainSignificance = 30;
   // A second estimate that lands farther than this makes the pose kUncertain; so does an
   // independent one that fails, and a half-sample one that fails when require_agreement.
   double max_agreement_translation = 0.05;  // of the median inlier depth

@@ -1,4 +1,4 @@
-#include "ffloc/pose/focal_fit.h"
+#include "ffloc/pose/intrinsics_fit.h"
 
 #include <gtest/gtest.h>
 
@@ -24,12 +24,9 @@ struct Pairs {
   std::vector<int> indices;
 };
 
-// Pixels seen by a camera with `true_scale` times the given focal length, with 0.5 px noise, of
-// points `near` to `far` deep.
-Pairs observe(double true_scale, double near, double far, uint64_t seed) {
-  Intrinsics truth = givenCamera();
-  truth.fx *= true_scale;
-  truth.fy *= true_scale;
+// Pixels seen by a camera with the intrinsics `truth`, with 0.5 px noise, of points `near` to
+// `far` deep.
+Pairs observe(const Intrinsics& truth, double near, double far, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0, 640), v(0, 480), depth(near, far);
   std::normal_distribution<double> noise(0, 0.5);
@@ -43,6 +40,13 @@ Pairs observe(double true_scale, double near, double far, uint64_t seed) {
   pairs.indices.resize(pairs.pixels.size());
   std::iota(pairs.indices.begin(), pairs.indices.end(), 0);
   return pairs;
+}
+
+Pairs observe(double true_scale, double near, double far, uint64_t seed) {
+  Intrinsics truth = givenCamera();
+  truth.fx *= true_scale;
+  truth.fy *= true_scale;
+  return observe(truth, near, far, seed);
 }
 
 // Started at the pose and focal length given, the fit finds the focal length the pixels were
@@ -74,6 +78,44 @@ TEST(FocalFit, TooFewPairsGiveNoFit) {
   Pairs pairs = observe(1.0, 1, 6, 9);
   pairs.indices.resize(4);
   EXPECT_FALSE(fitFocalScale(pairs.pixels, pairs.points, pairs.indices, givenCamera(), worldToCamera()).valid);
+}
+
+// Started at the principal point given, the fit finds the one the pixels were seen with; given
+// the right one, it stays within a pixel and a few predicted sigma of it.
+TEST(PrincipalPointFit, RecoversThePrincipalPointThePixelsWereSeenWith) {
+  Intrinsics truth = givenCamera();
+  truth.cx += 30;
+  truth.cy -= 20;
+  const Pairs moved = observe(truth, 1, 6, 10);
+  const PrincipalPointFit fit = fitPrincipalPoint(moved.pixels, moved.points, moved.indices, givenCamera(), worldToCamera());
+  ASSERT_TRUE(fit.valid);
+  EXPECT_NEAR(fit.shift_px.x(), 30, 1.5);
+  EXPECT_NEAR(fit.shift_px.y(), -20, 1.5);
+  EXPECT_GT(fit.significance, 20);
+
+  const Pairs right = observe(givenCamera(), 1, 6, 10);
+  const PrincipalPointFit same = fitPrincipalPoint(right.pixels, right.points, right.indices, givenCamera(), worldToCamera());
+  ASSERT_TRUE(same.valid);
+  EXPECT_LT(same.shift_px.norm(), 1.5);
+  EXPECT_LT(same.significance, 4);
+}
+
+// A narrow view of a far, thin slab: moving the principal point and turning the camera move the
+// pixels alike, so the shift is not significant however large.
+TEST(PrincipalPointFit, ANarrowViewLeavesThePrincipalPointUndetermined) {
+  Intrinsics telephoto = givenCamera();
+  telephoto.fx = telephoto.fy = 5000;
+  Intrinsics truth = telephoto;
+  truth.cx += 30;
+  const Pairs far = observe(truth, 50, 50.05, 11);
+  const PrincipalPointFit fit = fitPrincipalPoint(far.pixels, far.points, far.indices, telephoto, worldToCamera());
+  EXPECT_TRUE(!fit.valid || fit.significance < 3);
+}
+
+TEST(PrincipalPointFit, TooFewPairsGiveNoFit) {
+  Pairs pairs = observe(givenCamera(), 1, 6, 12);
+  pairs.indices.resize(4);
+  EXPECT_FALSE(fitPrincipalPoint(pairs.pixels, pairs.points, pairs.indices, givenCamera(), worldToCamera()).valid);
 }
 
 }  // namespace

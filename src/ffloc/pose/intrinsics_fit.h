@@ -1,0 +1,40 @@
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "ffloc/geometry/camera.h"
+#include "ffloc/geometry/pose.h"
+
+namespace ffloc {
+
+// Whether a pose's pairs fit the intrinsics they were given. A query with a wrong focal length
+// or principal point still finds thousands of inliers: the pose moves to make up for it and lands
+// metres off (docs/verdict.md). Fitting the suspect intrinsics beside the pose tells it apart where
+// the scene's depth relief determines them; where it does not (a far plane) the fit's predicted
+// uncertainty is large. Each fit is Levenberg-Marquardt over the pairs `indices` (the inliers),
+// started at `world_to_camera` and the intrinsics given, and is invalid with fewer than 5 pairs in
+// front of the camera or a singular fit.
+
+// fx and fy scaled together, the principal point kept.
+struct FocalFit {
+  bool valid = false;
+  double scale = 1;            // the focal length the pairs fit best, over the one given
+  double log_scale_sigma = 0;  // predicted standard deviation of ln(scale), from the residuals
+};
+FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
+                       const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera);
+
+// The principal point moved, the focal length kept.
+struct PrincipalPointFit {
+  bool valid = false;
+  Eigen::Vector2d shift_px = Eigen::Vector2d::Zero();  // the principal point the pairs fit best, minus the one given
+  // The shift in predicted standard deviations: sqrt(shift^T Sigma^-1 shift) with Sigma its
+  // predicted 2 x 2 covariance, from the residuals.
+  double significance = 0;
+};
+PrincipalPointFit fitPrincipalPoint(const std::vector<Eigen::Vector2d>& pixels,
+                                    const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices,
+                                    const Intrinsics& camera, const Pose& world_to_camera);
+
+}  // namespace ffloc
