@@ -29,7 +29,8 @@ INF = math.inf
 # scaled to (noise_scale); verdict.cpp uses the residuals' estimate.
 DEFAULT = dict(min_inliers=12, min_inlier_ratio=0.1, min_inlier_spread=0.1, pixel_noise=("estimated", 0),
                max_centre_sigma_relative=INF, max_centre_sigma_m=0.10, max_rotation_sigma_deg=INF,
-               max_focal_deviation=0.2, max_agreement_translation=0.05, max_agreement_rotation_deg=2.0,
+               max_focal_deviation=0.2, max_principal_point_shift=0.1, max_certain_focal_deviation=0.05,
+               max_certain_principal_point_shift=0.04, max_agreement_translation=0.05, max_agreement_rotation_deg=2.0,
                max_agreement_distance_m=0.05, require_agreement=True)
 
 # The rule this search gave with the predicted uncertainty (3 Dec 2026), frozen before the held-out
@@ -56,7 +57,7 @@ def load(directory):
             for key in ("inlier_ratio", "inlier_spread", "agreement_translation", "agreement_rotation_deg",
                         "agreement_distance", "residual_sigma_px", "predicted_centre_sigma",
                         "predicted_centre_sigma_relative", "predicted_rotation_sigma_deg", "focal_scale",
-                        "focal_scale_log_sigma"):
+                        "focal_scale_log_sigma", "principal_point_shift", "principal_point_shift_significance"):
                 row[key] = number(row.get(key, "inf"))
             row["inliers"] = int(row["inliers"])
             frames.append(row)
@@ -95,21 +96,42 @@ TESTS = dict(
 )
 
 FOCAL_SIGNIFICANCE = 6  # VerdictOptions::kFocalSignificance
+PRINCIPAL_POINT_SIGNIFICANCE = 8  # VerdictOptions::kPrincipalPointSignificance
+CERTAIN_SIGNIFICANCE = 30  # VerdictOptions::kCertainSignificance
 
 
-def fits_focal(row, bound):
-    """verdict.cpp's focal test: the inliers' best focal length (over the one given) more than
-    `bound` away, and more than FOCAL_SIGNIFICANCE predicted standard deviations, fails. CSVs
-    without the columns pass."""
+def deviation_counts(deviation, significance, large, large_significance, small):
+    """verdict.cpp's deviationCounts: large and significant, or small but certain."""
+    return ((deviation > large and significance > large_significance)
+            or (deviation > small and significance > CERTAIN_SIGNIFICANCE))
+
+
+def fits_focal(row, rule):
+    """verdict.cpp's focal test: the inliers' best focal length (over the one given) too far
+    from 1 for its significance fails. CSVs without the columns pass."""
     scale, sigma = row["focal_scale"], row["focal_scale_log_sigma"]
     if not (scale > 0 and math.isfinite(scale)):
         return True
     deviation = abs(math.log(scale))
-    return not (deviation > math.log1p(bound) and deviation > FOCAL_SIGNIFICANCE * sigma)
+    significance = deviation / sigma if sigma > 0 else INF
+    return not deviation_counts(deviation, significance, math.log1p(rule.get("max_focal_deviation", DEFAULT["max_focal_deviation"])),
+                                FOCAL_SIGNIFICANCE,
+                                math.log1p(rule.get("max_certain_focal_deviation", DEFAULT["max_certain_focal_deviation"])))
 
 
-TESTS["max_focal_deviation"] = lambda row, rule: fits_focal(row, rule.get("max_focal_deviation",
-                                                                           DEFAULT["max_focal_deviation"]))
+def fits_principal_point(row, rule):
+    """verdict.cpp's principal point test; CSVs without the columns pass."""
+    shift, significance = row["principal_point_shift"], row["principal_point_shift_significance"]
+    if not (shift >= 0 and math.isfinite(shift)):
+        return True
+    return not deviation_counts(shift, significance,
+                                rule.get("max_principal_point_shift", DEFAULT["max_principal_point_shift"]),
+                                PRINCIPAL_POINT_SIGNIFICANCE,
+                                rule.get("max_certain_principal_point_shift", DEFAULT["max_certain_principal_point_shift"]))
+
+
+TESTS["max_focal_deviation"] = fits_focal
+TESTS["max_principal_point_shift"] = fits_principal_point
 UNCERTAINTY_TESTS = ("max_centre_sigma_relative", "max_centre_sigma_m", "max_rotation_sigma_deg")
 
 
