@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <csignal>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -219,6 +220,42 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
       << run.output;
 }
 
+// `--poses` given the map's path replaced the map with a pose list, exit 0; a model path that
+// does not exist was ignored on a classical map; a pose printed to a full disk exited 0.
+TEST_F(Cli, LocalizeKeepsItsInputsRefusesTheOtherMethodsFlagsAndReportsLostOutput) {
+  const auto [scene, map] = mappedSyntheticScene(6, "classical");
+  ASSERT_FALSE(HasFailure());
+  const std::string image = (scene / "images" / "query_0000_near.png").string();
+  const auto map_size = fs::file_size(map);
+  const std::vector<std::string> query = {"localize", "--map", map.string(), "--image", image, "--intrinsics",
+                                          "200,200,127.5,95.5"};
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--poses", map.string()}, "--poses: '" + map.string() + "' is the map (--map)"},
+      {{"--ply", image}, "--ply: '" + image + "' is a query image"},
+      {{"--poses", (dir_ / "o.txt").string(), "--ply", (dir_ / "o.txt").string()}, "is also the output of --poses"},
+      {{"--model", (dir_ / "missing.pth").string()}, "--model: the map is a classical map, which does not use it"},
+      {{"--no-verify"}, "--no-verify: the map is a classical map"}};
+  for (const auto& [flags, expected] : cases) {
+    std::vector<std::string> arguments = query;
+    arguments.insert(arguments.end(), flags.begin(), flags.end());
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << flags[0] << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, expected)) << run.output;
+  }
+  EXPECT_EQ(fs::file_size(map), map_size);
+  EXPECT_TRUE(fs::exists(image));
+
+  if (!fs::exists("/dev/full")) return;
+  std::string command = "'" + std::string(FFLOC_CLI_PATH) + "'";
+  for (const std::string& argument : query) command += " '" + argument + "'";
+  const fs::path errors = dir_ / "full.err";
+  const int status = std::system((command + " --json > /dev/full 2> '" + errors.string() + "'").c_str());
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  std::ifstream err(errors);
+  const std::string text((std::istreambuf_iterator<char>(err)), {});
+  EXPECT_TRUE(contains(text, "error: standard output: write failed")) << text;
+}
+
 // eval --map of another scene's map scored its poses against this scene's truth without a word.
 TEST_F(Cli, EvalWarnsWhenTheMapIsOfAnotherCapture) {
   const auto [scene, map] = mappedSyntheticScene(6, "classical");
@@ -405,6 +442,9 @@ TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {
   for (const auto& [arguments, flag] : std::vector<std::pair<std::vector<std::string>, std::string>>{
            {{"localize", "--map", map, "--image", "q.png", "--intrinsics", "50,50,31.5,23.5", "--seed", "-1"}, "--seed"},
            {{"eval", "--dataset", data, "--seed", "-1"}, "--seed"},
+           {{"eval", "--dataset", data, "--max-queries", "-1"}, "--max-queries"},
+           {{"eval", "--dataset", data, "--max-correspondences", "-1"}, "--max-correspondences"},
+           {{"eval", "--dataset", data, "--min-correspondences", "-1"}, "--min-correspondences"},
            {{"synth", "--out", (dir_ / "s").string(), "--seed", "-1"}, "--seed"},
            {{"retrieval", "--map", map, "--dataset", data, "--top-k", "5,-1"}, "--top-k"}}) {
     const CliRun run = runCli(arguments);

@@ -33,6 +33,7 @@ struct LocalizeArguments {
   std::string intrinsics;
   std::string poses_path, ply_path;
   bool json = false;
+  std::vector<std::string> flags_given;  // of those that apply to one method only
 };
 
 struct Query {
@@ -187,6 +188,38 @@ void printText(const nlohmann::json& r) {
   std::cout << std::defaultfloat << "\n";
 }
 
+// `--poses` given the map's path replaced the map with a pose list, exit 0; so did `--ply`, and
+// either given a query image or the query list replaced it.
+void refuseOutputsOverInputsOrEachOther(const LocalizeArguments& args, const std::vector<Query>& queries) {
+  std::vector<std::pair<std::string, std::filesystem::path>> inputs = {{"the map (--map)", args.map_path}};
+  if (!args.image_list.empty()) inputs.emplace_back("the query list (--images)", args.image_list);
+  for (const Query& query : queries) inputs.emplace_back("a query image", query.path);
+  if (!args.poses_path.empty() && !args.ply_path.empty() && sameFolderKey(args.poses_path) == sameFolderKey(args.ply_path))
+    throw InputError("--ply: '" + args.ply_path + "' is also the output of --poses");
+  for (const auto& [flag, output] : {std::pair<const char*, const std::string&>{"--poses", args.poses_path},
+                                     {"--ply", args.ply_path}}) {
+    if (output.empty()) continue;
+    for (const auto& [what, input] : inputs)
+      if (sameFolderKey(output) == sameFolderKey(input.string()))
+        throw InputError(std::string(flag) + ": '" + output + "' is " + what + "; write it elsewhere");
+  }
+}
+
+// The map decides the method; a flag of the other one would be ignored without a word (a model
+// path that does not exist, on a classical map, was).
+const std::vector<std::string> kFastForwardFlags = {"--model",     "--dtype",     "--features",
+                                                   "--selection", "--retrieval", "--no-verify"};
+const std::vector<std::string> kClassicalFlags = {"--no-pose-guided"};
+
+void refuseOptionsOfTheOtherMethod(const LocalizeArguments& args, LocalizationMethod method) {
+  const bool classical = method == LocalizationMethod::kClassical;
+  for (const std::string& flag : args.flags_given) {
+    const std::vector<std::string>& others = classical ? kFastForwardFlags : kClassicalFlags;
+    if (std::find(others.begin(), others.end(), flag) != others.end())
+      throw InputError(flag + ": the map is a " + toString(method) + " map, which does not use it");
+  }
+}
+
 int runLocalize(const LocalizeArguments& args) {
   setLibraryThreadCount(args.model.threads);
   if (args.image.empty() == args.image_list.empty()) throw InputError("give exactly one of --image and --images");
@@ -203,6 +236,7 @@ int runLocalize(const LocalizeArguments& args) {
     queries = readQueryList(args.image_list, fallback);
   }
 
+  refuseOutputsOverInputsOrEachOther(args, queries);
   // Before the map and the model load: these would fail, or print a replacement character,
   // only after every query had run.
   for (const Query& query : queries) {
@@ -214,6 +248,7 @@ int runLocalize(const LocalizeArguments& args) {
 
   const MapLocalizer opened = openMapLocalizer(args.map_path, [&] { return loadCommandModel(args.model); });
   const Localizer& localizer = *opened.localizer;
+  refuseOptionsOfTheOtherMethod(args, localizer.method());
   std::cerr << "map: " << opened.description << "; K = " << options.top_k;
   if (localizer.method() == LocalizationMethod::kFastForward)
     std::cerr << ", N = " << options.num_features << ", selection " << toString(options.selection) << ", retrieval "
@@ -294,7 +329,12 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
   cmd->add_flag("--json", args->json, "Print JSON (an object for one query, an array for a list)");
   for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"})
     cmd->get_option(path_flag)->check(nonEmptyPath());
-  cmd->callback([args, &run] { run = [args] { return runLocalize(*args); }; });
+  cmd->callback([args, cmd, &run] {
+    for (const std::vector<std::string>* flags : {&kFastForwardFlags, &kClassicalFlags})
+      for (const std::string& flag : *flags)
+        if (cmd->count(flag) > 0) args->flags_given.push_back(flag);
+    run = [args] { return runLocalize(*args); };
+  });
 }
 
 }  // namespace ffloc::cli

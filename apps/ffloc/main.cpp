@@ -35,7 +35,13 @@ int main(int argc, char** argv) {
   }
   ffloc::configureAllocator();
   try {
-    return run ? run() : 0;
+    const int code = run ? run() : 0;
+    // A result printed to a full disk or a closed pipe is lost: say so, not exit 0.
+    if (!std::cout.flush()) {
+      std::cerr << "error: standard output: write failed; the results printed there are lost\n";
+      return 2;
+    }
+    return code;
   } catch (const ffloc::InputError& e) {
     std::cerr << "error: " << ffloc::cli::withFlagName(e.what()) << "\n";
     return 2;

@@ -16,8 +16,10 @@ void writeTextFile(const std::filesystem::path& path, const std::string& text) {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out) throwInputError(temporary.string(), 0, "cannot create file");
     out << text;
-    if (!out) {
-      out.close();
+    // What fits the stream's buffer reaches the disk only at close, whose failure (a full disk)
+    // would otherwise leave an empty file reported as written.
+    out.close();
+    if (out.fail()) {
       std::filesystem::remove(temporary);
       throwInputError(path.string(), 0, "write failed");
     }
