@@ -1,6 +1,9 @@
 #include "ffloc/pipeline/map_building.h"
 
+#include <iostream>
+
 #include "ffloc/core/error.h"
+#include "ffloc/core/folder_lock.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
@@ -61,6 +64,13 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output,
       throwInputError(frame.image_path.string(), 0,
                       "image name '" + frame.name + "' is not UTF-8, which a map file (JSON) cannot hold; rename the file");
   }
+  // Held from reading the map appended to until the new one is renamed into place: two runs
+  // appending at once each started from the same old map, and the later rename dropped the
+  // earlier run's images while both reported them added.
+  const std::filesystem::path folder = output.has_parent_path() ? output.parent_path() : ".";
+  const FolderLock lock(folder, [&] {
+    std::cerr << "waiting: another ffloc is writing a map in " << folder.string() << "\n";
+  });
   requireReplaceable(output);
   MapBuildReport report;
   if (options.method == LocalizationMethod::kClassical) {
