@@ -81,6 +81,7 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
   const json& frames = top.get("frames");
   if (!frames.is_array()) top.fail("frames", "expected an array");
   std::set<std::string> names;
+  std::map<std::filesystem::path, std::string> frame_of_image;
   for (size_t i = 0; i < frames.size(); ++i) {
     const std::string path = "frames[" + std::to_string(i) + "]";
     const JsonFields entry(frames[i], manifest_json, path);
@@ -88,9 +89,12 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
                             "depth_camera", "split"});
     Frame frame;
     const std::string image = entry.string("image");
-    frame.name = entry.has("name") ? entry.string("name") : image;
+    // Spelt "./a.png" or "images/../a.png", one file got two frames with two poses.
+    frame.name = entry.has("name") ? entry.string("name") : std::filesystem::path(image).lexically_normal().generic_string();
     frame.image_path = (folder / image).lexically_normal();
     if (!names.insert(frame.name).second) entry.fail("image", "duplicate frame '" + frame.name + "'");
+    if (const auto [earlier, added] = frame_of_image.emplace(frame.image_path, frame.name); !added)
+      entry.fail("image", "'" + image + "' is the image of frame '" + earlier->second + "' too");
 
     const json& camera_id = entry.get("camera");
     const std::string id = camera_id.is_string() ? camera_id.get<std::string>() : camera_id.dump();

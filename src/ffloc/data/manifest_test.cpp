@@ -220,6 +220,31 @@ TEST(Manifest, EveryFrameGetsTheChecksOfAQuery) {
   expectInputError([&] { loadDataset(dir); }, {dir.string(), "frame 'a.png'", "fy: focal length", "is not in [0.004, 4000]"});
 }
 
+// "./a.png" beside "a.png" gave one file two frames with two poses; names are the paths
+// lexically normalised.
+TEST(Manifest, OneImageFileSpeltTwoWaysIsOneFrame) {
+  const auto dir = testing::makeTempDir("ffloc-manifest");
+  writeImage(dir / "images" / "a.png", 4, 3);
+  const std::string frame = R"({"image": "IMAGE", "camera": "0", "split": "mapping",
+                               "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]})";
+  auto manifest = [&](const std::vector<std::string>& images) {
+    std::string frames;
+    for (const std::string& image : images) {
+      std::string entry = frame;
+      entry.replace(entry.find("IMAGE"), 5, image);
+      frames += (frames.empty() ? "" : ",") + entry;
+    }
+    return R"({"format": "ffloc-manifest", "version": 1,
+      "cameras": {"0": {"width": 4, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}}, "frames": [)" + frames + "]}";
+  };
+  writeTextFile(dir / "manifest.json", manifest({"./images/a.png"}));
+  EXPECT_EQ(readManifest(dir / "manifest.json").frames.at(0).name, "images/a.png");
+  for (const std::string& other : {"./images/a.png", "images/./a.png", "images//a.png", "images/../images/a.png"}) {
+    writeTextFile(dir / "manifest.json", manifest({"images/a.png", other}));
+    expectInputError([&] { readManifest(dir / "manifest.json"); }, {"frames[1]", "duplicate frame 'images/a.png'"});
+  }
+}
+
 TEST(Manifest, OverflowingNumberIsRejected) {
   // JSON has no NaN or inf literal; an out-of-range exponent is the nearest a file can get.
   const auto dir = testing::makeTempDir("ffloc-manifest");

@@ -196,7 +196,9 @@ void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
   };
   focal("fx", k.fx);
   focal("fy", k.fy);
-  if (!(std::isfinite(k.cx) && std::isfinite(k.cy) && k.cx >= 0 && k.cx <= width && k.cy >= 0 && k.cy <= height)) {
+  // Pixel centres lie at integers (OpenCV's convention), so the image spans [-0.5, width - 0.5].
+  const auto inside = [](double c, int size) { return std::isfinite(c) && c >= -0.5 && c <= size - 0.5; };
+  if (!(inside(k.cx, width) && inside(k.cy, height))) {
     std::ostringstream what;
     what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << width << "x" << height
          << " image (intrinsics must be in pixels of the image given)";

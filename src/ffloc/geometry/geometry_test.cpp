@@ -150,6 +150,24 @@ TEST(Intrinsics, DistortionProblemJudgesWhatTheModelDoesOverTheImage) {
                InputError);
 }
 
+// Pixel centres at integers: a 640 x 480 image spans [-0.5, 639.5] x [-0.5, 479.5].
+TEST(Intrinsics, ThePrincipalPointMayLieAnywhereOnTheImageAndNowhereElse) {
+  auto fits = [](double cx, double cy) {
+    try {
+      checkIntrinsicsFitImage(Intrinsics{500, 500, cx, cy, 640, 480, {}}, 640, 480);
+      return true;
+    } catch (const InputError&) {
+      return false;
+    }
+  };
+  EXPECT_TRUE(fits(319.5, 239.5));
+  EXPECT_TRUE(fits(-0.4, 479.5));
+  EXPECT_TRUE(fits(639.5, -0.5));
+  EXPECT_FALSE(fits(640, 239.5));
+  EXPECT_FALSE(fits(319.5, 480));
+  EXPECT_FALSE(fits(-0.6, 239.5));
+}
+
 TEST(Normalization, ReferenceAtOriginAndUnitScale) {
   std::mt19937 rng(3);
   std::vector<Pose> poses;
