@@ -419,6 +419,63 @@ TEST_F(ConnectionTest, ContentLengthOverTheLimitIs413BeforeAnyBodyArrives) {
   EXPECT_LT(answered_after_s, 3.0);
 }
 
+// How many answers the server wrote on a connection.
+size_t answers(const std::string& received) {
+  size_t count = 0;
+  for (size_t at = 0; (at = received.find("HTTP/1.1 ", at)) != std::string::npos; at += 9) ++count;
+  return count;
+}
+
+// Found by an outside probe: a body both chunked and of a Content-Length was read as chunked,
+// past the body limit, and a request hidden after its last chunk ran as a second one, which a
+// proxy in front going by Content-Length never saw (request smuggling).
+TEST_F(ConnectionTest, AChunkedBodyWithAContentLengthIsRefusedAndNothingHiddenInItRuns) {
+  start(ServerOptions{});
+  const std::string hidden = "0\r\n\r\nGET /maps HTTP/1.1\r\nHost: x\r\n\r\n";
+  const int socket_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(socket_fd, "POST " + kQueryPath + "smuggled HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                 "Content-Type: image/png\r\nContent-Length: " + std::to_string(hidden.size()) +
+                                 "\r\nTransfer-Encoding: chunked\r\n\r\n" + hidden));
+  const std::string received = receiveUntilClosed(socket_fd);
+  close(socket_fd);
+  EXPECT_EQ(received.rfind("HTTP/1.1 400", 0), 0u) << received;
+  EXPECT_NE(received.find("Transfer-Encoding and Content-Length: both given"), std::string::npos) << received;
+  EXPECT_EQ(answers(received), 1u) << received;
+  EXPECT_TRUE(localizer_.names().empty());
+}
+
+// A header line the library cannot parse (over 8 KB) was answered 400 and the connection kept:
+// the rest of that header, read as the next request, ran.
+TEST_F(ConnectionTest, AHeaderTheLibraryCannotParseEndsTheConnection) {
+  start(ServerOptions{});
+  const int socket_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(socket_fd, "GET /health HTTP/1.1\r\nHost: x\r\nX-Pad: " + std::string(20000, 'b') +
+                                     "\r\nGET /maps HTTP/1.1\r\nHost: x\r\n\r\n"));
+  const std::string received = receiveUntilClosed(socket_fd);
+  close(socket_fd);
+  EXPECT_EQ(received.rfind("HTTP/1.1 400", 0), 0u) << received;
+  EXPECT_EQ(answers(received), 1u) << received;
+}
+
+// The library's per-read timeout (5 s) answered a client that paused 6 s inside its body's
+// deadline with 400 "malformed"; the deadlines alone bound a request now.
+TEST_F(ConnectionTest, APauseWithinTheDeadlinesIsNotAnError) {
+  ServerOptions options;
+  options.body_timeout = std::chrono::milliseconds(30000);
+  start(options);
+  localizer_.open();
+  const std::string png = pngBytes();
+  const int socket_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(socket_fd, "POST " + kQueryPath + "paused HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: image/png\r\n"
+                                 "Content-Length: " + std::to_string(png.size()) + "\r\n\r\n" + png.substr(0, 20)));
+  std::this_thread::sleep_for(std::chrono::milliseconds(5500));
+  ASSERT_TRUE(sendAll(socket_fd, png.substr(20)));
+  const std::string answer = receiveAnswer(socket_fd);
+  close(socket_fd);
+  EXPECT_EQ(answer.rfind("HTTP/1.1 200", 0), 0u) << answer;
+  EXPECT_EQ(localizer_.names(), std::vector<std::string>{"paused"});
+}
+
 // --max-waiting 100000 started 32,000 threads and ignored SIGTERM while creating them. Beyond
 // the bounds the server refuses to start, naming the field; at them it starts and stops at once.
 TEST_F(ConnectionTest, ThreadCountsBeyondTheirBoundsAreRefusedAndTheBoundsStopPromptly) {

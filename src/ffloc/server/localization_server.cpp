@@ -208,11 +208,13 @@ std::string escapeControlCharacters(const std::string& line) {
   return escaped;
 }
 
+const char* const kLengthRequired = "length required: send the body with a Content-Length header (no chunked transfer)";
+
 // Why a POST's headers cannot make a query: exactly one Content-Length of decimal digits, within
 // the body limit, and a body type that can hold an image.
 Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
   const size_t lengths = request.get_header_value_count("Content-Length");
-  if (lengths == 0) return {411, "length required: send the body with a Content-Length header (no chunked transfer)"};
+  if (lengths == 0) return {411, kLengthRequired};
   if (lengths > 1) return {400, "Content-Length: given more than once"};
   const std::string length = request.get_header_value("Content-Length");
   if (length.empty() || length.size() > 18 || length.find_first_not_of("0123456789") != std::string::npos) {
@@ -444,6 +446,14 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   // route does not answer (405): the library would read a PUT's body first, and refuse a form
   // body as too large (413).
   const auto refusalBeforeBody = [this](const httplib::Request& request) -> Refusal {
+    // The library reads a body that is both chunked and of a Content-Length as chunked: past
+    // the body limit, and with a request hidden after the last chunk run as a second one, which
+    // a proxy in front that goes by Content-Length never saw (request smuggling).
+    if (request.has_header("Transfer-Encoding")) {
+      if (!request.has_header("Content-Length")) return {411, kLengthRequired};
+      return {400, "Transfer-Encoding and Content-Length: both given, so the body's length is ambiguous; send one "
+                   "Content-Length"};
+    }
     const std::optional<std::string> split_path = pathWithEncodedSlashes(request.target);
     const std::string& path = split_path ? *split_path : request.path;
     std::string allow;
@@ -559,8 +569,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       replyError(response, cut.status, cut.message);
       DeadlineServer::closeAfterAnswer(response);
     }
-    if (response.body.empty())
+    // The library's own refusals (a header it could not parse) leave the rest of what the client
+    // sent unread: read on as the next request, text inside an over-long header ran as one.
+    if (response.body.empty()) {
       replyError(response, response.status, libraryErrorMessage(response.status, options_.max_body_bytes));
+      DeadlineServer::closeAfterAnswer(response);
+    }
     const nlohmann::json body = nlohmann::json::parse(response.body, nullptr, false);
     const std::string message = body.is_object() && body.contains("error") ? body["error"].get<std::string>() : "";
     log(request, std::to_string(response.status) + " " + cutForLog(message, kMaxLoggedMessageBytes));
