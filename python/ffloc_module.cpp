@@ -237,11 +237,17 @@ void refuseUnknown(const std::vector<std::string>& unused, const std::string& fu
                      " (query options: preset, top_k, features, seed, selection, retrieval, solver, verify, pose_guided)");
 }
 
+// A str or os.PathLike argument; InputError naming `argument` for anything else (None gave
+// Python's own TypeError, naming no argument).
+std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
+  if (!py::isinstance<py::str>(value) && !py::hasattr(value, "__fspath__"))
+    throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
+  return py::str(py::module_::import("os").attr("fspath")(value)).cast<std::string>();
+}
+
 Scene sceneFrom(const py::handle& value, const std::string& format) {
   if (py::isinstance<Scene>(value)) return value.cast<Scene>();
-  if (!py::isinstance<py::str>(value) && !py::hasattr(value, "__fspath__"))
-    throw InputError("dataset: expected a folder path or an ffloc.Scene");
-  const std::string path = py::str(py::module_::import("os").attr("fspath")(value)).cast<std::string>();
+  const std::string path = pathArgument(value, "dataset", "a folder path or an ffloc.Scene");
   py::gil_scoped_release unlocked;
   return loadDataset(path, format);
 }
@@ -347,6 +353,12 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
   if (camera.width <= 0 || camera.height <= 0)
     throw InputError("image_size: must be positive, got " + std::to_string(camera.width) + "x" +
                      std::to_string(camera.height));
+  // As Localizer.localize refuses them: a principal point outside the image gave a pose metres
+  // off reported as success.
+  checkIntrinsicsFitImage(camera, camera.width, camera.height);
+  if (!options.is_none() && !py::isinstance<py::dict>(options))
+    throw InputError("options: expected a dict of PnP options, got " +
+                     py::str(py::type::of(options).attr("__name__")).cast<std::string>());
   const PnpOptions pnp = pnpOptions(options.is_none() ? py::dict() : options.cast<py::dict>());
   PnpResult result;
   std::vector<int> inliers;
@@ -573,7 +585,7 @@ PYBIND11_MODULE(_ffloc, m) {
                opened.threads = threads;
                return PyLocalizer(std::move(opened), options);
              }
-             const std::string path = py::str(py::module_::import("os").attr("fspath")(map)).cast<std::string>();
+             const std::string path = pathArgument(map, "map", "an ffloc.Map or a map file path");
              return PyLocalizer(Map::load(path, model, dtype, threads), options);
            }),
            py::arg("map"), py::arg("model") = "default", py::arg("dtype") = "f32", py::arg("threads") = 0,

@@ -278,6 +278,17 @@ def test_estimate_absolute_pose_refuses_a_principal_point_no_image_has():
     # side overflow an int (undefined behaviour), reported as "image_size: ... -2147483648x481".
     with pytest.raises(ffloc.Error, match="intrinsics: cx = 1e\\+12 puts the image centre where no image is"):
         ffloc.estimate_absolute_pose(np.zeros((10, 2)), np.zeros((10, 3)), (500, 500, 1e12, 240))
+    # With image_size, a principal point outside that image: success, 5 m off, before.
+    points2d, points3d, _, _, _ = synthetic_pairs(200, 0)
+    with pytest.raises(ffloc.Error, match="cx, cy: the principal point \\(1000, 240\\) lies outside the 640x480 image"):
+        ffloc.estimate_absolute_pose(points2d, points3d, (500, 500, 1000, 240), image_size=(640, 480))
+
+
+def test_arguments_of_the_wrong_type_raise_errors_naming_them():
+    with pytest.raises(ffloc.Error, match="options: expected a dict of PnP options, got str"):
+        ffloc.estimate_absolute_pose(np.zeros((10, 2)), np.zeros((10, 3)), (500, 500, 320, 240), "notadict")
+    with pytest.raises(ffloc.Error, match="map: expected an ffloc.Map or a map file path, got NoneType"):
+        ffloc.Localizer(None)
 
 
 # Evaluation
