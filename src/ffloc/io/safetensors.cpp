@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
+#include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -218,12 +220,32 @@ TensorView SafetensorsArchive::readTensor(const std::string& name, const Json& e
   return view;
 }
 
+// Temporary files of `target` left by writers that were killed (Ctrl-C while a map was saved
+// left one each time, up to the map's size, and no later run removed them): those named for a
+// process that no longer runs.
+void removeAbandonedTemporaries(const std::filesystem::path& directory, const std::filesystem::path& target) {
+  const std::string prefix = "." + target.filename().string() + ".";
+  std::error_code error;
+  for (const auto& entry : std::filesystem::directory_iterator(directory, error)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() <= prefix.size() + 4 || name.rfind(prefix, 0) != 0 || name.substr(name.size() - 4) != ".tmp")
+      continue;
+    const std::string rest = name.substr(prefix.size());  // "<pid>.<counter>.tmp"
+    const size_t dot = rest.find('.');
+    if (dot == 0 || dot == std::string::npos || rest.find_first_not_of("0123456789") != dot) continue;
+    const long pid = std::strtol(rest.substr(0, dot).c_str(), nullptr, 10);
+    if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+      std::filesystem::remove(entry.path(), error);
+  }
+}
+
 // Creates a fresh file beside `target` (same directory, so rename() is atomic); the kernel
 // applies the umask to the 0666 mode.
 int createTemporaryBeside(const std::filesystem::path& target, std::filesystem::path* temporary) {
   static std::atomic<unsigned> counter{0};
   const std::filesystem::path directory =
       target.has_parent_path() ? target.parent_path() : std::filesystem::path(".");
+  removeAbandonedTemporaries(directory, target);
   for (int attempt = 0; attempt < 100; ++attempt) {
     *temporary = directory / ("." + target.filename().string() + "." +
                               std::to_string(::getpid()) + "." + std::to_string(counter++) +

@@ -2,6 +2,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <unistd.h>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
@@ -48,6 +49,29 @@ TEST(Safetensors, ReadsTinyModel) {
     EXPECT_NE(std::string(error.what()).find("tiny_model.safetensors"), std::string::npos);
     EXPECT_NE(std::string(error.what()).find("no.such.tensor"), std::string::npos);
   }
+}
+
+// A writer killed while saving (Ctrl-C during `ffloc map`) leaves its temporary file; the next
+// write to the same target removes those of processes that no longer run, and no other.
+TEST(Safetensors, AbandonedTemporaryFilesAreRemovedByTheNextWrite) {
+  const auto dir = testing::makeTempDir("ffloc-safetensors");
+  const auto path = dir / "m.safetensors";
+  const auto abandoned = dir / ".m.safetensors.999999999.0.tmp";  // beyond any pid_max
+  const auto live = dir / (".m.safetensors." + std::to_string(::getpid()) + ".7.tmp");
+  const auto other = dir / ".n.safetensors.999999999.0.tmp";
+  for (const auto& file : {abandoned, live, other}) std::ofstream(file) << "partial";
+  const float value = 1;
+  TensorView x;
+  x.name = "x";
+  x.dtype = DType::kF32;
+  x.shape = {1};
+  x.data = reinterpret_cast<const uint8_t*>(&value);
+  x.nbytes = sizeof(value);
+  writeSafetensors(path, {x}, {});
+  EXPECT_FALSE(std::filesystem::exists(abandoned));
+  EXPECT_TRUE(std::filesystem::exists(live));
+  EXPECT_TRUE(std::filesystem::exists(other));
+  EXPECT_TRUE(std::filesystem::exists(path));
 }
 
 TEST(Safetensors, ReadsIntegerAndByteTensors) {
