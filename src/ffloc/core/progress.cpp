@@ -7,8 +7,10 @@
 
 namespace ffloc {
 
-ProgressBar::ProgressBar(std::string label, std::size_t total, bool quiet)
-    : label_(std::move(label)), total_(total), quiet_(quiet),
+ProgressBar::ProgressBar(std::string label, std::size_t total, bool quiet,
+                         std::chrono::steady_clock::duration log_interval)
+    : label_(std::move(label)), total_(total), quiet_(quiet), terminal_(isatty(fileno(stderr)) != 0),
+      log_interval_(log_interval),
       start_(std::chrono::steady_clock::now()), last_draw_(start_) {}
 
 double ProgressBar::elapsedSeconds() const {
@@ -18,7 +20,11 @@ double ProgressBar::elapsedSeconds() const {
 void ProgressBar::update(std::size_t done) {
   if (quiet_) return;
   const auto now = std::chrono::steady_clock::now();
-  if (done < total_ && now - last_draw_ < std::chrono::milliseconds(100)) return;
+  if (terminal_) {
+    if (done < total_ && now - last_draw_ < std::chrono::milliseconds(100)) return;
+  } else if (done >= total_ || now - last_draw_ < log_interval_) {  // finish() prints the last line
+    return;
+  }
   last_draw_ = now;
   draw(done, false);
 }
@@ -35,13 +41,11 @@ void ProgressBar::draw(std::size_t done, bool final_line) {
   const int filled = static_cast<int>(fraction * width);
   const double elapsed = elapsedSeconds();
   const double eta = done ? elapsed / static_cast<double>(done) * static_cast<double>(total_ - done) : 0.0;
-  // A terminal gets an in-place bar; a log file gets only the final line.
-  const bool tty = isatty(fileno(stderr));
-  if (!tty && !final_line) return;
-  std::fprintf(stderr, "%s%s [%.*s%*s] %zu/%zu  %.1fs", tty ? "\r" : "", label_.c_str(), filled,
+  // A terminal gets an in-place bar, a log file one line each time.
+  std::fprintf(stderr, "%s%s [%.*s%*s] %zu/%zu  %.1fs", terminal_ ? "\r" : "", label_.c_str(), filled,
                "==============================", width - filled, "", done, total_, elapsed);
   if (!final_line) std::fprintf(stderr, "  eta %.1fs", eta);
-  std::fprintf(stderr, final_line ? "\n" : "   ");
+  std::fprintf(stderr, final_line || !terminal_ ? "\n" : "   ");
   std::fflush(stderr);
 }
 
