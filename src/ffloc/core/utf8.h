@@ -1,5 +1,6 @@
 #pragma once
 
+#include <string>
 #include <string_view>
 
 namespace ffloc {
@@ -8,5 +9,10 @@ namespace ffloc {
 // U+10FFFF). JSON text must be, so names that reach map files and --json answers are checked up
 // front rather than failing, or being replaced, after the work is done.
 bool isUtf8(std::string_view text);
+
+// `text` on one line: control characters and DEL written as \n, \r, \t or \xHH. A client's
+// newline in a log line would start a forged line, and a NUL ends a line (and an exception's
+// message) for many readers.
+std::string escapeControlCharacters(std::string_view text);
 
 }  // namespace ffloc

@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/io/json_fields.h"
 #include "ffloc/localization/localization_json.h"
 #include "ffloc/server/localize_request.h"
@@ -115,6 +116,20 @@ std::map<std::string, std::string> requestFields(const httplib::Request& request
   auto add = [&fields](const std::string& key, const std::string& value) {
     if (!fields.emplace(key, value).second) throw InputError(key + ": given more than once");
   };
+  // The library's parse drops what it cannot read: '?=5' became the field "5", and
+  // 'name=a;seed=2' the name "2" ('fx=1;fy=2' was answered "fy: missing").
+  const size_t query_at = request.target.find('?');
+  const std::string query = query_at == std::string::npos ? "" : request.target.substr(query_at + 1);
+  for (size_t start = 0; start < query.size();) {
+    const size_t end = std::min(query.find('&', start), query.size());
+    const std::string piece = query.substr(start, end - start);
+    const size_t equals = piece.find('=');
+    if (equals == 0) throw InputError("a query field has no name ('" + piece + "')");
+    if (equals != std::string::npos && piece.find('=', equals + 1) != std::string::npos)
+      throw InputError(piece.substr(0, equals) + ": '" + piece +
+                       "' holds two '=': separate fields with '&' (not ';'), and write '=' in a value as %3D");
+    start = end + 1;
+  }
   for (const auto& [key, value] : request.params) add(key, value);
   for (const auto& [key, part] : request.files) {
     if (key != "image") add(key, part.content);
@@ -183,30 +198,6 @@ std::string cutForLog(const std::string& text, size_t max_bytes) {
   return text.substr(0, cut) + "... (" + std::to_string(text.size()) + " bytes, cut)";
 }
 
-// A log line as one line: a client's newline would start a forged line and a NUL ends the line
-// for many readers, so control characters and DEL are written as \n, \r, \t or \xHH.
-std::string escapeControlCharacters(const std::string& line) {
-  std::string escaped;
-  escaped.reserve(line.size());
-  for (const char c : line) {
-    const auto byte = static_cast<unsigned char>(c);
-    if (byte >= 0x20 && byte != 0x7F) {
-      escaped += c;
-    } else if (c == '\n') {
-      escaped += "\\n";
-    } else if (c == '\r') {
-      escaped += "\\r";
-    } else if (c == '\t') {
-      escaped += "\\t";
-    } else {
-      static constexpr char kHex[] = "0123456789abcdef";
-      escaped += "\\x";
-      escaped += kHex[byte >> 4];
-      escaped += kHex[byte & 0xF];
-    }
-  }
-  return escaped;
-}
 
 const char* const kLengthRequired = "length required: send the body with a Content-Length header (no chunked transfer)";
 

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 
@@ -36,13 +37,13 @@ bool isDecimalText(const std::string& text) {
 }
 
 double parseFiniteNumber(const std::string& field, const std::string& text) {
-  if (!isDecimalText(text)) throw InputError(field + ": expected a finite number, got '" + text + "'");
+  if (!isDecimalText(text)) throw InputError(field + ": expected a finite number, got '" + escapeControlCharacters(text) + "'");
   const char* begin = text.c_str();
   char* end = nullptr;
   errno = 0;
   const double value = std::strtod(begin, &end);
   if (text.empty() || end != begin + text.size() || errno == ERANGE || !std::isfinite(value))
-    throw InputError(field + ": expected a finite number, got '" + text + "'");
+    throw InputError(field + ": expected a finite number, got '" + escapeControlCharacters(text) + "'");
   return value;
 }
 
@@ -53,7 +54,7 @@ long long parseInteger(const std::string& field, const std::string& text, long l
   const long long value = std::strtoll(begin, &end, 10);
   if (!isDecimalText(text) || end != begin + text.size() || errno == ERANGE || value < min || value > max) {
     throw InputError(field + ": expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) +
-                     "], got '" + text + "'");
+                     "], got '" + escapeControlCharacters(text) + "'");
   }
   return value;
 }

@@ -489,6 +489,20 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   EXPECT_EQ(bad_field->status, 400);
   EXPECT_NE(body(bad_field)["error"].get<std::string>().find("unknown field"), std::string::npos);
 
+  // A field with no name, fields joined by ';' (sent encoded), and a NUL byte that cut the
+  // message quoting it short.
+  for (const auto& [query, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"=5&", "a query field has no name ('=5')"},
+           {"name=a;seed=2&", "name: 'name=a%3Bseed=2' holds two '=': separate fields with '&' (not ';'), and write '=' "
+                              "in a value as %3D"},
+           {"seed=1%00&", "seed: expected an integer in [0, 9223372036854775807], got '1\\x00'"}}) {
+    const auto refused = client_->Post(("/localize?" + query + intrinsicsParameters()).c_str(), queryFileBytes(),
+                                       "image/png");
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 400) << query;
+    EXPECT_EQ(body(refused)["error"], expected) << refused->body;
+  }
+
   const auto two_images = client_->Post(("/localize?" + intrinsicsParameters()).c_str(),
                                         httplib::MultipartFormDataItems{{"image", queryFileBytes(), "a.png", "image/png"},
                                                                         {"image", queryFileBytes(), "b.png", "image/png"}});
