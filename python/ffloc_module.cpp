@@ -354,8 +354,8 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
     throw InputError("image_size: must be positive, got " + std::to_string(camera.width) + "x" +
                      std::to_string(camera.height));
   // As Localizer.localize refuses them: a principal point outside the image gave a pose metres
-  // off reported as success.
-  checkIntrinsicsFitImage(camera, camera.width, camera.height);
+  // off reported as success. (Without image_size the image is made to fit the principal point.)
+  if (image_size) checkIntrinsicsFitImage(camera, camera.width, camera.height);
   if (!options.is_none() && !py::isinstance<py::dict>(options))
     throw InputError("options: expected a dict of PnP options, got " +
                      py::str(py::type::of(options).attr("__name__")).cast<std::string>());

@@ -16,6 +16,7 @@
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/io/image.h"
+#include "ffloc/io/map_file.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/localization/localization_json.h"
 #include "ffloc/pipeline/map_localizer.h"
@@ -246,9 +247,10 @@ int runLocalize(const LocalizeArguments& args) {
     if (!problem.empty()) throwInputError(query.path.string(), 0, "--poses: query '" + query.name + "': " + problem);
   }
 
+  // From the header, before a FastForward map loads its network.
+  refuseOptionsOfTheOtherMethod(args, parseLocalizationMethod(readMapHeader(args.map_path).method));
   const MapLocalizer opened = openMapLocalizer(args.map_path, [&] { return loadCommandModel(args.model); });
   const Localizer& localizer = *opened.localizer;
-  refuseOptionsOfTheOtherMethod(args, localizer.method());
   std::cerr << "map: " << opened.description << "; K = " << options.top_k;
   if (localizer.method() == LocalizationMethod::kFastForward)
     std::cerr << ", N = " << options.num_features << ", selection " << toString(options.selection) << ", retrieval "

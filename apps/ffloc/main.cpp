@@ -36,7 +36,7 @@ int main(int argc, char** argv) {
   ffloc::configureAllocator();
   try {
     const int code = run ? run() : 0;
-    // A result printed to a full disk or a closed pipe is lost: say so, not exit 0.
+    // A result printed to a full disk is lost: say so, not exit 0.
     if (!std::cout.flush()) {
       std::cerr << "error: standard output: write failed; the results printed there are lost\n";
       return 2;

@@ -2,6 +2,13 @@
 
 namespace ffloc {
 
+std::string InputError::withoutNul(const std::string& message) {
+  if (message.find('\0') == std::string::npos) return message;
+  std::string escaped;
+  for (const char c : message) escaped += c == '\0' ? std::string("\\x00") : std::string(1, c);
+  return escaped;
+}
+
 std::string locate(const std::string& file, int line, const std::string& what) {
   if (line > 0) return file + ":" + std::to_string(line) + ": " + what;
   return file + ": " + what;

@@ -10,7 +10,12 @@ namespace ffloc {
 // it as it is and exit non-zero.
 class InputError : public std::runtime_error {
  public:
-  explicit InputError(const std::string& message) : std::runtime_error(message) {}
+  // A NUL in the message (from the input it quotes) is written as \x00: what() is read as a C
+  // string, and the message ended there.
+  explicit InputError(const std::string& message) : std::runtime_error(withoutNul(message)) {}
+
+ private:
+  static std::string withoutNul(const std::string& message);
 };
 
 // "<file>:<line>: <what>" or "<file>: <what>" when the line is unknown (line <= 0).

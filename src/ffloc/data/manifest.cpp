@@ -89,10 +89,10 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
                             "depth_camera", "split"});
     Frame frame;
     const std::string image = entry.string("image");
-    // Spelt "./a.png" or "images/../a.png", one file got two frames with two poses.
-    frame.name = entry.has("name") ? entry.string("name") : std::filesystem::path(image).lexically_normal().generic_string();
+    frame.name = entry.has("name") ? entry.string("name") : image;
     frame.image_path = (folder / image).lexically_normal();
     if (!names.insert(frame.name).second) entry.fail("image", "duplicate frame '" + frame.name + "'");
+    // Spelt "./a.png" beside "a.png", one file got two frames with two poses.
     if (const auto [earlier, added] = frame_of_image.emplace(frame.image_path, frame.name); !added)
       entry.fail("image", "'" + image + "' is the image of frame '" + earlier->second + "' too");
 

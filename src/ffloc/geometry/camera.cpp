@@ -196,8 +196,9 @@ void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
   };
   focal("fx", k.fx);
   focal("fy", k.fy);
-  // Pixel centres lie at integers (OpenCV's convention), so the image spans [-0.5, width - 0.5].
-  const auto inside = [](double c, int size) { return std::isfinite(c) && c >= -0.5 && c <= size - 0.5; };
+  // With pixel centres at integers (OpenCV's convention, ours) the image spans [-0.5, width - 0.5];
+  // with pixel corners there (COLMAP's and NeRF's exports may be so) [0, width]. Either is taken.
+  const auto inside = [](double c, int size) { return std::isfinite(c) && c >= -0.5 && c <= size; };
   if (!(inside(k.cx, width) && inside(k.cy, height))) {
     std::ostringstream what;
     what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << width << "x" << height

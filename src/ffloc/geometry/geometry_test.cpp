@@ -150,7 +150,8 @@ TEST(Intrinsics, DistortionProblemJudgesWhatTheModelDoesOverTheImage) {
                InputError);
 }
 
-// Pixel centres at integers: a 640 x 480 image spans [-0.5, 639.5] x [-0.5, 479.5].
+// Pixel centres at integers, a 640 x 480 image spans [-0.5, 639.5] x [-0.5, 479.5]; corners
+// there, [0, 640] x [0, 480]. Either convention's principal point is taken, nothing beyond.
 TEST(Intrinsics, ThePrincipalPointMayLieAnywhereOnTheImageAndNowhereElse) {
   auto fits = [](double cx, double cy) {
     try {
@@ -163,8 +164,9 @@ TEST(Intrinsics, ThePrincipalPointMayLieAnywhereOnTheImageAndNowhereElse) {
   EXPECT_TRUE(fits(319.5, 239.5));
   EXPECT_TRUE(fits(-0.4, 479.5));
   EXPECT_TRUE(fits(639.5, -0.5));
-  EXPECT_FALSE(fits(640, 239.5));
-  EXPECT_FALSE(fits(319.5, 480));
+  EXPECT_TRUE(fits(640, 480));
+  EXPECT_FALSE(fits(640.1, 239.5));
+  EXPECT_FALSE(fits(319.5, 480.1));
   EXPECT_FALSE(fits(-0.6, 239.5));
 }
 

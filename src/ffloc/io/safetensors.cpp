@@ -5,7 +5,6 @@
 #include <atomic>
 #include <cerrno>
 #include <csignal>
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -230,10 +229,15 @@ void removeAbandonedTemporaries(const std::filesystem::path& directory, const st
     const std::string name = entry.path().filename().string();
     if (name.size() <= prefix.size() + 4 || name.rfind(prefix, 0) != 0 || name.substr(name.size() - 4) != ".tmp")
       continue;
-    const std::string rest = name.substr(prefix.size());  // "<pid>.<counter>.tmp"
+    // Exactly "<pid>.<counter>.tmp": ".m.ffmap.5.4242.0.tmp" is a temporary of "m.ffmap.5".
+    const std::string rest = name.substr(prefix.size(), name.size() - prefix.size() - 4);
     const size_t dot = rest.find('.');
-    if (dot == 0 || dot == std::string::npos || rest.find_first_not_of("0123456789") != dot) continue;
-    const long pid = std::strtol(rest.substr(0, dot).c_str(), nullptr, 10);
+    const auto digits = [](const std::string& text) {
+      return !text.empty() && text.find_first_not_of("0123456789") == std::string::npos;
+    };
+    if (dot == std::string::npos || dot > 9 || !digits(rest.substr(0, dot)) || !digits(rest.substr(dot + 1)))
+      continue;
+    const long pid = std::stol(rest.substr(0, dot));
     if (pid > 0 && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
       std::filesystem::remove(entry.path(), error);
   }

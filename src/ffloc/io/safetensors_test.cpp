@@ -59,7 +59,8 @@ TEST(Safetensors, AbandonedTemporaryFilesAreRemovedByTheNextWrite) {
   const auto abandoned = dir / ".m.safetensors.999999999.0.tmp";  // beyond any pid_max
   const auto live = dir / (".m.safetensors." + std::to_string(::getpid()) + ".7.tmp");
   const auto other = dir / ".n.safetensors.999999999.0.tmp";
-  for (const auto& file : {abandoned, live, other}) std::ofstream(file) << "partial";
+  const auto of_a_longer_name = dir / ".m.safetensors.5.999999998.0.tmp";  // a temporary of "m.safetensors.5"
+  for (const auto& file : {abandoned, live, other, of_a_longer_name}) std::ofstream(file) << "partial";
   const float value = 1;
   TensorView x;
   x.name = "x";
@@ -71,6 +72,7 @@ TEST(Safetensors, AbandonedTemporaryFilesAreRemovedByTheNextWrite) {
   EXPECT_FALSE(std::filesystem::exists(abandoned));
   EXPECT_TRUE(std::filesystem::exists(live));
   EXPECT_TRUE(std::filesystem::exists(other));
+  EXPECT_TRUE(std::filesystem::exists(of_a_longer_name));
   EXPECT_TRUE(std::filesystem::exists(path));
 }
 

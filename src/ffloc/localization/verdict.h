@@ -38,8 +38,8 @@ struct PoseEvidence {
   double focal_scale_log_sigma = -1;
   // The principal point the inliers fit best (fitPrincipalPoint): its distance from the one
   // given over the focal length fx (for small shifts, the angle it turns the view by, in
-  // radians), and that shift in predicted standard deviations. Negative without a pose, 0 when
-  // the inliers do not determine it.
+  // radians), and that shift in predicted standard deviations. Negative without a pose; a shift
+  // of +inf at significance 0 when the inliers do not determine it (null in JSON).
   double principal_point_shift = -1;
   double principal_point_shift_significance = -1;
   // A second, independent estimate (another reference image, another half of the pairs): the

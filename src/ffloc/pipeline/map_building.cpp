@@ -3,7 +3,7 @@
 #include <iostream>
 
 #include "ffloc/core/error.h"
-#include "ffloc/core/folder_lock.h"
+#include "ffloc/core/writer_lock.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
@@ -67,9 +67,9 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output,
   // Held from reading the map appended to until the new one is renamed into place: two runs
   // appending at once each started from the same old map, and the later rename dropped the
   // earlier run's images while both reported them added.
-  const std::filesystem::path folder = output.has_parent_path() ? output.parent_path() : ".";
-  const FolderLock lock(folder, [&] {
-    std::cerr << "waiting: another ffloc is writing a map in " << folder.string() << "\n";
+  const bool quiet = options.method == LocalizationMethod::kClassical ? options.classical.quiet : options.fastforward.quiet;
+  const WriterLock lock(output, [&] {
+    if (!quiet) std::cerr << "waiting: another ffloc is writing " << output.string() << "\n";
   });
   requireReplaceable(output);
   MapBuildReport report;

@@ -124,9 +124,10 @@ std::map<std::string, std::string> requestFields(const httplib::Request& request
     const size_t end = std::min(query.find('&', start), query.size());
     const std::string piece = query.substr(start, end - start);
     const size_t equals = piece.find('=');
-    if (equals == 0) throw InputError("a query field has no name ('" + piece + "')");
+    const std::string sent = escapeControlCharacters(httplib::detail::decode_url(piece, true));
+    if (equals == 0) throw InputError("a query field has no name ('" + sent + "')");
     if (equals != std::string::npos && piece.find('=', equals + 1) != std::string::npos)
-      throw InputError(piece.substr(0, equals) + ": '" + piece +
+      throw InputError(escapeControlCharacters(httplib::detail::decode_url(piece.substr(0, equals), true)) + ": '" + sent +
                        "' holds two '=': separate fields with '&' (not ';'), and write '=' in a value as %3D");
     start = end + 1;
   }

@@ -493,7 +493,7 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   // message quoting it short.
   for (const auto& [query, expected] : std::vector<std::pair<std::string, std::string>>{
            {"=5&", "a query field has no name ('=5')"},
-           {"name=a;seed=2&", "name: 'name=a%3Bseed=2' holds two '=': separate fields with '&' (not ';'), and write '=' "
+           {"name=a;seed=2&", "name: 'name=a;seed=2' holds two '=': separate fields with '&' (not ';'), and write '=' "
                               "in a value as %3D"},
            {"seed=1%00&", "seed: expected an integer in [0, 9223372036854775807], got '1\\x00'"}}) {
     const auto refused = client_->Post(("/localize?" + query + intrinsicsParameters()).c_str(), queryFileBytes(),

@@ -1,0 +1,32 @@
+#include "ffloc/core/writer_lock.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include "ffloc/core/error.h"
+
+namespace ffloc {
+
+WriterLock::WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait) {
+  const std::filesystem::path folder = target.has_parent_path() ? target.parent_path() : ".";
+  const std::filesystem::path lock_file = folder / ("." + target.filename().string() + ".lock");
+  descriptor_ = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+  if (descriptor_ < 0)
+    throwInputError(lock_file.string(), 0, std::string("cannot create the lock file: ") + std::strerror(errno));
+  if (::flock(descriptor_, LOCK_EX | LOCK_NB) == 0) return;
+  if (errno == EWOULDBLOCK && on_wait) on_wait();
+  while (::flock(descriptor_, LOCK_EX) != 0) {
+    if (errno == EINTR) continue;
+    const int error = errno;
+    ::close(descriptor_);
+    throwInputError(lock_file.string(), 0, std::string("cannot lock: ") + std::strerror(error));
+  }
+}
+
+WriterLock::~WriterLock() { ::close(descriptor_); }
+
+}  // namespace ffloc

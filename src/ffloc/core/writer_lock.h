@@ -1,0 +1,26 @@
+#pragma once
+
+#include <filesystem>
+#include <functional>
+
+namespace ffloc {
+
+// An exclusive advisory lock (flock) for the writers of one file, held while the object lives:
+// writers that read the file, add to it and rename a new one into place take it, so that two of
+// them at once do not both start from the same old file and the later rename drop the earlier
+// one's work. The lock is on a hidden file beside the target, `.<name>.lock`, which stays (a
+// lock file removed while another process waits on it would let a third one in beside it).
+// Blocks while another process holds it, after calling `on_wait` (when given) once. InputError
+// naming the lock file when it cannot be created or locked.
+class WriterLock {
+ public:
+  WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait);
+  ~WriterLock();
+  WriterLock(const WriterLock&) = delete;
+  WriterLock& operator=(const WriterLock&) = delete;
+
+ private:
+  int descriptor_ = -1;
+};
+
+}  // namespace ffloc

@@ -1,0 +1,45 @@
+#include "ffloc/core/writer_lock.h"
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <memory>
+#include <thread>
+
+#include "ffloc/core/error.h"
+#include "ffloc/core/testing/shared_data.h"
+
+namespace ffloc {
+namespace {
+
+// A second writer of the same file waits (and is told so) until the first lets go; a writer of
+// another file in the same folder does not.
+TEST(WriterLock, ASecondWriterOfTheFileWaitsForTheFirst) {
+  const auto folder = testing::makeTempDir("ffloc-writer-lock");
+  std::atomic<bool> waited{false}, second_holds{false};
+  auto first = std::make_unique<WriterLock>(folder / "m.ffmap", [] { FAIL() << "the file was free"; });
+  { const WriterLock other(folder / "n.ffmap", [] { FAIL() << "another file's writer waited"; }); }
+  std::thread second([&] {
+    const WriterLock lock(folder / "m.ffmap", [&] { waited = true; });
+    second_holds = true;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_FALSE(second_holds);
+  first.reset();
+  second.join();
+  EXPECT_TRUE(waited);
+  EXPECT_TRUE(second_holds);
+}
+
+TEST(WriterLock, AFolderThatDoesNotExistIsNamed) {
+  try {
+    WriterLock lock("/nonexistent/ffloc-folder/m.ffmap", nullptr);
+    FAIL() << "locked in a folder that does not exist";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/ffloc-folder/.m.ffmap.lock"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace ffloc
