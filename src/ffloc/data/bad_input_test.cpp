@@ -211,6 +211,25 @@ TEST(BadInput, ColmapErrors) {
   expectInputError([&] { loadDataset(dir); }, {"images.txt:1", "quaternion"});
 }
 
+// Found by an outside probe: a NaN translation was called a quaternion problem; a byte order
+// mark turned the comment line it starts into "expected an integer for CAMERA_ID"; an image
+// after the first of its size that was another size, or not an image, passed the reader and
+// convert-dataset, whose copy its own reader then refused.
+TEST(BadInput, ColmapTranslationsByteOrderMarksAndEveryImageAreChecked) {
+  auto dir = makeColmap();
+  writeTextFile(dir / "sparse/0/images.txt", "1 1 0 0 0 0 NaN 0 1 a.png\n\n");
+  expectInputError([&] { loadDataset(dir); }, {"images.txt:1", "TY is not finite"});
+  dir = makeColmap();
+  writeTextFile(dir / "sparse/0/cameras.txt", "\xEF\xBB\xBF# comment\n1 PINHOLE 8 6 5 5 4 3\n");
+  EXPECT_EQ(loadDataset(dir).frames.size(), 2u);
+  dir = makeColmap();
+  writeImage(dir / "images/b.png", 6, 8);
+  expectInputError([&] { loadDataset(dir); }, {"frame 'images/b.png'", "the intrinsics are for a 8x6 image", "is 6x8"});
+  dir = makeColmap();
+  writeTextFile(dir / "images/b.png", "not an image");
+  expectInputError([&] { loadDataset(dir); }, {"frame 'images/b.png'", "b.png", "cannot decode"});
+}
+
 fs::path makeNerf(const std::string& frame_extra = "", const std::string& top_extra = "") {
   const auto dir = testing::makeTempDir("ffloc-bad-nerf");
   writeImage(dir / "train/r_0.png", 8, 6);

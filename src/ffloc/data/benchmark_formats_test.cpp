@@ -422,6 +422,15 @@ TEST(Kapture, BadInputNamesFileAndLine) {
   writeTextFile(query / "trajectories.txt",
                 std::string(kKaptureHeader) + "7, rig, 1, 0, 0, 0, 0, 0, 0\n7, rig, 1, 0, 0, 0, 5, 0, 0\n");
   expectInputError([&] { loadDataset(dir); }, {"trajectories.txt:3:", "a second pose for timestamp 7, device 'rig'"});
+  // Found by an outside probe: a sensor placed in a rig twice took the last line's transform
+  // silently, and a missing image was blamed on its camera's line in sensors.txt.
+  writeTextFile(query / "trajectories.txt", std::string(kKaptureHeader) + "7, rig, 1, 0, 0, 0, 0, 0, 0\n");
+  writeTextFile(query / "rigs.txt", std::string(kKaptureHeader) + "rig, phone, 1, 0, 0, 0, 0.1, 0, 0\n"
+                                                                 "rig, phone, 1, 0, 0, 0, 5, 5, 5\n");
+  expectInputError([&] { loadDataset(dir); }, {"rigs.txt:3:", "sensor 'phone' is placed in a rig again (first on line 2)"});
+  writeTextFile(query / "rigs.txt", std::string(kKaptureHeader) + "rig, phone, 1, 0, 0, 0, 0.1, 0, 0\n");
+  fs::remove(query / "records_data/query/0007.jpg");
+  expectInputError([&] { loadDataset(dir); }, {"records_camera.txt:2:", "0007.jpg not found"});
 }
 
 // ffloc reads registered depth only, whose sensor has its colour camera's intrinsics. Paired by

@@ -125,8 +125,11 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
     for (int k = 0; k < 4; ++k) q[k] = parseDouble(tokens[1 + k], file, pose_line.number, q_names[k]);
     for (int k = 0; k < 3; ++k) t[k] = parseDouble(tokens[5 + k], file, pose_line.number, t_names[k]);
     const double q_norm = std::sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    if (!std::isfinite(q_norm) || std::abs(q_norm - 1.0) > 1e-2 || !Eigen::Vector3d(t[0], t[1], t[2]).allFinite())
+    if (!std::isfinite(q_norm) || std::abs(q_norm - 1.0) > 1e-2)
       throwInputError(file.string(), pose_line.number, "invalid pose (quaternion must be finite and unit length)");
+    for (int k = 0; k < 3; ++k)
+      if (!std::isfinite(t[k]))
+        throwInputError(file.string(), pose_line.number, std::string("invalid pose: ") + t_names[k] + " is not finite");
     const long camera_id = colmapId(tokens[8], file, pose_line.number, "CAMERA_ID");
     const auto camera = cameras.find(camera_id);
     if (camera == cameras.end())

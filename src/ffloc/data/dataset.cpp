@@ -57,9 +57,10 @@ void requireUniqueNames(const Scene& scene) {
 // (some formats give centres, not matrices): a mapping frame that fails would otherwise give a map
 // that refuses every query, or one that cannot be read back.
 void requirePlausibleFrames(const Scene& scene) {
-  // One image per size the intrinsics give is read (its header; a JPEG with EXIF, decoded): a
-  // NeRF "w" and "h" swapped, or a COLMAP camera of twice the images' size, passed, and a
-  // converted copy then failed its own reader.
+  // Every image's size is read (a NeRF "w" and "h" swapped, a COLMAP camera of twice the images'
+  // size, or one image of another size or not an image at all passed, and a converted copy then
+  // failed its own reader): from the PNG or JPEG header, and where that does not settle it (EXIF,
+  // other formats, the first image of each size) as readImageSize reads it, decoding if need be.
   std::set<std::pair<int, int>> sizes_seen;
   for (const Frame& frame : scene.frames) {
     const std::string where = "frame '" + frame.name + "': ";
@@ -68,8 +69,15 @@ void requirePlausibleFrames(const Scene& scene) {
     } catch (const InputError& error) {
       throwInputError(scene.root.string(), 0, where + "intrinsics: " + error.what());
     }
-    if (sizes_seen.insert({frame.intrinsics.width, frame.intrinsics.height}).second) {
-      const cv::Size image = readImageSize(frame.image_path);
+    const cv::Size claimed(frame.intrinsics.width, frame.intrinsics.height);
+    const bool first_of_its_size = sizes_seen.insert({claimed.width, claimed.height}).second;
+    if (first_of_its_size || fileFrameSize(frame.image_path) != std::optional<cv::Size>(claimed)) {
+      cv::Size image;
+      try {
+        image = readImageSize(frame.image_path);
+      } catch (const InputError& error) {
+        throwInputError(scene.root.string(), 0, where + error.what());
+      }
       if (image.width != frame.intrinsics.width || image.height != frame.intrinsics.height)
         throwInputError(scene.root.string(), 0,
                         where + "the intrinsics are for a " + std::to_string(frame.intrinsics.width) + "x" +

@@ -91,6 +91,9 @@ std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path
     copyFrameImage(frame, out / image);
     if (frame.depth) {
       const fs::path depth = out / "depth" / (paths[i] + frame.depth->path.extension().string());
+      // As the other writers, which read the depth, refuse it: copy_file's own error was an
+      // internal one.
+      requireRegularFile(frame.depth->path, "depth file");
       fs::create_directories(depth.parent_path());
       fs::copy_file(frame.depth->path, depth, fs::copy_options::overwrite_existing);
       frame.depth->path = depth;

@@ -141,13 +141,20 @@ KaptureFolder readFolderGeometry(const fs::path& root) {
   folder.root = root;
   const fs::path sensors = root / "sensors";
   folder.sensors = readSensors(sensors / "sensors.txt");
-  if (fs::exists(sensors / "rigs.txt"))
+  if (fs::exists(sensors / "rigs.txt")) {
+    // A sensor placed in a rig twice took the last line's place silently (poses 6 units off).
+    std::map<std::string, int> line_of_sensor;
     for (const CsvLine& row : readCsv(sensors / "rigs.txt")) {
       if (row.fields.size() != 9)
         throwInputError((sensors / "rigs.txt").string(), row.number,
                         "expected 'rig_device_id, sensor_device_id, qw, qx, qy, qz, tx, ty, tz'");
+      if (const auto [first, added] = line_of_sensor.emplace(row.fields[1], row.number); !added)
+        throwInputError((sensors / "rigs.txt").string(), row.number,
+                        "sensor '" + row.fields[1] + "' is placed in a rig again (first on line " +
+                            std::to_string(first->second) + ")");
       folder.rig_of_sensor[row.fields[1]] = {row.fields[0], readDeviceToWorld(row, 2, sensors / "rigs.txt")};
     }
+  }
   const fs::path trajectories = sensors / "trajectories.txt";
   if (fs::exists(trajectories))
     for (const CsvLine& row : readCsv(trajectories)) {
@@ -295,6 +302,8 @@ void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, 
     frame.image_path = (data_dir / row.fields[2]).lexically_normal();
     frame.name = frameName(frame.image_path, dataset_dir);
     frame.intrinsics = sensor->second.intrinsics;
+    if (!fs::is_regular_file(frame.image_path))
+      throwInputError(records.string(), row.number, "image " + frame.image_path.string() + " not found");
     requireImageSize(frame.image_path, frame.intrinsics.width, frame.intrinsics.height,
                      (sensors_dir / "sensors.txt").string(), sensor->second.line);
     const auto pose = sensorToWorld(folder, timestamp, device);

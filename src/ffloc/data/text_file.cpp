@@ -21,6 +21,9 @@ std::vector<TextLine> readTextLines(const std::filesystem::path& file) {
   int number = 0;
   while (std::getline(in, text)) {
     if (!text.empty() && text.back() == '\r') text.pop_back();
+    // A UTF-8 byte order mark (what Windows editors save) is not text: "# comment" after one was
+    // refused as "expected an integer for CAMERA_ID, got '#'", the mark invisible.
+    if (number == 0 && text.rfind("\xEF\xBB\xBF", 0) == 0) text.erase(0, 3);
     lines.push_back({++number, text});
   }
   if (in.bad()) throwInputError(file.string(), number, "read error");

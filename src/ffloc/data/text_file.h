@@ -16,7 +16,8 @@ struct TextLine {
   std::string text;  // without the line end (LF or CRLF)
 };
 
-// All lines of a text file. Throws InputError when the file is missing or unreadable.
+// All lines of a text file, a leading UTF-8 byte order mark dropped. Throws InputError when the
+// file is missing or unreadable.
 std::vector<TextLine> readTextLines(const std::filesystem::path& file);
 
 // Lines that hold something other than whitespace, minus `#` comment lines when asked. Takes the
