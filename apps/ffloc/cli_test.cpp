@@ -218,6 +218,14 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
   EXPECT_EQ(run.exit_code, 2) << run.output;
   EXPECT_TRUE(contains(run.output, "--retrieval: the map has no VLAD descriptors (build it with 'ffloc map --vlad')"))
       << run.output;
+  // retrieval --json given the map's path, or a file of the dataset, replaced it, exit 0.
+  const auto map_size = fs::file_size(map);
+  for (const fs::path& output : {map, scene / "manifest.json"}) {
+    const CliRun over = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--json", output.string()});
+    EXPECT_EQ(over.exit_code, 2) << over.output;
+    EXPECT_TRUE(contains(over.output, "--json: '" + output.string() + "' is")) << over.output;
+  }
+  EXPECT_EQ(fs::file_size(map), map_size);
 }
 
 // `--poses` given the map's path replaced the map with a pose list, exit 0; a model path that
@@ -475,7 +483,7 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
        "' cannot be reached: File name too long"},
       // An HTML report over the query image replaced it, exit 0; two outputs of one path kept the last.
       {{"--methods", "oracle-depth", "--html", data + "/q.png"},
-       "--html: '" + data + "/q.png' is inside the dataset '" + data + "' being evaluated"},
+       "--html: '" + data + "/q.png' is inside the dataset '" + data + "', whose files it could replace"},
       {{"--methods", "oracle-depth", "--json", (dir_ / "r.json").string(), "--markdown", (dir_ / "r.json").string()},
        "--markdown: '" + (dir_ / "r.json").string() + "' is also the output of --json"},
       {{"--methods", "oracle-depth", "--json", (dir_ / "r.json").string(), "--html", (dir_ / "r.md").string()},

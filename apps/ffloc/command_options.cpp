@@ -5,6 +5,7 @@
 #include <map>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 #include "ffloc/data/format_io.h"
 
 namespace ffloc::cli {
@@ -138,6 +139,19 @@ LocalizeOptions localizeOptions(const QueryArguments& args) {
   settings.verify = !args.no_verify;
   settings.pose_guided = !args.no_pose_guided;
   return ffloc::localizeOptions(settings);
+}
+
+void refuseOutputOverInputs(const std::string& flag, const std::string& path,
+                            const std::vector<std::pair<std::string, std::string>>& inputs,
+                            const std::vector<std::string>& datasets) {
+  if (path.empty()) return;
+  for (const auto& [what, input] : inputs)
+    if (!input.empty() && sameFolderKey(path) == sameFolderKey(input))
+      throw InputError(flag + ": '" + path + "' is " + what + "; write it elsewhere");
+  for (const std::string& dataset : datasets)
+    if (liesWithin(path, dataset))
+      throw InputError(flag + ": '" + path + "' is inside the dataset '" + dataset +
+                       "', whose files it could replace; write it elsewhere");
 }
 
 std::filesystem::path sameFolderKey(const std::string& path) {

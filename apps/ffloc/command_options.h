@@ -3,6 +3,8 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -62,5 +64,12 @@ std::string withFlagName(const std::string& message);
 // The folder `path` names, however it is spelled ("d", "d/", "x/../d", a link to d), for telling
 // whether two flags name the same dataset.
 std::filesystem::path sameFolderKey(const std::string& path);
+
+// InputError when the output `path` of `flag` is one of the command's `inputs` (what it is, its
+// path) or lies inside one of its `datasets`, whose files it could replace: a report given the
+// map's path replaced the map, exit 0.
+void refuseOutputOverInputs(const std::string& flag, const std::string& path,
+                            const std::vector<std::pair<std::string, std::string>>& inputs,
+                            const std::vector<std::string>& datasets = {});
 
 }  // namespace ffloc::cli

@@ -99,12 +99,7 @@ void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
     for (size_t j = 0; j < i; ++j)
       if (sameFolderKey(path) == sameFolderKey(outputs[j].second))
         throw InputError(flag + ": '" + path + "' is also the output of " + outputs[j].first);
-    for (const std::string& dataset : args.datasets)
-      if (liesWithin(path, dataset))
-        throw InputError(flag + ": '" + path + "' is inside the dataset '" + dataset +
-                         "' being evaluated, whose files it could replace; write it elsewhere");
-    if (!args.map_path.empty() && sameFolderKey(path) == sameFolderKey(args.map_path))
-      throw InputError(flag + ": '" + path + "' is the map being evaluated");
+    refuseOutputOverInputs(flag, path, {{"the map being evaluated", args.map_path}}, args.datasets);
   }
 }
 

@@ -192,18 +192,12 @@ void printText(const nlohmann::json& r) {
 // `--poses` given the map's path replaced the map with a pose list, exit 0; so did `--ply`, and
 // either given a query image or the query list replaced it.
 void refuseOutputsOverInputsOrEachOther(const LocalizeArguments& args, const std::vector<Query>& queries) {
-  std::vector<std::pair<std::string, std::filesystem::path>> inputs = {{"the map (--map)", args.map_path}};
-  if (!args.image_list.empty()) inputs.emplace_back("the query list (--images)", args.image_list);
-  for (const Query& query : queries) inputs.emplace_back("a query image", query.path);
-  if (!args.poses_path.empty() && !args.ply_path.empty() && sameFolderKey(args.poses_path) == sameFolderKey(args.ply_path))
-    throw InputError("--ply: '" + args.ply_path + "' is also the output of --poses");
-  for (const auto& [flag, output] : {std::pair<const char*, const std::string&>{"--poses", args.poses_path},
-                                     {"--ply", args.ply_path}}) {
-    if (output.empty()) continue;
-    for (const auto& [what, input] : inputs)
-      if (sameFolderKey(output) == sameFolderKey(input.string()))
-        throw InputError(std::string(flag) + ": '" + output + "' is " + what + "; write it elsewhere");
-  }
+  std::vector<std::pair<std::string, std::string>> inputs = {{"the map (--map)", args.map_path},
+                                                             {"the query list (--images)", args.image_list}};
+  for (const Query& query : queries) inputs.emplace_back("a query image", query.path.string());
+  refuseOutputOverInputs("--poses", args.poses_path, inputs);
+  inputs.emplace_back("also the output of --poses", args.poses_path);
+  refuseOutputOverInputs("--ply", args.ply_path, inputs);
 }
 
 // The map decides the method; a flag of the other one would be ignored without a word (a model

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -20,6 +22,8 @@
 #include "commands.h"
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/text_file_writer.h"
+#include "ffloc/core/writer_lock.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/splits.h"
 #include "ffloc/train/data_parallel.h"
@@ -213,6 +217,13 @@ void runTrain(const TrainArguments& args) {
   std::error_code error;
   fs::create_directories(run_dir, error);
   if (error) throw InputError("--out: cannot create '" + run_dir.string() + "': " + error.message());
+  // Two runs resuming into one folder at once both wrote its checkpoints and its log.
+  std::optional<WriterLock> run_lock;
+  if (lead) {
+    run_lock.emplace(run_dir / "run", [&] {
+      throw InputError("--out: '" + run_dir.string() + "' is in use by another 'ffloc train'; wait for it to end");
+    });
+  }
   std::vector<Scene> validation_scenes;
   for (const std::string& spec : args.validation_data) validation_scenes.push_back(loadTrainingData(spec));
   std::unique_ptr<DataParallel> parallel;
@@ -246,6 +257,17 @@ void runTrain(const TrainArguments& args) {
       throwInputError(log_path.string(), 1, "columns differ from this version's log (" + std::string(kCsvHeader) +
                                                 "); move the old log away to resume");
     }
+    // Rows logged after the checkpoint resumed from are run again: kept, they appeared twice.
+    std::string kept = header + "\n";
+    bool dropped = false;
+    for (std::string row; std::getline(existing, row);) {
+      if (std::strtoll(row.c_str(), nullptr, 10) > trainer.stepsDone()) {
+        dropped = true;
+      } else {
+        kept += row + "\n";
+      }
+    }
+    if (dropped) writeTextFile(log_path, kept);
   }
   std::ofstream log(log_path, new_log ? std::ios::trunc : std::ios::app);
   if (!log) throwInputError(log_path.string(), 0, "cannot write the training log");
@@ -276,50 +298,53 @@ void runTrain(const TrainArguments& args) {
     window_optimizer += stats.optimizer_seconds;
     const bool log_now = stats.step % config.log_every == 0 || stats.step == config.steps || stats.stop_requested;
     const bool validate_now = config.validation_every > 0 && stats.step % config.validation_every == 0;
-    if (!log_now && !validate_now) continue;
-    const double seconds = secondsSince(window_start);
-    const double rate = seconds > 0 ? static_cast<double>(window_steps) / seconds : 0.0;
-    const double sample_rate = rate * static_cast<double>(trainer.globalBatch());
-    const double steps_in_window = static_cast<double>(window_steps);
-    const double wait_share = window_step > 0 ? window_wait / window_step : 0.0;
-    std::optional<ValidationStats> validation;
-    if (validate_now) validation = trainer.validate();
-    char row[512];
-    std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
-                  static_cast<long long>(stats.step), stats.loss, stats.query_loss, stats.map_loss, stats.match_loss,
-                  stats.match_accuracy, stats.query_error,
-                  stats.map_error, stats.learning_rate, stats.grad_norm, sample_rate, window_step / steps_in_window,
-                  window_wait / steps_in_window, window_allreduce / steps_in_window, window_optimizer / steps_in_window);
-    log << row;
-    if (validation) {
-      std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.4g,%.4g", validation->loss,
-                    validation->query_error, validation->map_error, validation->match_accuracy,
-                    validation->median_translation_error,
-                    validation->median_rotation_error_deg, validation->within_10cm_10deg,
-                    validation->within_25cm_5deg);
+    // Checkpoints are not tied to log steps: checkpoint_every 3 with log_every 5 wrote only every
+    // 15th step's.
+    if (log_now || validate_now) {
+      const double seconds = secondsSince(window_start);
+      const double rate = seconds > 0 ? static_cast<double>(window_steps) / seconds : 0.0;
+      const double sample_rate = rate * static_cast<double>(trainer.globalBatch());
+      const double steps_in_window = static_cast<double>(window_steps);
+      const double wait_share = window_step > 0 ? window_wait / window_step : 0.0;
+      std::optional<ValidationStats> validation;
+      if (validate_now) validation = trainer.validate();
+      char row[512];
+      std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
+                    static_cast<long long>(stats.step), stats.loss, stats.query_loss, stats.map_loss, stats.match_loss,
+                    stats.match_accuracy, stats.query_error,
+                    stats.map_error, stats.learning_rate, stats.grad_norm, sample_rate, window_step / steps_in_window,
+                    window_wait / steps_in_window, window_allreduce / steps_in_window, window_optimizer / steps_in_window);
       log << row;
-    } else {
-      log << ",,,,,,,";
+      if (validation) {
+        std::snprintf(row, sizeof(row), "%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.4g,%.4g", validation->loss,
+                      validation->query_error, validation->map_error, validation->match_accuracy,
+                      validation->median_translation_error,
+                      validation->median_rotation_error_deg, validation->within_10cm_10deg,
+                      validation->within_25cm_5deg);
+        log << row;
+      } else {
+        log << ",,,,,,,";
+      }
+      log << "\n" << std::flush;
+      if (!args.quiet) {
+        const double eta = rate > 0 ? static_cast<double>(config.steps - stats.step) / rate : 0.0;
+        std::fprintf(stderr,
+                     "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  match %.0f%%  lr %.2e  |g| %.3g"
+                     "  %.2f samples/s (%.0f%% waiting for data)  eta %.0f s%s\n",
+                     static_cast<long long>(stats.step), static_cast<long long>(config.steps), stats.loss,
+                     window_loss / static_cast<double>(window_steps), stats.query_error, stats.map_error,
+                     100.0 * stats.match_accuracy,
+                     stats.learning_rate, stats.grad_norm, sample_rate, 100.0 * wait_share, eta,
+                     validation ? validationSummary(*validation).c_str() : "");
+      }
+      window_start = Clock::now();
+      window_steps = 0;
+      window_loss = 0;
+      window_step = 0;
+      window_wait = 0;
+      window_allreduce = 0;
+      window_optimizer = 0;
     }
-    log << "\n" << std::flush;
-    if (!args.quiet) {
-      const double eta = rate > 0 ? static_cast<double>(config.steps - stats.step) / rate : 0.0;
-      std::fprintf(stderr,
-                   "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  match %.0f%%  lr %.2e  |g| %.3g"
-                   "  %.2f samples/s (%.0f%% waiting for data)  eta %.0f s%s\n",
-                   static_cast<long long>(stats.step), static_cast<long long>(config.steps), stats.loss,
-                   window_loss / static_cast<double>(window_steps), stats.query_error, stats.map_error,
-                   100.0 * stats.match_accuracy,
-                   stats.learning_rate, stats.grad_norm, sample_rate, 100.0 * wait_share, eta,
-                   validation ? validationSummary(*validation).c_str() : "");
-    }
-    window_start = Clock::now();
-    window_steps = 0;
-    window_loss = 0;
-    window_step = 0;
-    window_wait = 0;
-    window_allreduce = 0;
-    window_optimizer = 0;
     if (stats.stop_requested) break;
     if (stats.step % config.checkpoint_every == 0 && stats.step != config.steps) trainer.saveCheckpoint();
   }
@@ -335,10 +360,12 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--config", args->config, "Training settings (JSON; see docs/training.md)");
   cmd->add_option("--data", args->data, "Dataset folders (any format ffloc reads, with depth); DIR@mapping or DIR@query keeps one split")
       ->required()
-      ->delimiter(',');
+      ->delimiter(',')
+      ->check(nonEmptyPath());
   cmd->add_option("--val-data", args->validation_data,
                   "Held-out datasets for validation (loss and PnP pose); default: samples of --data")
-      ->delimiter(',');
+      ->delimiter(',')
+      ->check(nonEmptyPath());
   cmd->add_option("--out", args->out, "Run folder: log.csv, config.json, checkpoints/")->required()->check(nonEmptyPath());
   cmd->add_flag("--resume", args->resume, "Continue from the latest checkpoint in the run folder");
   cmd->add_option("--steps", args->steps, "Total optimiser steps (overrides the config)");
@@ -365,7 +392,15 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
           "RANKS"));
   cmd->add_option("--max-seconds", args->max_seconds,
                   "Stop after this many seconds of training with a checkpoint (0: run all steps)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Validator(
+          [](const std::string& input) {
+            double seconds = 0;
+            // CLI::NonNegativeNumber took "nan", and the budget then never ran out.
+            return CLI::detail::lexical_cast(input, seconds) && std::isfinite(seconds) && seconds >= 0
+                       ? std::string()
+                       : "must be a finite number of seconds, at least 0, got " + input;
+          },
+          "SECONDS"));
   cmd->add_flag("--quiet", args->quiet, "No progress output");
   cmd->callback([args, &run] {
     run = [args] {

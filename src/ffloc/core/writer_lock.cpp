@@ -18,7 +18,14 @@ WriterLock::WriterLock(const std::filesystem::path& target, const std::function<
   if (descriptor_ < 0)
     throwInputError(lock_file.string(), 0, std::string("cannot create the lock file: ") + std::strerror(errno));
   if (::flock(descriptor_, LOCK_EX | LOCK_NB) == 0) return;
-  if (errno == EWOULDBLOCK && on_wait) on_wait();
+  if (errno == EWOULDBLOCK && on_wait) {
+    try {
+      on_wait();
+    } catch (...) {
+      ::close(descriptor_);
+      throw;
+    }
+  }
   while (::flock(descriptor_, LOCK_EX) != 0) {
     if (errno == EINTR) continue;
     const int error = errno;

@@ -8,8 +8,10 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/writer_lock.h"
 #include "ffloc/train/local_launcher.h"
 #include "ffloc/train/training_test_util.h"
 
@@ -111,6 +113,12 @@ TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
   EXPECT_TRUE(contains("error: --accumulate: must be in [1, 1024], got 1000000000")) << output();
   EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --nproc-per-node 100000"), 2) << output();
   EXPECT_TRUE(contains("--nproc-per-node: must be in [1, ")) << output();
+  // NaN passed CLI11's non-negative check and the budget never ran out; an empty data path said
+  // "error: : Invalid argument".
+  EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --max-seconds nan"), 2) << output();
+  EXPECT_TRUE(contains("--max-seconds: must be a finite number of seconds, at least 0, got nan")) << output();
+  EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --val-data ''"), 2) << output();
+  EXPECT_TRUE(contains("--val-data: the path is empty")) << output();
   EXPECT_FALSE(fs::exists(run));
 
   // A field no flag set is named with its source, and says what to do.
@@ -173,6 +181,58 @@ TEST_F(TrainCommandInput, StopsAtTheFirstNonFiniteLossAndKeepsTheLastCheckpoint)
   std::getline(latest, name);
   EXPECT_EQ(name, expected);
   EXPECT_TRUE(fs::exists(run / "checkpoints" / name / "model.safetensors"));
+}
+
+// Found by an outside probe: checkpoints were written only on log steps (checkpoint_every 3 with
+// log_every 5 wrote none before the end), and a resume appended the rows logged after its
+// checkpoint a second time.
+TEST_F(TrainCommandInput, CheckpointsFollowTheirOwnIntervalAndAResumedLogHoldsEachStepOnce) {
+  TrainingConfig settings = testing::smallConfig();
+  settings.steps = 5;
+  settings.warmup_steps = 0;
+  settings.checkpoint_every = 3;
+  settings.log_every = 5;
+  settings.keep_checkpoints = 10;
+  const fs::path run = root_ / "run";
+  ASSERT_EQ(train("--config " + config(toJson(settings).dump()) + " --out " + run.string()), 0) << output();
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000003" / "model.safetensors"));
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000005" / "model.safetensors"));
+
+  // As a run killed after logging step 5 but before checkpointing it: its latest is step 3.
+  std::ofstream(run / "checkpoints" / "latest") << "step_00000003\n";
+  settings.steps = 6;
+  settings.log_every = 1;
+  ASSERT_EQ(train("--config " + config(toJson(settings).dump()) + " --out " + run.string() + " --resume"), 0)
+      << output();
+  std::ifstream log(run / "log.csv");
+  std::string row;
+  std::getline(log, row);  // the header
+  std::vector<long long> steps;
+  while (std::getline(log, row)) steps.push_back(std::stoll(row));
+  EXPECT_EQ(steps, (std::vector<long long>{4, 5, 6})) << "each step once, in order";
+}
+
+// Found by an outside probe: two resumes into one run folder at once both wrote it, and an
+// optimizer state copied in from another run (another seed, the same step) was taken.
+TEST_F(TrainCommandInput, ARunFolderInUseAndAnotherRunsOptimizerStateAreRefused) {
+  TrainingConfig settings = testing::smallConfig();
+  settings.steps = 2;
+  settings.warmup_steps = 0;
+  settings.checkpoint_every = 2;
+  const fs::path run = root_ / "run", other = root_ / "other";
+  const std::string two_steps = config(toJson(settings).dump());
+  ASSERT_EQ(train("--config " + two_steps + " --out " + run.string()), 0) << output();
+  ASSERT_EQ(train("--config " + two_steps + " --out " + other.string() + " --seed 3"), 0) << output();
+  {
+    const WriterLock held(run / "run", nullptr);
+    EXPECT_EQ(train("--config " + two_steps + " --out " + run.string() + " --resume --steps 3"), 2) << output();
+    EXPECT_TRUE(contains("error: --out: '" + run.string() + "' is in use by another 'ffloc train'")) << output();
+  }
+  const fs::path step = fs::path("checkpoints") / "step_00000002" / "optimizer.safetensors";
+  fs::copy_file(other / step, run / step, fs::copy_options::overwrite_existing);
+  EXPECT_EQ(train("--config " + two_steps + " --out " + run.string() + " --resume --steps 3"), 2) << output();
+  EXPECT_TRUE(contains("optimizer.safetensors: metadata 'training_config': 'seed' is 3 but model.safetensors says 0"))
+      << output();
 }
 #endif
 

@@ -151,6 +151,18 @@ void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer) {
     throwInputError(path.string(), 0, "metadata 'step' is " + std::to_string(step) + " but model.safetensors says " +
                                           std::to_string(checkpoint.step));
   }
+  // An optimizer state copied from another run of the same step (another seed) was taken.
+  const std::string settings = path.string() + ": metadata 'training_config'";
+  const nlohmann::json saved =
+      toJson(trainingConfigFromJson(parseJson(metadataField(*archive, "training_config"), settings), settings));
+  const nlohmann::json expected = toJson(checkpoint.config);
+  for (const auto& [field, value] : expected.items()) {
+    const nlohmann::json other = saved.contains(field) ? saved.at(field) : nlohmann::json();
+    if (other != value)
+      throwInputError(path.string(), 0, "metadata 'training_config': '" + field + "' is " + other.dump() +
+                                            " but model.safetensors says " + value.dump() +
+                                            ": the optimizer state is another run's");
+  }
   std::vector<std::pair<std::string, at::Tensor>> state;
   for (const std::string& name : archive->names()) state.emplace_back(name, toTorch(archive->at(name)));
   optimizer.loadState(state, step, path.string());
