@@ -18,6 +18,8 @@
 #include <thread>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/clock.h"
@@ -54,6 +56,7 @@ struct TrainArguments {
   std::optional<int> loader_threads;
   int nproc_per_node = 1;
   double max_seconds = 0;
+  double rendezvous_timeout_s = 600;
   bool quiet = false;
 };
 
@@ -196,6 +199,29 @@ void checkRunFolder(const fs::path& run_dir) {
   }
 }
 
+// Ranks started with other settings (another --lr, --batch-size or --model) trained apart
+// without a word, or died inside a collective with gloo's message.
+void requireTheSameSettingsOnEveryRank(DataParallel& parallel, const TrainingConfig& config) {
+  nlohmann::json own = toJson(config);
+  // Each machine's own: the cores its ranks share.
+  for (const char* per_machine : {"threads", "loader_threads"}) own.erase(per_machine);
+  const nlohmann::json lead = nlohmann::json::parse(parallel.broadcastTextFromRankZero(own.dump()));
+  std::string difference;
+  for (const auto& [field, value] : own.items()) {
+    const nlohmann::json other = lead.contains(field) ? lead.at(field) : nlohmann::json();
+    if (other != value) {
+      difference = "field '" + field + "' is " + value.dump() + " here but " + other.dump() + " on rank 0";
+      break;
+    }
+  }
+  if (parallel.anyRank(!difference.empty())) {
+    const int rank = parallel.environment().rank;
+    throw InputError("rank " + std::to_string(rank) + ": the ranks were started with different settings" +
+                     (difference.empty() ? " (the other ranks say which)" : ": " + difference) +
+                     "; start every rank with the same config and flags");
+  }
+}
+
 void runTrain(const TrainArguments& args) {
   const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
   const CommandConfig command = effectiveConfig(args, environment);
@@ -227,7 +253,14 @@ void runTrain(const TrainArguments& args) {
   std::vector<Scene> validation_scenes;
   for (const std::string& spec : args.validation_data) validation_scenes.push_back(loadTrainingData(spec));
   std::unique_ptr<DataParallel> parallel;
-  if (environment.distributed()) parallel = std::make_unique<DataParallel>(environment, config.device == "cuda");
+  if (environment.distributed()) {
+    if (!args.quiet)
+      std::cerr << "rank " << environment.rank << " of " << environment.world_size << ": joining at "
+                << environment.master_addr << ":" << environment.master_port << " (waiting up to "
+                << args.rendezvous_timeout_s << " s for the other ranks)\n";
+    parallel = std::make_unique<DataParallel>(environment, config.device == "cuda", args.rendezvous_timeout_s);
+    requireTheSameSettingsOnEveryRank(*parallel, config);
+  }
   Trainer trainer(config, std::move(scenes), run_dir, args.resume, std::move(validation_scenes), parallel.get());
   using Clock = std::chrono::steady_clock;
   const Clock::time_point started = Clock::now();
@@ -401,6 +434,10 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
                        : "must be a finite number of seconds, at least 0, got " + input;
           },
           "SECONDS"));
+  cmd->add_option("--rendezvous-timeout", args->rendezvous_timeout_s,
+                  "Distributed runs: seconds a rank waits for the others to join before it gives up")
+      ->capture_default_str()
+      ->check(CLI::Range(1.0, 86400.0));
   cmd->add_flag("--quiet", args->quiet, "No progress output");
   cmd->callback([args, &run] {
     run = [args] {

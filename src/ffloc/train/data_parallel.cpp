@@ -1,6 +1,10 @@
 #include "ffloc/train/data_parallel.h"
 
+#include <cstring>
+
 #include <ATen/ops/cat.h>
+#include <ATen/ops/full.h>
+#include <ATen/ops/zeros.h>
 #include <ATen/ops/zeros_like.h>
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
@@ -67,31 +71,41 @@ struct DataParallel::Backend {
   std::function<void(std::vector<at::Tensor>&)> broadcast;
   std::function<void()> barrier;
 
+  // `timeout`: each collective's, which may differ from the group's own (its rendezvous).
   template <typename Group>
-  void bind(const c10::intrusive_ptr<Group>& group) {
-    all_reduce_sum = [group](std::vector<at::Tensor>& tensors) {
+  void bind(const c10::intrusive_ptr<Group>& group, std::chrono::milliseconds timeout) {
+    all_reduce_sum = [group, timeout](std::vector<at::Tensor>& tensors) {
       c10d::AllreduceOptions options;
       options.reduceOp = c10d::ReduceOp::SUM;
+      options.timeout = timeout;
       group->allreduce(tensors, options)->wait();
     };
-    broadcast = [group](std::vector<at::Tensor>& tensors) {
+    broadcast = [group, timeout](std::vector<at::Tensor>& tensors) {
       c10d::BroadcastOptions options;
       options.rootRank = 0;
+      options.timeout = timeout;
       group->broadcast(tensors, options)->wait();
     };
-    barrier = [group] { group->barrier()->wait(); };
+    barrier = [group, timeout] {
+      c10d::BarrierOptions options;
+      options.timeout = timeout;
+      group->barrier(options)->wait();
+    };
   }
 };
 
-DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda, double timeout_s)
-    : environment_(environment), backend_(std::make_unique<Backend>()) {
-  const auto timeout = std::chrono::milliseconds(static_cast<int64_t>(timeout_s * 1000));
+DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda, double rendezvous_timeout_s,
+                           double collective_timeout_s)
+    : environment_(environment), cuda_(cuda), backend_(std::make_unique<Backend>()) {
+  const auto timeout = std::chrono::milliseconds(static_cast<int64_t>(collective_timeout_s * 1000));
   c10d::TCPStoreOptions store_options;
   store_options.port = static_cast<uint16_t>(environment.master_port);
   store_options.isServer = environment.rank == 0;
   store_options.numWorkers = static_cast<size_t>(environment.world_size);
   store_options.waitWorkers = true;
-  store_options.timeout = timeout;
+  // A rank that never starts, or another MASTER_PORT, left the others waiting an hour in silence.
+  const auto rendezvous = std::chrono::milliseconds(static_cast<int64_t>(rendezvous_timeout_s * 1000));
+  store_options.timeout = rendezvous;
   try {
     backend_->store = c10::make_intrusive<c10d::TCPStore>(environment.master_addr, store_options);
     if (cuda) {
@@ -99,22 +113,29 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
       auto options = c10d::ProcessGroupNCCL::Options::create();
       options->timeout = timeout;
       backend_->bind(
-          c10::make_intrusive<c10d::ProcessGroupNCCL>(backend_->store, environment.rank, environment.world_size, options));
+          c10::make_intrusive<c10d::ProcessGroupNCCL>(backend_->store, environment.rank, environment.world_size, options),
+          timeout);
 #else
       throw InputError("device 'cuda': this build's libtorch has no NCCL; train on cpu or rebuild against a CUDA libtorch");
 #endif
     } else {
-      auto options = c10d::ProcessGroupGloo::Options::create(timeout);
+      // The group's own timeout bounds its rendezvous (the full mesh of connections).
+      auto options = c10d::ProcessGroupGloo::Options::create(rendezvous);
       options->devices.push_back(glooDevice(environment));
       backend_->bind(
-          c10::make_intrusive<c10d::ProcessGroupGloo>(backend_->store, environment.rank, environment.world_size, options));
+          c10::make_intrusive<c10d::ProcessGroupGloo>(backend_->store, environment.rank, environment.world_size, options),
+          timeout);
     }
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& e) {
+    // c10d's messages carry their C++ backtrace after the first line.
+    const std::string what = e.what();
     throwInputError("rendezvous at " + environment.master_addr + ":" + std::to_string(environment.master_port), 0,
                     "rank " + std::to_string(environment.rank) + " of " + std::to_string(environment.world_size) +
-                        " could not join: " + e.what());
+                        " could not join: " + what.substr(0, what.find('\n')) +
+                        " (did every rank start, with the same MASTER_ADDR and MASTER_PORT, within the rendezvous "
+                        "timeout?)");
   }
 }
 
@@ -151,6 +172,26 @@ void DataParallel::broadcastFromRankZero(const std::vector<at::Tensor>& tensors)
 }
 
 void DataParallel::barrier() { backend_->barrier(); }
+
+at::Tensor DataParallel::onDevice(const at::Tensor& tensor) const { return cuda_ ? tensor.to(at::kCUDA) : tensor; }
+
+std::string DataParallel::broadcastTextFromRankZero(const std::string& text) {
+  std::vector<at::Tensor> length = {onDevice(at::full({1}, static_cast<int64_t>(text.size()), at::kLong))};
+  backend_->broadcast(length);
+  const int64_t size = length[0].cpu().item<int64_t>();
+  at::Tensor bytes = at::zeros({size}, at::kByte);
+  if (environment_.rank == 0) std::memcpy(bytes.data_ptr(), text.data(), text.size());
+  std::vector<at::Tensor> shared = {onDevice(bytes)};
+  backend_->broadcast(shared);
+  const at::Tensor received = shared[0].cpu().contiguous();
+  return std::string(static_cast<const char*>(received.data_ptr()), static_cast<size_t>(size));
+}
+
+bool DataParallel::anyRank(bool flag) {
+  std::vector<at::Tensor> count = {onDevice(at::full({1}, flag ? 1.0f : 0.0f, at::kFloat))};
+  backend_->all_reduce_sum(count);
+  return count[0].cpu().item<float>() > 0;
+}
 
 std::vector<at::Tensor> gradientsOf(const std::vector<std::pair<std::string, at::Tensor>>& parameters) {
   std::vector<at::Tensor> gradients;

@@ -31,8 +31,11 @@ struct DistributedEnvironment {
 // Every rank must make the same calls in the same order.
 class DataParallel {
  public:
-  // Blocks until all world_size ranks have joined (InputError after `timeout_s`).
-  DataParallel(const DistributedEnvironment& environment, bool cuda, double timeout_s = 3600);
+  // Blocks until all world_size ranks have joined (InputError after `rendezvous_timeout_s`); a
+  // collective then waits for the other ranks up to `collective_timeout_s` (rank 0 validating or
+  // writing a checkpoint keeps the others waiting that long).
+  DataParallel(const DistributedEnvironment& environment, bool cuda, double rendezvous_timeout_s = 600,
+               double collective_timeout_s = 3600);
   ~DataParallel();
   DataParallel(const DataParallel&) = delete;
   DataParallel& operator=(const DataParallel&) = delete;
@@ -45,10 +48,17 @@ class DataParallel {
   // Rank 0's values everywhere, in place.
   void broadcastFromRankZero(const std::vector<at::Tensor>& tensors);
   void barrier();
+  // Rank 0's `text` on every rank.
+  std::string broadcastTextFromRankZero(const std::string& text);
+  // Whether `flag` is true on any rank.
+  bool anyRank(bool flag);
 
  private:
   struct Backend;
+  at::Tensor onDevice(const at::Tensor& tensor) const;
+
   DistributedEnvironment environment_;
+  bool cuda_;
   std::unique_ptr<Backend> backend_;
 };
 

@@ -5,6 +5,8 @@
 #include <ATen/ops/zeros_like.h>
 #include <gtest/gtest.h>
 
+#include <chrono>
+
 #include <sys/wait.h>
 
 #include <cstdlib>
@@ -109,7 +111,7 @@ TEST(DataParallelTraining, TwoRanksAllReduceTheGradientsOfOneRankWithTwiceTheBat
         environment.rank = environment.local_rank = rank;
         environment.world_size = environment.local_world_size = 2;
         environment.master_port = port;
-        DataParallel parallel(environment, /*cuda=*/false, /*timeout_s=*/120);
+        DataParallel parallel(environment, /*cuda=*/false, /*rendezvous_timeout_s=*/120);
         Trainer trainer(config, {smallScene()}, testing::makeTempDir("ffloc-dp-rank"), false, {}, &parallel);
         clearGradients(trainer);
         trainer.accumulateGradients({samples[static_cast<size_t>(rank)]}, 0.5);
@@ -238,6 +240,45 @@ TEST_F(TrainCommandRanks, TwoRanksOfBatchOneTrainAsOneRankOfBatchTwo) {
   fs::copy(root_ / "two_ranks", root_ / "refused", fs::copy_options::recursive);
   EXPECT_EQ(train("refused", "--resume --batch-size 1"), 2);
   EXPECT_NE(output("refused").find("batch_size"), std::string::npos) << output("refused");
+}
+
+// Found by an outside probe: ranks started with different settings (rank 1 given --lr 5e-4)
+// trained apart without a word, and a rank whose peer never started waited an hour in silence.
+TEST_F(TrainCommandRanks, RanksOfOtherSettingsAreRefusedAndAMissingRankIsWaitedForAsLongAsAsked) {
+  const int port = freeLoopbackPort();
+  const auto rankCommand = [&](int rank, const std::string& out, const std::string& extra) {
+    return "RANK=" + std::to_string(rank) + " LOCAL_RANK=" + std::to_string(rank) +
+           " WORLD_SIZE=2 LOCAL_WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(port) + " " +
+           FFLOC_CLI_PATH + " train --quiet --rendezvous-timeout 60 --config " + (root_ / "config.json").string() +
+           " --data " + smallScene().root.string() + " --out " + (root_ / out).string() + " " + extra + " > " +
+           (root_ / (out + std::to_string(rank) + ".log")).string() + " 2>&1; echo $? > " +
+           (root_ / (out + std::to_string(rank) + ".rc")).string();
+  };
+  const std::string both = "(" + rankCommand(0, "apart", "") + ") & (" + rankCommand(1, "apart", "--lr 5e-4") + ") & wait";
+  ASSERT_EQ(std::system(("/bin/sh -c '" + both + "'").c_str()), 0);
+  for (int rank = 0; rank < 2; ++rank) {
+    std::ifstream code(root_ / ("apart" + std::to_string(rank) + ".rc"));
+    int exit_code = -1;
+    code >> exit_code;
+    const std::string log = output("apart" + std::to_string(rank));
+    EXPECT_EQ(exit_code, 2) << log;
+    EXPECT_NE(log.find("rank " + std::to_string(rank) + ": the ranks were started with different settings"),
+              std::string::npos)
+        << log;
+  }
+  EXPECT_NE(output("apart1").find("field 'learning_rate' is 0.0005 here but"), std::string::npos) << output("apart1");
+
+  const auto started = std::chrono::steady_clock::now();
+  const std::string alone = rankCommand(0, "alone", "").replace(rankCommand(0, "alone", "").find("--rendezvous-timeout 60"),
+                                                                 23, "--rendezvous-timeout 2");
+  ASSERT_EQ(std::system(("/bin/sh -c '" + alone + "'").c_str()), 0);
+  const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+  std::ifstream code(root_ / "alone0.rc");
+  int exit_code = -1;
+  code >> exit_code;
+  EXPECT_EQ(exit_code, 2) << output("alone0");
+  EXPECT_NE(output("alone0").find("rank 0 of 2 could not join"), std::string::npos) << output("alone0");
+  EXPECT_LT(waited, 60);
 }
 #endif
 
