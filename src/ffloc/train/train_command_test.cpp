@@ -66,6 +66,14 @@ class TrainCommandInput : public ::testing::Test {
 
   bool contains(const std::string& part) const { return output().find(part) != std::string::npos; }
 
+  // testing::smallConfig() for `steps` steps, without warm-up.
+  static TrainingConfig settingsFor(int64_t steps) {
+    TrainingConfig settings = testing::smallConfig();
+    settings.steps = steps;
+    settings.warmup_steps = 0;
+    return settings;
+  }
+
   fs::path root_;
 };
 
@@ -131,9 +139,7 @@ TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
 // A resume asked to stop before the run's step named the config field ('steps') where the user
 // gave --steps.
 TEST_F(TrainCommandInput, ResumeBelowTheRunsStepNamesTheFlagOrTheConfig) {
-  TrainingConfig settings = testing::smallConfig();
-  settings.steps = 2;
-  settings.warmup_steps = 0;
+  TrainingConfig settings = settingsFor(2);
   settings.checkpoint_every = 2;
   const fs::path run = root_ / "run";
   const std::string two_steps = config(toJson(settings).dump());
@@ -154,9 +160,7 @@ TEST_F(TrainCommandInput, ResumeBelowTheRunsStepNamesTheFlagOrTheConfig) {
 // there with exit 2 and the previous step's checkpoint stays, where a run that carried on wrote
 // NaN checkpoints and rotated the good one out.
 TEST_F(TrainCommandInput, StopsAtTheFirstNonFiniteLossAndKeepsTheLastCheckpoint) {
-  TrainingConfig settings = testing::smallConfig();
-  settings.steps = 6;
-  settings.warmup_steps = 0;
+  TrainingConfig settings = settingsFor(6);
   settings.learning_rate = 1;
   settings.min_learning_rate = 0;
   settings.weight_decay = 1;
@@ -187,9 +191,7 @@ TEST_F(TrainCommandInput, StopsAtTheFirstNonFiniteLossAndKeepsTheLastCheckpoint)
 // log_every 5 wrote none before the end), and a resume appended the rows logged after its
 // checkpoint a second time.
 TEST_F(TrainCommandInput, CheckpointsFollowTheirOwnIntervalAndAResumedLogHoldsEachStepOnce) {
-  TrainingConfig settings = testing::smallConfig();
-  settings.steps = 5;
-  settings.warmup_steps = 0;
+  TrainingConfig settings = settingsFor(5);
   settings.checkpoint_every = 3;
   settings.log_every = 5;
   settings.keep_checkpoints = 10;
@@ -215,9 +217,7 @@ TEST_F(TrainCommandInput, CheckpointsFollowTheirOwnIntervalAndAResumedLogHoldsEa
 // Found by an outside probe: two resumes into one run folder at once both wrote it, and an
 // optimizer state copied in from another run (another seed, the same step) was taken.
 TEST_F(TrainCommandInput, ARunFolderInUseAndAnotherRunsOptimizerStateAreRefused) {
-  TrainingConfig settings = testing::smallConfig();
-  settings.steps = 2;
-  settings.warmup_steps = 0;
+  TrainingConfig settings = settingsFor(2);
   settings.checkpoint_every = 2;
   const fs::path run = root_ / "run", other = root_ / "other";
   const std::string two_steps = config(toJson(settings).dump());
