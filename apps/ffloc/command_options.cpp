@@ -149,7 +149,7 @@ void refuseOutputOverInputs(const std::string& flag, const std::string& path,
     if (!input.empty() && sameFolderKey(path) == sameFolderKey(input))
       throw InputError(flag + ": '" + path + "' is " + what + "; write it elsewhere");
   for (const std::string& dataset : datasets)
-    if (liesWithin(path, dataset))
+    if (!dataset.empty() && liesWithin(path, dataset))
       throw InputError(flag + ": '" + path + "' is inside the dataset '" + dataset +
                        "', whose files it could replace; write it elsewhere");
 }

@@ -56,7 +56,7 @@ struct TrainArguments {
   std::optional<int> loader_threads;
   int nproc_per_node = 1;
   double max_seconds = 0;
-  double rendezvous_timeout_s = 600;
+  double rendezvous_timeout_s = 1800;
   bool quiet = false;
 };
 
@@ -201,10 +201,12 @@ void checkRunFolder(const fs::path& run_dir) {
 
 // Ranks started with other settings (another --lr, --batch-size or --model) trained apart
 // without a word, or died inside a collective with gloo's message.
-void requireTheSameSettingsOnEveryRank(DataParallel& parallel, const TrainingConfig& config) {
+void requireTheSameSettingsOnEveryRank(DataParallel& parallel, const TrainingConfig& config, int64_t resumed_from_step) {
   nlohmann::json own = toJson(config);
-  // Each machine's own: the cores its ranks share.
-  for (const char* per_machine : {"threads", "loader_threads"}) own.erase(per_machine);
+  // Each machine's own: the cores and memory its ranks share.
+  for (const char* per_machine : {"threads", "loader_threads", "prefetch_samples"}) own.erase(per_machine);
+  // A rank that resumes from another step (a run folder not shared) ran another number of steps.
+  own["resumed_from_step"] = resumed_from_step;
   const nlohmann::json lead = nlohmann::json::parse(parallel.broadcastTextFromRankZero(own.dump()));
   std::string difference;
   for (const auto& [field, value] : own.items()) {
@@ -259,7 +261,8 @@ void runTrain(const TrainArguments& args) {
                 << environment.master_addr << ":" << environment.master_port << " (waiting up to "
                 << args.rendezvous_timeout_s << " s for the other ranks)\n";
     parallel = std::make_unique<DataParallel>(environment, config.device == "cuda", args.rendezvous_timeout_s);
-    requireTheSameSettingsOnEveryRank(*parallel, config);
+    const auto checkpoint = args.resume ? latestTrainingCheckpoint(run_dir) : std::nullopt;
+    requireTheSameSettingsOnEveryRank(*parallel, config, checkpoint ? checkpoint->step : 0);
   }
   Trainer trainer(config, std::move(scenes), run_dir, args.resume, std::move(validation_scenes), parallel.get());
   using Clock = std::chrono::steady_clock;
@@ -281,7 +284,8 @@ void runTrain(const TrainArguments& args) {
     std::ofstream(run_dir / "config.json") << toJson(config).dump(2) << "\n";
   }
   const fs::path log_path = run_dir / "log.csv";
-  const bool new_log = !fs::exists(log_path) || !args.resume;
+  // A log without even its header (a run killed before its first row) is started again.
+  const bool new_log = !args.resume || !fs::exists(log_path) || fs::file_size(log_path) == 0;
   if (!new_log) {
     std::ifstream existing(log_path);
     std::string header;
@@ -294,7 +298,10 @@ void runTrain(const TrainArguments& args) {
     std::string kept = header + "\n";
     bool dropped = false;
     for (std::string row; std::getline(existing, row);) {
-      if (std::strtoll(row.c_str(), nullptr, 10) > trainer.stepsDone()) {
+      char* end = nullptr;
+      const long long step = std::strtoll(row.c_str(), &end, 10);
+      // A row cut short by a kill (no line end, or no comma after its step) goes too.
+      if (existing.eof() || *end != ',' || step > trainer.stepsDone()) {
         dropped = true;
       } else {
         kept += row + "\n";
@@ -304,7 +311,7 @@ void runTrain(const TrainArguments& args) {
   }
   std::ofstream log(log_path, new_log ? std::ios::trunc : std::ios::app);
   if (!log) throwInputError(log_path.string(), 0, "cannot write the training log");
-  if (new_log) log << kCsvHeader;
+  if (new_log) log << kCsvHeader << std::flush;
   if (!args.quiet) {
     std::cerr << "model: " << trainer.modelDescription() << "; " << trainer.trainableParameterCount()
               << " trainable parameters" << (config.train_encoder ? "" : " (encoder frozen)") << "\n"

@@ -9,6 +9,7 @@
 #include "ffloc/data/manifest.h"
 #include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
+#include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 
 namespace ffloc {
@@ -71,7 +72,15 @@ void requirePlausibleFrames(const Scene& scene) {
     }
     const cv::Size claimed(frame.intrinsics.width, frame.intrinsics.height);
     const bool first_of_its_size = sizes_seen.insert({claimed.width, claimed.height}).second;
-    if (first_of_its_size || fileFrameSize(frame.image_path) != std::optional<cv::Size>(claimed)) {
+    const std::optional<cv::Size> header = first_of_its_size ? std::nullopt : fileFrameSize(frame.image_path);
+    if (!first_of_its_size && !header) {
+      // Not a PNG or JPEG: its signature is checked, not decoded for every frame (TIFF, BMP).
+      try {
+        requireDecodableImageFile(frame.image_path, "cannot decode image");
+      } catch (const InputError& error) {
+        throwInputError(scene.root.string(), 0, where + error.what());
+      }
+    } else if (first_of_its_size || header != std::optional<cv::Size>(claimed)) {
       cv::Size image;
       try {
         image = readImageSize(frame.image_path);

@@ -1,6 +1,7 @@
 #include "ffloc/train/data_parallel.h"
 
 #include <cstring>
+#include <thread>
 
 #include <ATen/ops/cat.h>
 #include <ATen/ops/full.h>
@@ -108,6 +109,22 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
   store_options.timeout = rendezvous;
   try {
     backend_->store = c10::make_intrusive<c10d::TCPStore>(environment.master_addr, store_options);
+    // Every rank counts itself in and waits for the others here, within the rendezvous timeout:
+    // the process group's own joining waits as long as its collectives may (an hour).
+    const std::string joined_key = "ffloc/joined";
+    int64_t joined = backend_->store->add(joined_key, 1);
+    const auto deadline = std::chrono::steady_clock::now() + rendezvous;
+    while (joined < environment.world_size) {
+      if (std::chrono::steady_clock::now() > deadline)
+        throwInputError("rendezvous at " + environment.master_addr + ":" + std::to_string(environment.master_port), 0,
+                        "rank " + std::to_string(environment.rank) + " of " + std::to_string(environment.world_size) +
+                            ": only " + std::to_string(joined) + " of " + std::to_string(environment.world_size) +
+                            " ranks joined within " + std::to_string(static_cast<int64_t>(rendezvous_timeout_s)) +
+                            " s (did every rank start, with the same MASTER_ADDR and MASTER_PORT?)");
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      joined = backend_->store->add(joined_key, 0);
+    }
+    backend_->store->setTimeout(timeout);
     if (cuda) {
 #ifdef FFLOC_WITH_NCCL
       auto options = c10d::ProcessGroupNCCL::Options::create();
@@ -119,8 +136,8 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
       throw InputError("device 'cuda': this build's libtorch has no NCCL; train on cpu or rebuild against a CUDA libtorch");
 #endif
     } else {
-      // The group's own timeout bounds its rendezvous (the full mesh of connections).
-      auto options = c10d::ProcessGroupGloo::Options::create(rendezvous);
+      // libtorch 1.13's gloo collectives take the group's timeout, not their options'.
+      auto options = c10d::ProcessGroupGloo::Options::create(timeout);
       options->devices.push_back(glooDevice(environment));
       backend_->bind(
           c10::make_intrusive<c10d::ProcessGroupGloo>(backend_->store, environment.rank, environment.world_size, options),
@@ -173,7 +190,10 @@ void DataParallel::broadcastFromRankZero(const std::vector<at::Tensor>& tensors)
 
 void DataParallel::barrier() { backend_->barrier(); }
 
-at::Tensor DataParallel::onDevice(const at::Tensor& tensor) const { return cuda_ ? tensor.to(at::kCUDA) : tensor; }
+at::Tensor DataParallel::onDevice(const at::Tensor& tensor) const {
+  // This rank's GPU: NCCL refuses two ranks of one machine on one device.
+  return cuda_ ? tensor.to(at::Device(at::kCUDA, static_cast<c10::DeviceIndex>(environment_.local_rank))) : tensor;
+}
 
 std::string DataParallel::broadcastTextFromRankZero(const std::string& text) {
   std::vector<at::Tensor> length = {onDevice(at::full({1}, static_cast<int64_t>(text.size()), at::kLong))};

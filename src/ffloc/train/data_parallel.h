@@ -34,7 +34,7 @@ class DataParallel {
   // Blocks until all world_size ranks have joined (InputError after `rendezvous_timeout_s`); a
   // collective then waits for the other ranks up to `collective_timeout_s` (rank 0 validating or
   // writing a checkpoint keeps the others waiting that long).
-  DataParallel(const DistributedEnvironment& environment, bool cuda, double rendezvous_timeout_s = 600,
+  DataParallel(const DistributedEnvironment& environment, bool cuda, double rendezvous_timeout_s = 1800,
                double collective_timeout_s = 3600);
   ~DataParallel();
   DataParallel(const DataParallel&) = delete;
