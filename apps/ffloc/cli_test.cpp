@@ -518,7 +518,12 @@ TEST_F(Cli, OutputFoldersAndServerCountsAreRefusedNamingTheFlag) {
        "--out: the scenes need at least 37748.7 GB (their depth maps alone) and " + dir_.string() + " has "},
       {{"convert-dataset", "--dataset", dir_.string(), "--format", "kapture", "--out", loop.string()},
        "--out: " + loop.string() + ": cannot examine the output folder: Too many levels of symbolic links"},
-      {{"serve", "--map", "m.ffmap", "--max-waiting", "100000"}, "--max-waiting: Value 100000 not in range 0 to 256"}};
+      {{"serve", "--map", "m.ffmap", "--max-waiting", "100000"}, "--max-waiting: Value 100000 not in range 0 to 256"},
+      // CLI11's Range took "nan" (every comparison with it fails).
+      {{"serve", "--map", "m.ffmap", "--header-timeout", "nan"},
+       "--header-timeout: must be a finite number of seconds in [0.1, 3600], got nan"},
+      {{"train", "--data", dir_.string(), "--out", (dir_ / "run").string(), "--rendezvous-timeout", "nan"},
+       "--rendezvous-timeout: must be a finite number of seconds in [1, 86400], got nan"}};
   for (const auto& [arguments, message] : cases) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << arguments[0] << ": " << run.output;

@@ -2,7 +2,9 @@
 
 #include <unistd.h>
 
+#include <cmath>
 #include <map>
+#include <sstream>
 
 #include "ffloc/core/error.h"
 #include "ffloc/io/input_file.h"
@@ -77,6 +79,22 @@ CLI::Validator atLeast(int64_t minimum) {
         return "must be an integer of at least " + std::to_string(minimum) + ", got " + input;
       },
       ">= " + std::to_string(minimum));
+}
+
+CLI::Validator secondsIn(double least, double most) {
+  return CLI::Validator(
+      [least, most](const std::string& input) -> std::string {
+        double seconds = 0;
+        if (CLI::detail::lexical_cast(input, seconds) && std::isfinite(seconds) && seconds >= least && seconds <= most)
+          return "";
+        std::ostringstream bound;
+        if (std::isinf(most))
+          bound << ", at least " << least;
+        else
+          bound << " in [" << least << ", " << most << "]";
+        return "must be a finite number of seconds" + bound.str() + ", got " + input;
+      },
+      "SECONDS");
 }
 
 void checkOutputPath(const std::string& flag, const std::string& path) {

@@ -57,6 +57,11 @@ CLI::Validator notNegative();
 // not in range 0.000000 to 1797...", the largest double in full.
 CLI::Validator atLeast(int64_t minimum);
 
+// For a duration in seconds: finite and in [least, most] (`most` infinite: no upper bound).
+// CLI11's Range and NonNegativeNumber take "nan", whose comparisons all fail: a NaN time budget
+// never ran out.
+CLI::Validator secondsIn(double least, double most);
+
 // An error message that starts with a library option field ("top_k: ...") with the field
 // replaced by its flag ("--top-k: ..."): main() says every InputError this way.
 std::string withFlagName(const std::string& message);

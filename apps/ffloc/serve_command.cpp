@@ -199,11 +199,11 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--header-timeout", args->header_timeout_s,
                   "Seconds a request's headers may take to arrive, in all; slower clients get 408 and are disconnected")
-      ->check(CLI::Range(0.1, 3600.0))
+      ->check(secondsIn(0.1, 3600))
       ->capture_default_str();
   cmd->add_option("--body-timeout", args->body_timeout_s,
                   "Seconds a request's body may take to arrive after its headers, in all (408 past it)")
-      ->check(CLI::Range(0.1, 3600.0))
+      ->check(secondsIn(0.1, 3600))
       ->capture_default_str();
   for (const char* path_flag : {"--map", "--maps", "--keys"}) cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, &run] { run = [args] { return runServe(*args); }; });

@@ -4,12 +4,12 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -432,19 +432,11 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
           "RANKS"));
   cmd->add_option("--max-seconds", args->max_seconds,
                   "Stop after this many seconds of training with a checkpoint (0: run all steps)")
-      ->check(CLI::Validator(
-          [](const std::string& input) {
-            double seconds = 0;
-            // CLI::NonNegativeNumber took "nan", and the budget then never ran out.
-            return CLI::detail::lexical_cast(input, seconds) && std::isfinite(seconds) && seconds >= 0
-                       ? std::string()
-                       : "must be a finite number of seconds, at least 0, got " + input;
-          },
-          "SECONDS"));
+      ->check(secondsIn(0, std::numeric_limits<double>::infinity()));
   cmd->add_option("--rendezvous-timeout", args->rendezvous_timeout_s,
                   "Distributed runs: seconds a rank waits for the others to join before it gives up")
       ->capture_default_str()
-      ->check(CLI::Range(1.0, 86400.0));
+      ->check(secondsIn(1, 86400));
   cmd->add_flag("--quiet", args->quiet, "No progress output");
   cmd->callback([args, &run] {
     run = [args] {
