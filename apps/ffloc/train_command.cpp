@@ -203,19 +203,15 @@ void checkRunFolder(const fs::path& run_dir) {
 // without a word, or died inside a collective with gloo's message.
 void requireTheSameSettingsOnEveryRank(DataParallel& parallel, const TrainingConfig& config, int64_t resumed_from_step) {
   nlohmann::json own = toJson(config);
-  // Each machine's own: the cores and memory its ranks share.
-  for (const char* per_machine : {"threads", "loader_threads", "prefetch_samples"}) own.erase(per_machine);
   // A rank that resumes from another step (a run folder not shared) ran another number of steps.
   own["resumed_from_step"] = resumed_from_step;
   const nlohmann::json lead = nlohmann::json::parse(parallel.broadcastTextFromRankZero(own.dump()));
   std::string difference;
-  for (const auto& [field, value] : own.items()) {
-    const nlohmann::json other = lead.contains(field) ? lead.at(field) : nlohmann::json();
-    if (other != value) {
-      difference = "field '" + field + "' is " + value.dump() + " here but " + other.dump() + " on rank 0";
-      break;
-    }
-  }
+  // Each machine's own: the cores and memory its ranks share.
+  if (const std::optional<std::string> field =
+          firstDifferingField(own, lead, {"threads", "loader_threads", "prefetch_samples"}))
+    difference = "field '" + *field + "' is " + own.at(*field).dump() + " here but " +
+                 lead.value(*field, nlohmann::json()).dump() + " on rank 0";
   if (parallel.anyRank(!difference.empty())) {
     const int rank = parallel.environment().rank;
     throw InputError("rank " + std::to_string(rank) + ": the ranks were started with different settings" +

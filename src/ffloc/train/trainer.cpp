@@ -48,11 +48,9 @@ int64_t globalBatchOf(const TrainingConfig& config, int world_size) {
 void checkResumable(const CheckpointInfo& stored, const TrainingConfig& requested, int world_size,
                     const std::string& origin) {
   const nlohmann::json a = toJson(stored.config), b = toJson(requested);
-  for (const auto& [key, value] : a.items()) {
-    if (resumableFields().count(key) || b.at(key) == value) continue;
-    throwInputError(origin, 0, "field '" + key + "': the checkpoint was trained with " + value.dump() +
-                                   ", the resumed run asks for " + b.at(key).dump());
-  }
+  if (const std::optional<std::string> key = firstDifferingField(a, b, resumableFields()))
+    throwInputError(origin, 0, "field '" + *key + "': the checkpoint was trained with " + a.at(*key).dump() +
+                                   ", the resumed run asks for " + b.at(*key).dump());
   const int64_t before = globalBatchOf(stored.config, stored.world_size), now = globalBatchOf(requested, world_size);
   if (before != now) {
     throwInputError(origin, 0, "field 'batch_size': the checkpoint was trained with a global batch of " +

@@ -156,13 +156,10 @@ void loadOptimizerState(const CheckpointInfo& checkpoint, AdamW& optimizer) {
   const nlohmann::json saved =
       toJson(trainingConfigFromJson(parseJson(metadataField(*archive, "training_config"), settings), settings));
   const nlohmann::json expected = toJson(checkpoint.config);
-  for (const auto& [field, value] : expected.items()) {
-    const nlohmann::json other = saved.contains(field) ? saved.at(field) : nlohmann::json();
-    if (other != value)
-      throwInputError(path.string(), 0, "metadata 'training_config': '" + field + "' is " + other.dump() +
-                                            " but model.safetensors says " + value.dump() +
-                                            ": the optimizer state is another run's");
-  }
+  if (const std::optional<std::string> field = firstDifferingField(expected, saved))
+    throwInputError(path.string(), 0, "metadata 'training_config': '" + *field + "' is " +
+                                          saved.value(*field, nlohmann::json()).dump() + " but model.safetensors says " +
+                                          expected.at(*field).dump() + ": the optimizer state is another run's");
   std::vector<std::pair<std::string, at::Tensor>> state;
   for (const std::string& name : archive->names()) state.emplace_back(name, toTorch(archive->at(name)));
   optimizer.loadState(state, step, path.string());

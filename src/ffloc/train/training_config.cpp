@@ -237,4 +237,11 @@ nlohmann::json toJson(const TrainingConfig& config) {
   return json;
 }
 
+std::optional<std::string> firstDifferingField(const nlohmann::json& a, const nlohmann::json& b,
+                                               const std::set<std::string>& ignored) {
+  for (const auto& [field, value] : a.items())
+    if (!ignored.count(field) && !(b.contains(field) && b.at(field) == value)) return field;
+  return std::nullopt;
+}
+
 }  // namespace ffloc

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -101,5 +102,10 @@ struct TrainingConfig {
 TrainingConfig readTrainingConfig(const std::filesystem::path& file);
 TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::string& origin);
 nlohmann::json toJson(const TrainingConfig& config);
+
+// The first field of `a` (its JSON, toJson's or one with fields added) whose value `b` does not
+// hold, `ignored` left out: what a resume, an optimizer state and the ranks of a run are held to.
+std::optional<std::string> firstDifferingField(const nlohmann::json& a, const nlohmann::json& b,
+                                               const std::set<std::string>& ignored = {});
 
 }  // namespace ffloc
