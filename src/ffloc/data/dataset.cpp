@@ -73,25 +73,19 @@ void requirePlausibleFrames(const Scene& scene) {
     const cv::Size claimed(frame.intrinsics.width, frame.intrinsics.height);
     const bool first_of_its_size = sizes_seen.insert({claimed.width, claimed.height}).second;
     const std::optional<cv::Size> header = first_of_its_size ? std::nullopt : fileFrameSize(frame.image_path);
-    if (!first_of_its_size && !header) {
-      // Not a PNG or JPEG: its signature is checked, not decoded for every frame (TIFF, BMP).
-      try {
+    try {
+      if (!first_of_its_size && !header) {
+        // Not a PNG or JPEG: its signature is checked, not decoded for every frame (TIFF, BMP).
         requireDecodableImageFile(frame.image_path, "cannot decode image");
-      } catch (const InputError& error) {
-        throwInputError(scene.root.string(), 0, where + error.what());
+      } else if (first_of_its_size || header != std::optional<cv::Size>(claimed)) {
+        const cv::Size image = readImageSize(frame.image_path);
+        if (image != claimed)
+          throw InputError("the intrinsics are for a " + std::to_string(claimed.width) + "x" +
+                           std::to_string(claimed.height) + " image, but " + frame.image_path.string() + " is " +
+                           std::to_string(image.width) + "x" + std::to_string(image.height));
       }
-    } else if (first_of_its_size || header != std::optional<cv::Size>(claimed)) {
-      cv::Size image;
-      try {
-        image = readImageSize(frame.image_path);
-      } catch (const InputError& error) {
-        throwInputError(scene.root.string(), 0, where + error.what());
-      }
-      if (image.width != frame.intrinsics.width || image.height != frame.intrinsics.height)
-        throwInputError(scene.root.string(), 0,
-                        where + "the intrinsics are for a " + std::to_string(frame.intrinsics.width) + "x" +
-                            std::to_string(frame.intrinsics.height) + " image, but " + frame.image_path.string() +
-                            " is " + std::to_string(image.width) + "x" + std::to_string(image.height));
+    } catch (const InputError& error) {
+      throwInputError(scene.root.string(), 0, where + error.what());
     }
     const std::string centre = cameraCentreProblem(frame.camera_to_world.t);
     if (!centre.empty()) throwInputError(scene.root.string(), 0, where + centre);

@@ -124,10 +124,12 @@ std::map<std::string, std::string> requestFields(const httplib::Request& request
     const size_t end = std::min(query.find('&', start), query.size());
     const std::string piece = query.substr(start, end - start);
     const size_t equals = piece.find('=');
-    const std::string sent = escapeControlCharacters(httplib::detail::decode_url(piece, true));
-    if (equals == 0) throw InputError("a query field has no name ('" + sent + "')");
+    const auto sent = [](const std::string& text) {
+      return escapeControlCharacters(httplib::detail::decode_url(text, true));
+    };
+    if (equals == 0) throw InputError("a query field has no name ('" + sent(piece) + "')");
     if (equals != std::string::npos && piece.find('=', equals + 1) != std::string::npos)
-      throw InputError(escapeControlCharacters(httplib::detail::decode_url(piece.substr(0, equals), true)) + ": '" + sent +
+      throw InputError(sent(piece.substr(0, equals)) + ": '" + sent(piece) +
                        "' holds two '=': separate fields with '&' (not ';'), and write '=' in a value as %3D");
     start = end + 1;
   }

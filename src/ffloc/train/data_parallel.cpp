@@ -107,6 +107,11 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
   // A rank that never starts, or another MASTER_PORT, left the others waiting an hour in silence.
   const auto rendezvous = std::chrono::milliseconds(static_cast<int64_t>(rendezvous_timeout_s * 1000));
   store_options.timeout = rendezvous;
+  const auto cannotJoin = [&](const std::string& why) {
+    throwInputError("rendezvous at " + environment.master_addr + ":" + std::to_string(environment.master_port), 0,
+                    "rank " + std::to_string(environment.rank) + " of " + std::to_string(environment.world_size) + why +
+                        " (did every rank start, with the same MASTER_ADDR and MASTER_PORT?)");
+  };
   try {
     backend_->store = c10::make_intrusive<c10d::TCPStore>(environment.master_addr, store_options);
     // Every rank counts itself in and waits for the others here, within the rendezvous timeout:
@@ -116,11 +121,8 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
     const auto deadline = std::chrono::steady_clock::now() + rendezvous;
     while (joined < environment.world_size) {
       if (std::chrono::steady_clock::now() > deadline)
-        throwInputError("rendezvous at " + environment.master_addr + ":" + std::to_string(environment.master_port), 0,
-                        "rank " + std::to_string(environment.rank) + " of " + std::to_string(environment.world_size) +
-                            ": only " + std::to_string(joined) + " of " + std::to_string(environment.world_size) +
-                            " ranks joined within " + std::to_string(static_cast<int64_t>(rendezvous_timeout_s)) +
-                            " s (did every rank start, with the same MASTER_ADDR and MASTER_PORT?)");
+        cannotJoin(": only " + std::to_string(joined) + " of " + std::to_string(environment.world_size) +
+                   " ranks joined within " + std::to_string(static_cast<int64_t>(rendezvous_timeout_s)) + " s");
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
       joined = backend_->store->add(joined_key, 0);
     }
@@ -148,11 +150,7 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
   } catch (const std::exception& e) {
     // c10d's messages carry their C++ backtrace after the first line.
     const std::string what = e.what();
-    throwInputError("rendezvous at " + environment.master_addr + ":" + std::to_string(environment.master_port), 0,
-                    "rank " + std::to_string(environment.rank) + " of " + std::to_string(environment.world_size) +
-                        " could not join: " + what.substr(0, what.find('\n')) +
-                        " (did every rank start, with the same MASTER_ADDR and MASTER_PORT, within the rendezvous "
-                        "timeout?)");
+    cannotJoin(" could not join: " + what.substr(0, what.find('\n')));
   }
 }
 
