@@ -119,7 +119,8 @@ cv::Size readImageSize(const std::filesystem::path& path) {
   requireDecodableImageFile(path, "cannot decode image");
   cv::Mat image;
   try {
-    image = cv::imread(path.string(), cv::IMREAD_UNCHANGED);
+    // Not IMREAD_UNCHANGED: it ignores the EXIF orientation that readImageRgb applies.
+    image = cv::imread(path.string(), cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
   } catch (const cv::Exception& error) {
     // OpenCV refuses some headers (a size beyond its limits) by throwing rather than failing.
     throwInputError(path.string(), 0, std::string("cannot decode image: ") + error.err);

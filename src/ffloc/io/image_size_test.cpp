@@ -136,13 +136,28 @@ TEST(ImageSize, JpegFrameBehindExtraneousBytesOrExif) {
   EXPECT_EQ(encodedFrameSize(exif), cv::Size(13, 7));
 }
 
+// A phone's portrait JPEG is stored sideways with an EXIF orientation; the size checked against
+// intrinsics must be the size decoding gives, as the image is used upright.
+TEST(ImageSize, AJpegsExifOrientationTurnsItsSizeAsDecodingDoes) {
+  std::vector<uchar> jpeg;
+  cv::imencode(".jpg", cv::Mat3b(7, 13, cv::Vec3b(1, 2, 3)), jpeg);
+  // APP1: "Exif", a big-endian TIFF header, one IFD entry: Orientation (0x0112), SHORT, 6.
+  const std::string app1("\xff\xe1\x00\x22" "Exif\0\0" "MM\0\x2a\0\0\0\x08" "\0\x01"
+                         "\x01\x12\0\x03\0\0\0\x01\0\x06\0\0" "\0\0\0\0", 36);
+  const auto dir = testing::makeTempDir("ffloc-exif-orientation");
+  testing::writeTextFile(dir / "portrait.jpg",
+                         std::string(jpeg.begin(), jpeg.begin() + 2) + app1 + std::string(jpeg.begin() + 2, jpeg.end()));
+  EXPECT_EQ(readImageRgb(dir / "portrait.jpg").size(), cv::Size(7, 13));
+  EXPECT_EQ(readImageSize(dir / "portrait.jpg"), cv::Size(7, 13));
+}
+
 TEST(ImageSize, AgreesWithDecodingOnTheSharedSamples) {
   FFLOC_REQUIRE_SHARED(data, "data");
   for (const std::string name :
        {"7scenes_redkitchen/frame-000000.color.jpg", "7scenes_redkitchen/frame-000000.depth.png",
         "7scenes_redkitchen_png/rgbd-frames/frame-000150.color.png", "instant_ngp_fox/images/0001.jpg",
         "colmap_maupertuis_kapture_sample/images/00.jpg", "strecha_herzjesu_p8/images/0000.jpg"}) {
-    const cv::Mat decoded = cv::imread((data / name).string(), cv::IMREAD_UNCHANGED);
+    const cv::Mat decoded = cv::imread((data / name).string(), cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
     ASSERT_FALSE(decoded.empty()) << name;
     EXPECT_EQ(readImageSize(data / name), decoded.size()) << name;
   }
