@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -16,6 +17,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -28,6 +30,7 @@
 #include "ffloc/core/writer_lock.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/splits.h"
+#include "ffloc/model/model_loader.h"
 #include "ffloc/train/data_parallel.h"
 #include "ffloc/train/local_launcher.h"
 #include "ffloc/train/trainer.h"
@@ -220,6 +223,33 @@ void requireTheSameSettingsOnEveryRank(DataParallel& parallel, const TrainingCon
   }
 }
 
+// A run refused after it made its --out folder (a model that names no parameter, a rank that
+// never joined) left that folder behind empty; it goes, unless something but the lock is in it.
+class RemoveNewFolderOnError {
+ public:
+  // Only rank 0 removes: the other ranks may share the folder with it.
+  RemoveNewFolderOnError(fs::path folder, fs::path lock_name, bool lead)
+      : folder_(std::move(folder)), lock_name_(std::move(lock_name)) {
+    std::error_code error;
+    made_here_ = lead && !fs::exists(folder_, error) && !error;
+  }
+  RemoveNewFolderOnError(const RemoveNewFolderOnError&) = delete;
+  RemoveNewFolderOnError& operator=(const RemoveNewFolderOnError&) = delete;
+  ~RemoveNewFolderOnError() {
+    if (!made_here_ || std::uncaught_exceptions() == 0) return;
+    std::error_code error;
+    for (fs::directory_iterator entry(folder_, error), end; !error && entry != end; entry.increment(error)) {
+      if (entry->path().filename() != lock_name_) return;
+    }
+    if (!error) fs::remove_all(folder_, error);
+  }
+
+ private:
+  fs::path folder_;
+  fs::path lock_name_;
+  bool made_here_ = false;
+};
+
 void runTrain(const TrainArguments& args) {
   const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
   const CommandConfig command = effectiveConfig(args, environment);
@@ -228,6 +258,9 @@ void runTrain(const TrainArguments& args) {
   checkRunFolder(run_dir);
   if (const auto checkpoint = args.resume ? latestTrainingCheckpoint(run_dir) : std::nullopt) {
     if (const auto problem = resumeProblem(*checkpoint, config)) command.refuse(*problem);
+  } else if (const std::string problem = modelSpecProblem(config.model); !problem.empty()) {
+    // Before the data loads and --out is made: the model is read only after both.
+    command.refuse({"model", problem});
   }
   const bool lead = environment.rank == 0;
 
@@ -238,13 +271,15 @@ void runTrain(const TrainArguments& args) {
   if (!args.resume && latestTrainingCheckpoint(run_dir)) {
     throwInputError(run_dir.string(), 0, "already holds a training run; pass --resume to continue it");
   }
+  const fs::path lock_target = run_dir / "run";
+  const RemoveNewFolderOnError cleanup(run_dir, writerLockFile(lock_target).filename(), lead);
   std::error_code error;
   fs::create_directories(run_dir, error);
   if (error) throw InputError("--out: cannot create '" + run_dir.string() + "': " + error.message());
   // Two runs resuming into one folder at once both wrote its checkpoints and its log.
   std::optional<WriterLock> run_lock;
   if (lead) {
-    run_lock.emplace(run_dir / "run", [&] {
+    run_lock.emplace(lock_target, [&] {
       throw InputError("--out: '" + run_dir.string() + "' is in use by another 'ffloc train'; wait for it to end");
     });
   }
@@ -260,7 +295,14 @@ void runTrain(const TrainArguments& args) {
     const auto checkpoint = args.resume ? latestTrainingCheckpoint(run_dir) : std::nullopt;
     requireTheSameSettingsOnEveryRank(*parallel, config, checkpoint ? checkpoint->step : 0);
   }
-  Trainer trainer(config, std::move(scenes), run_dir, args.resume, std::move(validation_scenes), parallel.get());
+  std::unique_ptr<Trainer> made;
+  try {
+    made = std::make_unique<Trainer>(config, std::move(scenes), run_dir, args.resume, std::move(validation_scenes),
+                                        parallel.get());
+  } catch (const TrainingConfigError& error) {
+    command.refuse(error.problem());
+  }
+  Trainer& trainer = *made;
   using Clock = std::chrono::steady_clock;
   const Clock::time_point started = Clock::now();
   // Each rank asks on its own clock; the stop takes effect on all of them at the same step.

@@ -11,9 +11,13 @@
 
 namespace ffloc {
 
-WriterLock::WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait) {
+std::filesystem::path writerLockFile(const std::filesystem::path& target) {
   const std::filesystem::path folder = target.has_parent_path() ? target.parent_path() : ".";
-  const std::filesystem::path lock_file = folder / ("." + target.filename().string() + ".lock");
+  return folder / ("." + target.filename().string() + ".lock");
+}
+
+WriterLock::WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait) {
+  const std::filesystem::path lock_file = writerLockFile(target);
   descriptor_ = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
   if (descriptor_ < 0)
     throwInputError(lock_file.string(), 0, std::string("cannot create the lock file: ") + std::strerror(errno));

@@ -13,6 +13,9 @@ namespace ffloc {
 // Blocks while another process holds it, after calling `on_wait` (when given) once; an
 // exception from `on_wait` refuses to wait. InputError naming the lock file when it cannot be
 // created or locked.
+// The lock file of `target`'s writers.
+std::filesystem::path writerLockFile(const std::filesystem::path& target);
+
 class WriterLock {
  public:
   WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait);

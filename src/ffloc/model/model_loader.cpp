@@ -79,24 +79,42 @@ std::string sizesName(const FastForwardConfig& c) {
   return (c.encoder == TokenEncoderKind::kDenseSift ? "sift-" : "") + sizesName(c.dust3r);
 }
 
-LoadedModel randomModel(const std::string& spec) {
-  // "random:<preset>[:<seed>]"
+struct RandomModelSpec {
+  std::string preset;
+  uint64_t seed = 0;
+  FastForwardConfig config;
+  std::string problem;  // why the spec is not one, naming it
+};
+
+// "random:<preset>[:<seed>]"
+RandomModelSpec parseRandomModelSpec(const std::string& spec) {
+  RandomModelSpec parsed;
   const std::string rest = spec.substr(std::strlen("random:"));
   const size_t colon = rest.find(':');
-  const std::string preset = rest.substr(0, colon);
-  uint64_t seed = 0;
+  parsed.preset = rest.substr(0, colon);
   if (colon != std::string::npos) {
     const std::string text = rest.substr(colon + 1);
     char* end = nullptr;
-    seed = std::strtoull(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0') throwInputError("model", 0, "'" + spec + "': seed must be an integer");
+    parsed.seed = std::strtoull(text.c_str(), &end, 10);
+    if (text.empty() || *end != '\0') {
+      parsed.problem = "'" + spec + "': seed must be an integer";
+      return parsed;
+    }
   }
-  FastForwardConfig config;
   try {
-    config = FastForwardConfig::preset(preset);
+    parsed.config = FastForwardConfig::preset(parsed.preset);
   } catch (const InputError&) {
-    throwInputError("model", 0, "'" + spec + "': unknown preset '" + preset + "' (expected tiny, small, large, sift-tiny or sift-small)");
+    parsed.problem = "'" + spec + "': unknown preset '" + parsed.preset +
+                     "' (expected tiny, small, large, sift-tiny or sift-small)";
   }
+  return parsed;
+}
+
+LoadedModel randomModel(const std::string& spec) {
+  const RandomModelSpec parsed = parseRandomModelSpec(spec);
+  const std::string& preset = parsed.preset;
+  const uint64_t seed = parsed.seed;
+  const FastForwardConfig& config = parsed.config;
   LoadedModel loaded;
   loaded.model = std::make_unique<FastForwardModel>(config);
   randomizeParameters(*loaded.model, seed);
@@ -180,12 +198,25 @@ std::string defaultModelPath() {
   return FFLOC_SHIPPED_MODEL;
 }
 
-LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& options) {
-  const std::string spec = requested == "default" ? defaultModelPath() : requested;
-  std::error_code ignored;  // a default path that cannot be read is as missing as an absent one
-  if (requested == "default" && !std::filesystem::is_regular_file(spec, ignored)) {
-    throwInputError(spec, 0, "the default model is missing (set FFLOC_MODEL or name a model file; docs/training.md trains one)");
+std::string modelSpecProblem(const std::string& requested) {
+  if (requested.rfind("random:", 0) == 0) return parseRandomModelSpec(requested).problem;
+  const std::string path = requested == "default" ? defaultModelPath() : requested;
+  std::error_code error;
+  const std::filesystem::file_status status = std::filesystem::status(path, error);
+  if (requested == "default" && status.type() != std::filesystem::file_type::regular) {
+    return "the default model '" + path + "' is missing (set FFLOC_MODEL or name a model file; docs/training.md trains one)";
   }
+  if (status.type() == std::filesystem::file_type::not_found) return "'" + path + "': no such file";
+  if (error) return "'" + path + "': " + error.message();
+  if (status.type() == std::filesystem::file_type::directory) return "'" + path + "': a folder, not a weights file";
+  if (status.type() != std::filesystem::file_type::regular)
+    return "'" + path + "': not a regular file (FIFO, device or socket)";
+  return "";
+}
+
+LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& options) {
+  if (const std::string problem = modelSpecProblem(requested); !problem.empty()) throwInputError("model", 0, problem);
+  const std::string spec = requested == "default" ? defaultModelPath() : requested;
   if (options.dtype != at::kFloat && options.dtype != at::kBFloat16)
     throwInputError("model", 0, "network dtype must be float32 or bfloat16");
   if (options.dtype == at::kBFloat16 && !cpuHasNativeBfloat16()) {
@@ -196,7 +227,6 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   if (spec.rfind("random:", 0) == 0) {
     loaded = randomModel(spec);
   } else {
-    requireRegularFile(spec, "model weights: file");
     const auto archive = openTensorArchive(spec);
     verifyChecksums(*archive, torchThreadCount());
     const auto architecture = archive->metadata().find("architecture");

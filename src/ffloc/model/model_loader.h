@@ -40,6 +40,10 @@ struct LoadedModel {
 // The file "default" stands for.
 std::string defaultModelPath();
 
+// What keeps `spec` from naming a model, found without reading any weights ("" when nothing):
+// an unknown random preset or seed, a missing default model, a path that is not a file.
+std::string modelSpecProblem(const std::string& spec);
+
 // InputError naming the file (or the spec) when it cannot be read or is neither kind of checkpoint,
 // and naming the tensor when a file that carries checksums (saveModel's) no longer matches them.
 LoadedModel loadModel(const std::string& spec, const ModelLoadOptions& options = {});

@@ -129,6 +129,25 @@ TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
   EXPECT_TRUE(contains("--val-data: the path is empty")) << output();
   EXPECT_FALSE(fs::exists(run));
 
+  // A model that cannot be had was found only after the data loaded (and --out was made), and
+  // was named as the flag when the config file gave it.
+  const std::string huge_model = config(R"({"steps": 1, "warmup_steps": 0, "model": "random:huge"})");
+  EXPECT_EQ(train("--config " + huge_model + " --out " + run.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + huge_model + " with the command line: field 'model': 'random:huge': unknown preset"))
+      << output();
+  EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --model " + (root_ / "none").string()), 2)
+      << output();
+  EXPECT_TRUE(contains("error: --model: '" + (root_ / "none").string() + "': no such file")) << output();
+  EXPECT_FALSE(fs::exists(run));
+  // Found only once the model is built: it said "training config", and left --out behind empty.
+  TrainingConfig no_such_part = settingsFor(1);
+  no_such_part.trained_parameters = {"no_such_part."};
+  const std::string part_config = config(toJson(no_such_part).dump());
+  EXPECT_EQ(train("--config " + part_config + " --out " + run.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + part_config + " with the command line: field 'trained_parameters': 'no_such_part.'"))
+      << output();
+  EXPECT_FALSE(fs::exists(run));
+
   // A field no flag set is named with its source, and says what to do.
   EXPECT_EQ(train("--out " + run.string() + " --steps 1"), 2) << output();
   EXPECT_TRUE(contains("error: command line: field 'warmup_steps': must be at most steps (1), got 50, the default"))

@@ -1,6 +1,6 @@
 #include "ffloc/train/trainable_parameters.h"
 
-#include "ffloc/core/error.h"
+#include "ffloc/train/training_config.h"
 
 namespace ffloc {
 
@@ -28,8 +28,9 @@ std::vector<std::pair<std::string, at::Tensor>> trainableParameters(FastForwardM
   }
   for (size_t i = 0; i < only_prefixes.size(); ++i) {
     if (!prefix_used[i]) {
-      throwInputError(origin, 0, "field 'trained_parameters': '" + only_prefixes[i] + "' names no " +
-                                     (include_encoder ? "" : "decoder-side ") + "parameter of this model");
+      throw TrainingConfigError(origin, {"trained_parameters", "'" + only_prefixes[i] + "' names no " +
+                                                                   (include_encoder ? "" : "decoder-side ") +
+                                                                   "parameter of this model"});
     }
   }
   return out;

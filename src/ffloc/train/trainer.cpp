@@ -169,7 +169,7 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
     if (!checkpoint) throwInputError((run_dir_ / "checkpoints" / "latest").string(), 0, "no checkpoint to resume from");
     checkResumable(*checkpoint, config_, world_size_, (checkpoint->folder / "model.safetensors").string());
     if (const auto problem = resumeProblem(*checkpoint, config_))
-      throwInputError("training config", 0, "field '" + problem->field + "': " + problem->message);
+      throw TrainingConfigError("training config", *problem);
   }
   ModelLoadOptions load;
   load.init_seed = config_.model_seed;

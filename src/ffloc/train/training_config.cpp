@@ -5,6 +5,7 @@
 #include <limits>
 #include <map>
 #include <type_traits>
+#include <utility>
 
 #include <torch/cuda.h>
 
@@ -205,8 +206,11 @@ std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
   return first;
 }
 
+TrainingConfigError::TrainingConfigError(const std::string& origin, TrainingConfigProblem problem)
+    : InputError(locate(origin, 0, "field '" + problem.field + "': " + problem.message)), problem_(std::move(problem)) {}
+
 void TrainingConfig::validate(const std::string& origin) const {
-  if (const auto found = problem()) throwInputError(origin, 0, "field '" + found->field + "': " + found->message);
+  if (const auto found = problem()) throw TrainingConfigError(origin, *found);
 }
 
 TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::string& origin) {

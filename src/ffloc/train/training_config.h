@@ -9,12 +9,25 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ffloc/core/error.h"
+
 namespace ffloc {
 
 // A setting that cannot make a run.
 struct TrainingConfigProblem {
   std::string field;
   std::string message;
+};
+
+// InputError "<origin>: field '<field>': <message>" that keeps the field, so that a command can
+// name the flag or the file that set it instead.
+class TrainingConfigError : public InputError {
+ public:
+  TrainingConfigError(const std::string& origin, TrainingConfigProblem problem);
+  const TrainingConfigProblem& problem() const { return problem_; }
+
+ private:
+  TrainingConfigProblem problem_;
 };
 
 // Everything that defines a training run. Defaults follow the paper's appendix where it gives a
@@ -92,7 +105,7 @@ struct TrainingConfig {
   // The first value that cannot make a run, if any; a caller that sets fields from elsewhere (a
   // command line) may name their source instead of the field.
   std::optional<TrainingConfigProblem> problem() const;
-  // InputError "<origin>: field '<field>': <message>" for problem().
+  // TrainingConfigError for problem().
   void validate(const std::string& origin = "training config") const;
 };
 
