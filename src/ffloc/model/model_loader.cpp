@@ -14,7 +14,6 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/hash.h"
 #include "ffloc/core/random.h"
-#include "ffloc/io/input_file.h"
 #include "ffloc/io/json_fields.h"
 #include "ffloc/io/tensor_checksums.h"
 #include "ffloc/model/parameter_table.h"
