@@ -444,6 +444,24 @@ TEST_F(ConnectionTest, AChunkedBodyWithAContentLengthIsRefusedAndNothingHiddenIn
   EXPECT_TRUE(localizer_.names().empty());
 }
 
+// Found by an outside probe: the library inflated a gzip body past the body limit (309 KiB to
+// 300 MB, the server's memory with it) before the key was checked.
+TEST_F(ConnectionTest, ACompressedBodyIsRefusedBeforeItIsRead) {
+  ServerOptions options;
+  options.max_body_bytes = 1 << 20;
+  start(options);
+  const std::string body(1000, '\x1f');
+  const int socket_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(socket_fd, "POST " + kQueryPath + "gzipped HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                 "Content-Type: image/jpeg\r\nContent-Encoding: gzip\r\nContent-Length: " +
+                                     std::to_string(body.size()) + "\r\n\r\n" + body));
+  const std::string received = receiveUntilClosed(socket_fd);
+  close(socket_fd);
+  EXPECT_EQ(received.rfind("HTTP/1.1 415", 0), 0u) << received;
+  EXPECT_NE(received.find("Content-Encoding 'gzip': not accepted"), std::string::npos) << received;
+  EXPECT_TRUE(localizer_.names().empty());
+}
+
 // A header line the library cannot parse (over 8 KB) was answered 400 and the connection kept:
 // the rest of that header, read as the next request, ran.
 TEST_F(ConnectionTest, AHeaderTheLibraryCannotParseEndsTheConnection) {

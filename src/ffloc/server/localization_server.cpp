@@ -448,6 +448,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       return {400, "Transfer-Encoding and Content-Length: both given, so the body's length is ambiguous; send one "
                    "Content-Length"};
     }
+    // The library inflates a gzip or deflate body as it reads it, past the body limit (309 KiB
+    // became 300 MB) and before any key was checked; images are compressed already.
+    if (request.has_header("Content-Encoding") && request.get_header_value("Content-Encoding") != "identity") {
+      return {415, "Content-Encoding '" + escapeControlCharacters(request.get_header_value("Content-Encoding")) +
+                       "': not accepted; send the image as it is (JPEG and PNG are compressed already)"};
+    }
     const std::optional<std::string> split_path = pathWithEncodedSlashes(request.target);
     const std::string& path = split_path ? *split_path : request.path;
     std::string allow;
