@@ -21,31 +21,55 @@ uint32_t bigEndian(const unsigned char* bytes, int count) {
   return value;
 }
 
-std::optional<cv::Size> pngSize(std::istream& in) {
+// The pixel grid an image file declares, and whether it carries EXIF data that the decoder
+// reads (cv::imread applies its orientation, which may swap width and height).
+struct StoredFrame {
+  cv::Size size;
+  bool with_exif = false;
+};
+
+// A PNG's IHDR, and an eXIf chunk among those before the image data (libpng reads those with
+// the header; OpenCV applies its orientation).
+std::optional<StoredFrame> pngFrame(std::istream& in) {
   std::array<unsigned char, 24> header{};
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(header.data()), header.size())) return std::nullopt;
   if (!startsLikePng(std::string_view(reinterpret_cast<const char*>(header.data()), header.size()))) return std::nullopt;
   if (std::string(header.begin() + 12, header.begin() + 16) != "IHDR") return std::nullopt;
-  return cv::Size(static_cast<int>(bigEndian(&header[16], 4)), static_cast<int>(bigEndian(&header[20], 4)));
+  StoredFrame frame;
+  frame.size = cv::Size(static_cast<int>(bigEndian(&header[16], 4)), static_cast<int>(bigEndian(&header[20], 4)));
+  // Chunks: length, type, data, CRC. IHDR's data is 13 bytes.
+  in.seekg(8 + 8 + 13 + 4);
+  std::array<unsigned char, 8> chunk{};
+  while (in.read(reinterpret_cast<char*>(chunk.data()), chunk.size())) {
+    const std::string type(chunk.begin() + 4, chunk.end());
+    if (type == "IDAT" || type == "IEND") break;
+    if (type == "eXIf") {
+      frame.with_exif = true;
+      break;
+    }
+    in.seekg(static_cast<std::streamoff>(bigEndian(chunk.data(), 4)) + 4, std::ios::cur);
+  }
+  return frame;
 }
 
-// The frame a JPEG declares, and whether an EXIF segment comes before it (cv::imread applies
-// its orientation, which may swap width and height).
-struct JpegFrame {
-  cv::Size size;
-  bool after_exif = false;
-};
-
-// Walks the JPEG marker segments up to the first start-of-frame the way libjpeg reads them:
+// Walks the JPEG marker segments up to the first start of scan the way libjpeg reads them, for
+// the first start-of-frame and an EXIF segment anywhere before the scan (libjpeg's header
+// reading saves those, and OpenCV applies their orientation):
 // where a marker should start and does not, the bytes up to the next one are skipped (libjpeg
 // warns of "extraneous bytes before marker" and decodes on). A stricter walk gave up there, and
 // the decoder then found and allocated a frame this walk had not seen (found by the
 // localize_request fuzzer: 12040x14895 pixels behind a damaged quantisation table).
-std::optional<JpegFrame> jpegFrame(std::istream& in) {
+std::optional<StoredFrame> jpegFrame(std::istream& in) {
   in.seekg(0);
   if (in.get() != 0xFF || in.get() != 0xD8) return std::nullopt;
-  JpegFrame frame;
+  StoredFrame frame;
+  bool framed = false;
+  // Past the frame, a walk that ends early (a file cut short) still knows the frame's size.
+  const auto walkEnded = [&]() -> std::optional<StoredFrame> {
+    if (framed) return frame;
+    return std::nullopt;
+  };
   while (true) {
     // A marker is 0xFF, any number of fill bytes 0xFF, then its type; 0xFF 0x00 is not one.
     int type = 0;
@@ -53,43 +77,45 @@ std::optional<JpegFrame> jpegFrame(std::istream& in) {
       int byte = in.get();
       while (byte != std::char_traits<char>::eof() && byte != 0xFF) byte = in.get();
       while (byte == 0xFF) byte = in.get();
-      if (byte == std::char_traits<char>::eof()) return std::nullopt;
+      if (byte == std::char_traits<char>::eof()) return walkEnded();
       type = byte;
     }
+    if (type == 0xDA || type == 0xD9) return walkEnded();  // start of scan, end of image
     if (type == 0x01 || (type >= 0xD0 && type <= 0xD7)) continue;  // markers without a length
     unsigned char bytes[5];
-    if (!in.read(reinterpret_cast<char*>(bytes), 2)) return std::nullopt;
+    if (!in.read(reinterpret_cast<char*>(bytes), 2)) return walkEnded();
     const uint32_t length = bigEndian(bytes, 2);
-    if (length < 2) return std::nullopt;
+    if (length < 2) return walkEnded();
     const bool start_of_frame = type >= 0xC0 && type <= 0xCF && type != 0xC4 && type != 0xC8 && type != 0xCC;
-    if (start_of_frame) {
+    uint32_t read = 2;
+    if (start_of_frame && !framed && length >= 7) {
       if (!in.read(reinterpret_cast<char*>(bytes), 5)) return std::nullopt;
       frame.size = cv::Size(static_cast<int>(bigEndian(bytes + 3, 2)), static_cast<int>(bigEndian(bytes + 1, 2)));
-      return frame;
+      framed = true;
+      read += 5;
     }
     // An APP1 segment too short for a tag is skipped like any other (seeking back by a tag that
     // was never read returned to this marker, forever: found by the image_size fuzzer).
-    uint32_t read = 2;
     if (type == 0xE1 && length >= 6) {
       char tag[4];
-      if (!in.read(tag, 4)) return std::nullopt;
-      frame.after_exif = frame.after_exif || std::string(tag, 4) == "Exif";
+      if (!in.read(tag, 4)) return walkEnded();
+      frame.with_exif = frame.with_exif || std::string(tag, 4) == "Exif";
       read += 4;
     }
     in.seekg(static_cast<std::streamoff>(length - read), std::ios::cur);
   }
 }
 
-// The size a PNG or JPEG header declares. With `as_decoded`, a JPEG with EXIF data gives
+// The size a PNG or JPEG header declares. With `as_decoded`, an image with EXIF data gives
 // nullopt, since its orientation may swap the sides of the decoded image.
 std::optional<cv::Size> headerSize(std::istream& in, bool as_decoded) {
-  std::optional<cv::Size> size = pngSize(in);
-  if (!size) {
+  std::optional<StoredFrame> frame = pngFrame(in);
+  if (!frame) {
     in.clear();
-    const std::optional<JpegFrame> frame = jpegFrame(in);
-    if (frame && !(as_decoded && frame->after_exif)) size = frame->size;
+    frame = jpegFrame(in);
   }
-  if (size && size->width > 0 && size->height > 0) return size;
+  if (!frame || (as_decoded && frame->with_exif)) return std::nullopt;
+  if (frame->size.width > 0 && frame->size.height > 0) return frame->size;
   return std::nullopt;
 }
 

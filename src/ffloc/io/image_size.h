@@ -9,12 +9,12 @@ namespace ffloc {
 
 // Width and height of an image file as cv::imread would return it. PNG and JPEG sizes come from
 // the file header alone (readers call this for every frame, and decoding hundreds of full images
-// just for their size is slow); other formats, and JPEGs carrying EXIF data (whose orientation
-// tag may swap the sides), are decoded. Throws InputError naming the file when it is missing or
+// just for their size is slow); other formats, and PNGs and JPEGs carrying EXIF data (whose
+// orientation tag may swap the sides), are decoded as readImageRgb decodes them. Throws InputError naming the file when it is missing or
 // not a readable image.
 cv::Size readImageSize(const std::filesystem::path& path);
 
-// The size an encoded PNG or JPEG (without EXIF) in memory declares in its header, before any
+// The size an encoded PNG or JPEG (without EXIF data) in memory declares in its header, before any
 // decoding; nullopt for other formats and for bytes whose header does not tell.
 std::optional<cv::Size> encodedImageSize(const std::string& bytes);
 

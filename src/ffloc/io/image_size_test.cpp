@@ -136,6 +136,16 @@ TEST(ImageSize, JpegFrameBehindExtraneousBytesOrExif) {
   EXPECT_EQ(encodedFrameSize(exif), cv::Size(13, 7));
 }
 
+// PNG's chunk checksum (CRC-32, reflected, polynomial 0xEDB88320).
+uint32_t crc32(const std::string& bytes) {
+  uint32_t crc = 0xFFFFFFFFu;
+  for (const unsigned char byte : bytes) {
+    crc ^= byte;
+    for (int bit = 0; bit < 8; ++bit) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  return ~crc;
+}
+
 // A phone's portrait JPEG is stored sideways with an EXIF orientation; the size checked against
 // intrinsics must be the size decoding gives, as the image is used upright.
 TEST(ImageSize, AJpegsExifOrientationTurnsItsSizeAsDecodingDoes) {
@@ -149,6 +159,27 @@ TEST(ImageSize, AJpegsExifOrientationTurnsItsSizeAsDecodingDoes) {
                          std::string(jpeg.begin(), jpeg.begin() + 2) + app1 + std::string(jpeg.begin() + 2, jpeg.end()));
   EXPECT_EQ(readImageRgb(dir / "portrait.jpg").size(), cv::Size(7, 13));
   EXPECT_EQ(readImageSize(dir / "portrait.jpg"), cv::Size(7, 13));
+
+  // libjpeg reads the segments up to the scan, so EXIF data after the frame header counts too.
+  const size_t frame_at = std::string(jpeg.begin(), jpeg.end()).find("\xff\xc0");
+  ASSERT_NE(frame_at, std::string::npos);
+  const size_t frame_end = frame_at + 2 + (jpeg[frame_at + 2] << 8 | jpeg[frame_at + 3]);
+  testing::writeTextFile(dir / "late_exif.jpg", std::string(jpeg.begin(), jpeg.begin() + frame_end) + app1 +
+                                                    std::string(jpeg.begin() + frame_end, jpeg.end()));
+  EXPECT_EQ(readImageSize(dir / "late_exif.jpg"), readImageRgb(dir / "late_exif.jpg").size());
+
+  // A PNG's eXIf chunk (before the image data) is applied alike.
+  std::vector<uchar> png;
+  cv::imencode(".png", cv::Mat3b(7, 13, cv::Vec3b(1, 2, 3)), png);
+  const std::string tiff = app1.substr(10);
+  const std::string chunk = std::string("\0\0\0", 3) + static_cast<char>(tiff.size()) + "eXIf" + tiff;
+  const uint32_t crc = crc32(chunk.substr(4));
+  std::string crc_bytes;
+  for (int shift = 24; shift >= 0; shift -= 8) crc_bytes += static_cast<char>((crc >> shift) & 0xFF);
+  const size_t after_header = 8 + 8 + 13 + 4;
+  testing::writeTextFile(dir / "portrait.png", std::string(png.begin(), png.begin() + after_header) + chunk +
+                                                   crc_bytes + std::string(png.begin() + after_header, png.end()));
+  EXPECT_EQ(readImageSize(dir / "portrait.png"), readImageRgb(dir / "portrait.png").size());
 }
 
 TEST(ImageSize, AgreesWithDecodingOnTheSharedSamples) {
