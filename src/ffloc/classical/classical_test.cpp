@@ -14,6 +14,7 @@
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/depth.h"
+#include "ffloc/data/scene_test_util.h"
 #include "ffloc/synthetic/synthetic.h"
 #include "ffloc/eval/evaluator.h"
 #include "ffloc/io/image.h"
@@ -345,6 +346,14 @@ TEST_F(ClassicalTest, EvaluatesThroughTheHarness) {
   EXPECT_GE(summary.accuracy_percent[4], 50.0);  // 25 cm, 5 deg
   EXPECT_GE(summary.localized, 3);
   EXPECT_EQ(summary.localized_correct, summary.localized);
+
+  // A query the localizer refuses is named: "width, height: ..." named none (and the CLI read
+  // it as synth's --size).
+  Scene misdescribed = *scene_;
+  Frame& query = misdescribed.frames[misdescribed.queryIndices()[1]];
+  std::swap(query.intrinsics.width, query.intrinsics.height);
+  testing::expectInputError([&] { evaluateLocalizer(misdescribed, localizer, "classical", {}, options); },
+                            {misdescribed.name + ": query frame '" + query.name + "': width, height: the intrinsics are for"});
 }
 
 TEST_F(ClassicalTest, QueryWithoutMatchesFailsWithoutAPose) {

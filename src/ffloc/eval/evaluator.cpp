@@ -99,8 +99,13 @@ std::vector<FrameResult> evaluateLocalizer(const Scene& scene, const Localizer& 
     query_options.pnp.seed = options.pnp.seed + queries[q];
     query_options.verdict = options.verdict;
     const auto start = std::chrono::steady_clock::now();
-    const LocalizationResult result =
-        localizer.localize(readImageRgb(frame.image_path), frame.intrinsics, frame.name, query_options);
+    LocalizationResult result;
+    try {
+      result = localizer.localize(readImageRgb(frame.image_path), frame.intrinsics, frame.name, query_options);
+    } catch (const InputError& error) {
+      // "cx, cy: ..." named no frame of the hundreds evaluated.
+      throw InputError(scene.name + ": query frame '" + frame.name + "': " + error.what());
+    }
     r.pnp_seconds = result.timings.pnp;  // every PnP of the query, a second look's included
     r.source_seconds = secondsSince(start) - r.pnp_seconds;
     r.correspondences = static_cast<int>(result.correspondences.size());
