@@ -16,7 +16,7 @@ cv::Mat readImageRgb(const std::filesystem::path& path) {
   requireDecodableImageFile(path, "image: cannot decode");
   cv::Mat bgr;
   try {
-    bgr = cv::imread(path.string(), cv::IMREAD_COLOR);
+    bgr = cv::imread(path.string(), cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
   } catch (const cv::Exception& error) {
     // OpenCV refuses some headers (a size beyond its limits) by throwing rather than failing,
     // with a message that names its own assertion; the header tells the user what was wrong.
@@ -28,8 +28,22 @@ cv::Mat readImageRgb(const std::filesystem::path& path) {
     throwInputError(path.string(), 0, std::string("image: cannot decode: ") + error.err);
   }
   if (bgr.empty()) throwInputError(path.string(), 0, "image: cannot decode (not an image, or corrupt)");
+  return rgbFromDecoded(bgr);
+}
+
+cv::Mat rgbFromDecoded(const cv::Mat& bgr) {
+  cv::Mat eight_bits = bgr;
+  if (bgr.depth() != CV_8U) {
+    double largest = 0;
+    cv::minMaxLoc(bgr.reshape(1), nullptr, &largest);
+    int bits = 8;
+    while (bits < 32 && largest >= std::ldexp(1.0, bits)) ++bits;
+    const bool floating = bgr.depth() == CV_32F || bgr.depth() == CV_64F;
+    const double scale = floating ? (largest > 1 ? 255.0 / largest : 255.0) : std::ldexp(1.0, 8 - bits);
+    bgr.convertTo(eight_bits, CV_8U, scale);
+  }
   cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  cv::cvtColor(eight_bits, rgb, cv::COLOR_BGR2RGB);
   return rgb;
 }
 

@@ -50,6 +50,25 @@ TEST(ReadImage, OversizedHeaderIsReportedWithItsSize) {
   }
 }
 
+// A 16-bit PNG holding 12 bits (a machine-vision camera's) came back with its top byte only: at
+// most 15 of 255, and no query localized.
+TEST(ReadImage, ImagesOfMoreThanEightBitsKeepTheirRange) {
+  const auto dir = testing::makeTempDir("ffloc-image-depth");
+  cv::Mat3b bgr(6, 8);
+  cv::randu(bgr, cv::Scalar::all(0), cv::Scalar::all(256));
+  bgr(0, 0) = cv::Vec3b(255, 255, 255);
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  for (const auto& [name, scale] : {std::pair<std::string, double>{"twelve.png", 16.0}, {"ten.png", 4.0}, {"full.png", 257.0}}) {
+    cv::Mat wide;
+    bgr.convertTo(wide, CV_16U, scale);
+    ASSERT_TRUE(cv::imwrite((dir / name).string(), wide));
+    const cv::Mat read = readImageRgb(dir / name);
+    ASSERT_EQ(read.type(), CV_8UC3) << name;
+    EXPECT_LE(cv::norm(read, rgb, cv::NORM_INF), 1) << name;  // 257 v / 256 rounds up from v = 128
+  }
+}
+
 TEST(ReadImage, ReadsRealImageAsRgb) {
   FFLOC_REQUIRE_SHARED(path, "data/7scenes_redkitchen/frame-000000.color.jpg");
   const cv::Mat rgb = readImageRgb(path);

@@ -13,6 +13,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/utf8.h"
+#include "ffloc/io/image.h"
 #include "ffloc/io/image_format.h"
 #include "ffloc/io/image_size.h"
 
@@ -106,15 +107,13 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
   const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
   cv::Mat bgr;
   try {
-    bgr = cv::imdecode(encoded, cv::IMREAD_COLOR);
+    bgr = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
   } catch (const cv::Exception&) {
     bgr.release();
   }
   if (bgr.empty()) throw InputError("image: " + std::to_string(bytes.size()) + " bytes that OpenCV cannot decode as an image");
   if (static_cast<size_t>(bgr.total()) > max_image_pixels) throw InputError(pixelLimitError(bgr.size(), max_image_pixels));
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  return rgb;
+  return rgbFromDecoded(bgr);
 }
 
 }  // namespace
