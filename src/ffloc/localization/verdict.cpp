@@ -159,7 +159,10 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
   verdict.evidence = evidence;
   if (!pose.ok()) {
     verdict.status = PoseStatus::kFailed;
-    verdict.reason = std::string("no pose: ") + toString(pose.status);
+    // "no model" read as a missing network.
+    verdict.reason = pose.status == PnpStatus::kNoModel
+                         ? "no pose: RANSAC found none the correspondences agree on (or only a degenerate one)"
+                         : std::string("no pose: ") + toString(pose.status);
     return verdict;
   }
   verdict.status = PoseStatus::kUncertain;

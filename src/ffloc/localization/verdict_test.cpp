@@ -179,7 +179,10 @@ TEST(Verdict, NoPoseIsFailedAndSaysWhy) {
   pose.status = PnpStatus::kTooFewCorrespondences;
   const PoseVerdict verdict = judgePose(PoseEvidence{}, pose, true, VerdictOptions{});
   EXPECT_EQ(verdict.status, PoseStatus::kFailed);
-  EXPECT_EQ(verdict.reason.rfind("no pose: ", 0), 0u);
+  EXPECT_EQ(verdict.reason, "no pose: too few correspondences");
+  pose.status = PnpStatus::kNoModel;  // said "no pose: no model", read as a missing network
+  EXPECT_EQ(judgePose(PoseEvidence{}, pose, true, VerdictOptions{}).reason,
+            "no pose: RANSAC found none the correspondences agree on (or only a degenerate one)");
 }
 
 TEST(Verdict, OptionsOutOfRangeNameTheField) {
