@@ -164,9 +164,11 @@ void printText(const nlohmann::json& r) {
   }
   if (r.contains("reason")) std::cout << " (" << r["reason"].get<std::string>() << ")";
   const auto& e = r["evidence"];
-  std::cout << ", " << r["method"].get<std::string>() << ", " << r["inliers"] << " inliers of "
-            << r["pnp_correspondences"] << " (ratio " << std::setprecision(3) << e["inlier_ratio"].get<double>()
-            << ", spread " << e["inlier_spread"].get<double>() << ")\n";
+  std::cout << ", " << r["method"].get<std::string>() << ", " << r["inliers"] << " inliers of " << r["pnp_correspondences"]
+            << std::setprecision(3);
+  if (!e["inlier_ratio"].is_null()) std::cout << " (ratio " << e["inlier_ratio"].get<double>();
+  if (!e["inlier_spread"].is_null()) std::cout << ", spread " << e["inlier_spread"].get<double>();
+  std::cout << (e["inlier_ratio"].is_null() ? "" : ")") << "\n";
   if (r.contains("camera_to_world")) {
     std::cout << "  camera_to_world:\n" << std::setprecision(6);
     for (const auto& row : r["camera_to_world"]) {

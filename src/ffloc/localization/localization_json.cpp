@@ -35,8 +35,8 @@ nlohmann::json localizationJson(const std::string& name, const LocalizationResul
   const PoseEvidence& e = verdict.evidence;
   out["inliers"] = e.inliers;
   out["pnp_correspondences"] = e.used_correspondences;
-  out["evidence"] = {{"inlier_ratio", e.inlier_ratio},
-                     {"inlier_spread", e.inlier_spread},
+  out["evidence"] = {{"inlier_ratio", measuredOrNull(e.inlier_ratio)},
+                     {"inlier_spread", measuredOrNull(e.inlier_spread)},
                      {"agreement_translation", measuredOrNull(e.agreement_translation)},
                      {"agreement_rotation_deg", measuredOrNull(e.agreement_rotation_deg)},
                      {"agreement_distance", measuredOrNull(e.agreement_distance)},

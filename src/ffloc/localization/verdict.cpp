@@ -78,8 +78,9 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   PoseEvidence evidence;
   evidence.inliers = pose.inliers;
   evidence.used_correspondences = pose.used_correspondences;
+  // A failed pose's count (too few inliers) has its ratio too: "7 inliers of 30 (ratio 0)" before.
+  if (pose.used_correspondences > 0) evidence.inlier_ratio = static_cast<double>(pose.inliers) / pose.used_correspondences;
   if (!pose.ok()) return evidence;
-  evidence.inlier_ratio = pose.used_correspondences > 0 ? static_cast<double>(pose.inliers) / pose.used_correspondences : 0;
 
   // The pairs PnP chose from (the confidence filter and its fallback), before subsampling.
   std::vector<Eigen::Vector2d> pixels;

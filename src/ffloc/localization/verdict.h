@@ -18,10 +18,10 @@ const char* toString(PoseStatus status);  // "localized", "uncertain", "failed"
 struct PoseEvidence {
   int inliers = 0;             // of the final pose, among the pairs PnP used
   int used_correspondences = 0;
-  double inlier_ratio = 0;     // inliers / used_correspondences
+  double inlier_ratio = -1;    // inliers / used_correspondences; negative when PnP used none
   // Fraction of the cells of an 8x8 grid over the image that hold an inlier: a pose held by
-  // one small patch of the image is poorly determined whatever the count.
-  double inlier_spread = 0;
+  // one small patch of the image is poorly determined whatever the count. Negative without a pose.
+  double inlier_spread = -1;
   // The pose's predicted uncertainty from its inliers (estimatePoseCovariance, pixel noise
   // estimated from their residuals): the RMS error of the camera centre in scene units and as a
   // fraction of the median inlier depth, and of the rotation. Unlike the second estimate, not one

@@ -220,6 +220,16 @@ TEST(Verdict, SpreadCountsTheGridCellsWithInliers) {
   const PoseEvidence evidence = measureEvidence(pairs, camera, pose, PnpOptions{}, nullptr);
   EXPECT_DOUBLE_EQ(evidence.inlier_spread, 1.0 / 64);
   EXPECT_LT(evidence.agreement_translation, 0);  // no second estimate given
+
+  // Without a pose nothing is measured but the count: "7 inliers of 30 (ratio 0, spread 0)" before.
+  PnpResult failed;
+  failed.status = PnpStatus::kTooFewInliers;
+  failed.inliers = 7;
+  failed.used_correspondences = 28;
+  const PoseEvidence unmeasured = measureEvidence(pairs, camera, failed, PnpOptions{}, nullptr);
+  EXPECT_DOUBLE_EQ(unmeasured.inlier_ratio, 0.25);
+  EXPECT_LT(unmeasured.inlier_spread, 0);
+  EXPECT_LT(unmeasured.predicted_centre_sigma, 0);
 }
 
 // The predicted uncertainty comes from the inliers' residuals: pixels 1 px off (per axis) give a
