@@ -363,14 +363,23 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
           return nullptr;
       }
     }
-    std::shared_ptr<const ServedMap> map = maps_.get(name);
+    std::shared_ptr<const ServedMap> map;
+    try {
+      map = maps_.get(name);
+    } catch (const MapWithdrawn& withdrawn) {
+      replyError(response, 503, withdrawn.what());
+      return nullptr;
+    }
     if (!map) replyError(response, 404, "map '" + name + "': no such map (GET /maps lists them)");
     return map;
   };
 
   // Open to every client, for load balancers: says nothing a key would protect beyond the count.
   get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
-    response.set_content(jsonText({{"status", "ok"}, {"maps", maps_.names().size()}}), kJson);
+    const std::vector<std::string> withdrawn = maps_.withdrawnNames();
+    nlohmann::json body = {{"status", withdrawn.empty() ? "ok" : "degraded"}, {"maps", maps_.names().size()}};
+    if (!withdrawn.empty()) body["withdrawn"] = withdrawn.size();
+    response.set_content(jsonText(body), kJson);
     log(request, "200");
   });
 
@@ -385,7 +394,13 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       names = options_.keys->allowedMaps(authorization, names);
     }
     nlohmann::json list = nlohmann::json::array();
-    for (const std::string& name : names) list.push_back(mapSummary(name, *maps_.get(name)));
+    for (const std::string& name : names) {
+      try {
+        list.push_back(mapSummary(name, *maps_.get(name)));
+      } catch (const MapWithdrawn& withdrawn) {
+        list.push_back({{"name", name}, {"withdrawn", withdrawn.what()}});
+      }
+    }
     response.set_content(jsonText({{"maps", list}}), kJson);
     log(request, "200");
   });

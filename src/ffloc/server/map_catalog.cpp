@@ -17,8 +17,9 @@ struct FileStamp {
   off_t size = -1;
   int64_t modified_ns = 0;
   bool operator==(const FileStamp& other) const {
-    return device == other.device && inode == other.inode && size == other.size && modified_ns == other.modified_ns;
+    return sameFile(other) && size == other.size && modified_ns == other.modified_ns;
   }
+  bool sameFile(const FileStamp& other) const { return device == other.device && inode == other.inode; }
 };
 
 bool stampOf(const std::filesystem::path& path, FileStamp& stamp) {
@@ -37,6 +38,7 @@ struct MapCatalog::Slot {
   Source source;
   mutable std::mutex mutex;  // guards current, stamp, last_check
   std::shared_ptr<const ServedMap> current;
+  std::string withdrawn;  // why `current` is no longer served; empty while it is
   FileStamp stamp;
   std::chrono::steady_clock::time_point last_check;
   mutable std::mutex reloading;  // one reload of a map at a time
@@ -79,7 +81,7 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
   {
     const std::lock_guard<std::mutex> lock(slot.mutex);
     const auto now = std::chrono::steady_clock::now();
-    if (!open_ || now - slot.last_check < reload_check_) return slot.current;
+    if (!open_ || now - slot.last_check < reload_check_) return served(slot);
     slot.last_check = now;
   }
   FileStamp stamp;
@@ -87,21 +89,48 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
   {
     const std::lock_guard<std::mutex> lock(slot.mutex);
     // Another request is reopening it, or the file is missing (mid-replacement) or unchanged.
-    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || stamp == slot.stamp) return slot.current;
+    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || stamp == slot.stamp) return served(slot);
   }
   std::shared_ptr<const ServedMap> reopened;
+  std::string failure;
   try {
     reopened = std::make_shared<const ServedMap>(open_(slot.source.path));
   } catch (const std::exception& e) {
-    if (log_) log_("map '" + slot.source.name + "': the replaced file does not open, still serving the previous one: " + e.what());
+    failure = e.what();
   }
   const std::lock_guard<std::mutex> lock(slot.mutex);
+  const bool in_place = stamp.sameFile(slot.stamp);
   slot.stamp = stamp;  // a broken replacement is not retried until the file changes again
   if (reopened) {
     slot.current = std::move(reopened);
+    slot.withdrawn.clear();
     if (log_) log_("map '" + slot.source.name + "': reloaded " + slot.source.path.string());
+  } else if (in_place) {
+    // A FastForward map reads its tokens from the file as mapped: the old version went with the
+    // file's bytes, and a file cut short ended the server (SIGBUS) at the next query.
+    slot.withdrawn = "its file " + slot.source.path.string() +
+                     " was changed in place and does not open (" + failure +
+                     "), so the version it held is gone too; replace map files by renaming a complete one over them, "
+                     "as 'ffloc map' does";
+    if (log_) log_("map '" + slot.source.name + "': withdrawn: " + slot.withdrawn);
+  } else if (log_) {
+    log_("map '" + slot.source.name + "': the replaced file does not open, still serving the previous one: " + failure);
   }
+  return served(slot);
+}
+
+std::shared_ptr<const ServedMap> MapCatalog::served(const Slot& slot) {
+  if (!slot.withdrawn.empty()) throw MapWithdrawn("map '" + slot.source.name + "': withdrawn: " + slot.withdrawn);
   return slot.current;
+}
+
+std::vector<std::string> MapCatalog::withdrawnNames() const {
+  std::vector<std::string> names;
+  for (const auto& slot : slots_) {
+    const std::lock_guard<std::mutex> lock(slot->mutex);
+    if (!slot->withdrawn.empty()) names.push_back(slot->source.name);
+  }
+  return names;
 }
 
 MapCatalog::Source MapCatalog::parseSource(const std::string& text) {

@@ -5,6 +5,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -19,13 +20,20 @@ struct ServedMap {
   std::string model_description;
 };
 
+// A served map whose file changed in place and no longer opens (MapCatalog::get).
+class MapWithdrawn : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 // Opens a map file for serving (the CLI passes openMapLocalizer's work; tests pass their own).
 using MapOpener = std::function<ServedMap(const std::filesystem::path&)>;
 
 // The maps of one server, by name. A map file replaced on disk (ffloc map writes by atomic
 // rename) is reopened on the first request that looks after the change: requests already holding
 // the old version finish on it, later ones get the new one, and a replacement that fails to open
-// leaves the old version serving.
+// leaves the old version serving. A file changed in place (written over, cut short) that fails to
+// open takes the old version with it: the map is withdrawn until the file opens again.
 class MapCatalog {
  public:
   struct Source {
@@ -41,7 +49,10 @@ class MapCatalog {
   ~MapCatalog();
 
   // The current version of the named map (null for a name the catalog does not hold).
+  // MapWithdrawn, saying why, for a withdrawn map.
   std::shared_ptr<const ServedMap> get(const std::string& name) const;
+  // The maps withdrawn now, in the order given.
+  std::vector<std::string> withdrawnNames() const;
   // Names in the order given.
   const std::vector<std::string>& names() const { return names_; }
   // Called with a line for each reload and each failed one (from a request's thread).
@@ -54,6 +65,7 @@ class MapCatalog {
 
  private:
   struct Slot;
+  static std::shared_ptr<const ServedMap> served(const Slot& slot);
   std::vector<std::unique_ptr<Slot>> slots_;
   std::vector<std::string> names_;
   MapOpener open_;
