@@ -184,6 +184,8 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   }
 
   const nlohmann::json& checksums = top.get("checksums");
+  if (!checksums.is_object()) top.fail("checksums", "expected an object of tensor name -> checksum");
+  requireEveryRecordedTensor(*archive, checksums, file);
   auto tensor = [&](const std::string& name, DType dtype, const std::vector<int64_t>& shape) -> const TensorView& {
     if (!archive->contains(name)) throwInputError(file, 0, "tensor '" + name + "' missing");
     const TensorView& view = archive->at(name);

@@ -249,6 +249,7 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
 
   const nlohmann::json& checksums = top.get("checksums");
   if (!checksums.is_object()) top.fail("checksums", "expected an object of tensor name -> checksum");
+  requireEveryRecordedTensor(*archive, checksums, file);
   auto verified = [&](const std::string& name) -> const TensorView& {
     const TensorView& view = archive->at(name);
     checkTensorChecksum(name, mappedTensorChecksum(view), checksums, file);

@@ -123,6 +123,27 @@ TEST(MapFile, DetectsCorruptionAndTruncation) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("checksum"), std::string::npos) << e.what();
   }
+  // One bit flipped in an optional tensor's name (its points): the map loaded without them, and
+  // an append then dropped their checksum too.
+  MapFile with_points = smallMap();
+  with_points.images[1].token_points.assign(3 * with_points.images[1].tokenCount(), 0.5f);
+  writeMapFile(with_points, path);
+  {
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(f)), {});
+    const size_t at = bytes.find("\"points.1\":{");
+    ASSERT_NE(at, std::string::npos);
+    f.seekp(static_cast<std::streamoff>(at + 6));
+    f.put('r');
+  }
+  try {
+    readMapFile(path);
+    FAIL() << "a map without a tensor it records was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("tensor 'points.1': checksum recorded, but the file has no such tensor"),
+              std::string::npos)
+        << e.what();
+  }
   writeMapFile(smallMap(), path);
   std::filesystem::resize_file(path, size / 2);
   EXPECT_THROW(readMapFile(path), InputError);

@@ -89,6 +89,13 @@ std::map<std::string, std::string> withChecksums(const std::vector<TensorView>& 
 
 void verifyMetadataChecksum(const TensorArchive& archive) { recordedTensorChecksums(archive); }
 
+void requireEveryRecordedTensor(const TensorArchive& archive, const nlohmann::json& recorded, const std::string& file) {
+  for (const auto& item : recorded.items()) {
+    if (!archive.contains(item.key()))
+      throwInputError(file, 0, "tensor '" + item.key() + "': checksum recorded, but the file has no such tensor");
+  }
+}
+
 void verifyChecksums(const TensorArchive& archive, int workers) {
   const std::optional<nlohmann::json> recorded = recordedTensorChecksums(archive);
   if (!recorded) return;
@@ -110,10 +117,7 @@ void verifyChecksums(const TensorArchive& archive, int workers) {
         for (size_t j = 0; j < checksums.size(); ++j)
           checkTensorChecksum(names[batch * kBatch + j], checksums[j], *recorded, file);
       });
-  for (const auto& item : recorded->items()) {
-    if (!archive.contains(item.key()))
-      throwInputError(file, 0, "tensor '" + item.key() + "': checksum recorded, but the file has no such tensor");
-  }
+  requireEveryRecordedTensor(archive, *recorded, file);
 }
 
 }  // namespace ffloc

@@ -25,6 +25,11 @@ std::string mappedTensorChecksum(const TensorView& view);
 void checkTensorChecksum(const std::string& name, const std::string& checksum, const nlohmann::json& recorded,
                          const std::string& file);
 
+// InputError naming the file for the first tensor `recorded` (name -> checksum) names that the
+// archive lacks: a byte flipped in a tensor's name dropped it from a map unnoticed, and an append
+// then dropped its checksum too.
+void requireEveryRecordedTensor(const TensorArchive& archive, const nlohmann::json& recorded, const std::string& file);
+
 // A safetensors file that carries its own checksums (what training writes: model and optimizer
 // state) holds them in this metadata entry: {"metadata": <FNV-1a 64 of the other metadata
 // entries>, "tensors": {<name>: <tensorChecksum>}}. The metadata's checksum matters as much as the
