@@ -5,6 +5,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/writer_lock.h"
 #include "ffloc/core/utf8.h"
+#include "ffloc/io/input_file.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
 
@@ -51,8 +52,10 @@ std::string ignoredOptionProblem(const MapBuildOptions& options, const SetMapBui
   return "";
 }
 
-MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output, const MapBuildOptions& options,
+MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_output, const MapBuildOptions& options,
                         const std::function<LoadedModel()>& load_model) {
+  // An append through a link replaced the link with a new map and left the map it named as it was.
+  const std::filesystem::path output = followSymlinks(named_output);
   const std::vector<size_t> frames = scene.mappingIndices();
   if (frames.empty())
     throwInputError(scene.root.string(), 0, "dataset has no mapping frames (split_mapping.txt or its native split)");

@@ -48,7 +48,7 @@ struct MapBuildReport {
 // Maps scene.mappingIndices() and writes the map to `output` atomically. `load_model` runs only
 // for FastForward. InputError naming the dataset when it has no mapping frame, naming the
 // output when appending to a map of another method or when it exists and is not a map (only maps
-// are replaced).
+// are replaced). An output that is a symbolic link writes (and appends to) the map it points to.
 MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output, const MapBuildOptions& options,
                         const std::function<LoadedModel()>& load_model);
 

@@ -403,6 +403,18 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
   const fs::path map = scene.root / "scene.ffmap";
   EXPECT_EQ(buildMap(scene, map, options, no_model).images, 3u);
   EXPECT_EQ(buildMap(scene, map, options, no_model).images, 3u);  // a map is replaced
+
+  // Appended to through a link: the link was replaced by a new map and the map it named kept
+  // its images (found by an outside probe).
+  Scene fewer = scene;
+  fewer.frames[fewer.mappingIndices()[2]].split = Split::kQuery;
+  const fs::path real = scene.root / "real.ffmap", link = scene.root / "current.ffmap";
+  ASSERT_EQ(buildMap(fewer, real, options, no_model).images, 2u);
+  fs::create_symlink("real.ffmap", link);
+  options.append = true;
+  EXPECT_EQ(buildMap(scene, link, options, no_model).images, 3u);
+  EXPECT_TRUE(fs::is_symlink(link));
+  EXPECT_EQ(readClassicalMap(real).images.size(), 3u);
 }
 
 // The matching family maps with the points of its tokens, which come from depth: they survive the
