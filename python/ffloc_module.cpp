@@ -575,20 +575,25 @@ PYBIND11_MODULE(_ffloc, m) {
       });
 
   py::class_<PyLocalizer>(m, "Localizer", "Localizes queries against a map with its method")
-      .def(py::init([](const py::handle& map, const std::string& model, const std::string& dtype, int threads,
-                       const py::kwargs& kwargs) {
+      .def(py::init([](const py::handle& map, const std::optional<std::string>& model,
+                       const std::optional<std::string>& dtype, int threads, const py::kwargs& kwargs) {
              std::vector<std::string> unused;
              const LocalizeOptions options = localizeOptions(querySettings(kwargs, unused));
              refuseUnknown(unused, "Localizer");
              if (py::isinstance<Map>(map)) {
+               // A Map holds the model it was opened with: another one named here was ignored.
+               if (model || dtype)
+                 throw InputError(std::string(model ? "model" : "dtype") +
+                                  ": a Map is opened with its model; pass it to ffloc.Map.load(path, model=..., "
+                                  "dtype=...), or give Localizer the map's path");
                Map opened = map.cast<Map>();
                opened.threads = threads;
                return PyLocalizer(std::move(opened), options);
              }
              const std::string path = pathArgument(map, "map", "an ffloc.Map or a map file path");
-             return PyLocalizer(Map::load(path, model, dtype, threads), options);
+             return PyLocalizer(Map::load(path, model.value_or("default"), dtype.value_or("f32"), threads), options);
            }),
-           py::arg("map"), py::arg("model") = "default", py::arg("dtype") = "f32", py::arg("threads") = 0,
+           py::arg("map"), py::arg("model") = py::none(), py::arg("dtype") = py::none(), py::arg("threads") = 0,
            "map: a Map or a map file; keyword query options as the CLI's flags (preset, top_k, features, seed, "
            "selection, retrieval, solver, verify, pose_guided)")
       .def("localize", &PyLocalizer::localize, py::arg("image"), py::arg("intrinsics"),

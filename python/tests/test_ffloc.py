@@ -291,6 +291,14 @@ def test_arguments_of_the_wrong_type_raise_errors_naming_them():
         ffloc.Localizer(None)
 
 
+def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
+    opened = ffloc.Map.load(str(cli_map))
+    with pytest.raises(ffloc.Error, match="model: a Map is opened with its model; pass it to ffloc.Map.load"):
+        ffloc.Localizer(opened, model="/nonexistent.safetensors")
+    with pytest.raises(ffloc.Error, match="dtype: a Map is opened with its model"):
+        ffloc.Localizer(opened, dtype="bf16")
+
+
 # Evaluation
 
 def test_evaluate_gives_the_summary_the_cli_writes(scene_dir, cli, tmp_path):
