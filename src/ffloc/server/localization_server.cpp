@@ -8,6 +8,7 @@
 #include <mutex>
 #include <optional>
 #include <regex>
+#include <set>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -118,8 +119,10 @@ std::map<std::string, std::string> requestFields(const httplib::Request& request
   };
   // The library's parse drops what it cannot read: '?=5' became the field "5", and
   // 'name=a;seed=2' the name "2" ('fx=1;fy=2' was answered "fy: missing").
+  // It also merges a field given twice with one value ('fx=1&fx=1'): counted here.
   const size_t query_at = request.target.find('?');
   const std::string query = query_at == std::string::npos ? "" : request.target.substr(query_at + 1);
+  std::set<std::string> named;
   for (size_t start = 0; start < query.size();) {
     const size_t end = std::min(query.find('&', start), query.size());
     const std::string piece = query.substr(start, end - start);
@@ -131,6 +134,8 @@ std::map<std::string, std::string> requestFields(const httplib::Request& request
     if (equals != std::string::npos && piece.find('=', equals + 1) != std::string::npos)
       throw InputError(sent(piece.substr(0, equals)) + ": '" + sent(piece) +
                        "' holds two '=': separate fields with '&' (not ';'), and write '=' in a value as %3D");
+    if (!piece.empty() && !named.insert(httplib::detail::decode_url(piece.substr(0, equals), true)).second)
+      throw InputError(sent(piece.substr(0, equals)) + ": given more than once");
     start = end + 1;
   }
   for (const auto& [key, value] : request.params) add(key, value);

@@ -476,6 +476,12 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   ASSERT_TRUE(twice);
   EXPECT_EQ(twice->status, 400);
   EXPECT_EQ(body(twice)["error"].get<std::string>().rfind("seed:", 0), 0u) << twice->body;
+  // The HTTP library merges a field given twice with one value into one: it passed.
+  const auto same_twice = client_->Post(("/localize?seed=1&seed=1&" + intrinsicsParameters()).c_str(),
+                                        queryFileBytes(), "image/png");
+  ASSERT_TRUE(same_twice);
+  EXPECT_EQ(same_twice->status, 400);
+  EXPECT_EQ(body(same_twice)["error"], "seed: given more than once") << same_twice->body;
 
   // Text that is not UTF-8 is replaced in answers, not a failure.
   const auto not_utf8 = client_->Post(("/localize?name=%FF%FE&" + intrinsicsParameters()).c_str(), queryFileBytes(),
