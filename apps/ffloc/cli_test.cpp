@@ -228,6 +228,25 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
   EXPECT_EQ(fs::file_size(map), map_size);
 }
 
+// `ffloc retrieval` refused the map `ffloc map` writes by default (classical), after loading a
+// network it does not use (found by an outside probe following the README).
+TEST_F(Cli, RetrievalMeasuresAClassicalMapAsItLocalizes) {
+  const auto [scene, map] = mappedSyntheticScene(6, "classical");
+  ASSERT_FALSE(HasFailure());
+  const fs::path json = dir_ / "retrieval.json";
+  const CliRun run = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--quiet", "--top-k",
+                             "1,60", "--json", json.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  std::ifstream in(json);
+  const nlohmann::json recall = nlohmann::json::parse(in);
+  EXPECT_EQ(recall["retrieval"], "vlad");
+  EXPECT_EQ(recall["recall"][1]["retrieval"], 1.0);  // every mapping image within K = 60
+  EXPECT_GT(recall["recall"][0]["retrieval"].get<double>(), 0.5) << recall.dump();
+  const CliRun encoder = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--retrieval", "encoder"});
+  EXPECT_EQ(encoder.exit_code, 2) << encoder.output;
+  EXPECT_TRUE(contains(encoder.output, "--retrieval: applies to FastForward maps")) << encoder.output;
+}
+
 // `--poses` given the map's path replaced the map with a pose list, exit 0; a model path that
 // does not exist was ignored on a classical map; a pose printed to a full disk exited 0.
 TEST_F(Cli, LocalizeKeepsItsInputsRefusesTheOtherMethodsFlagsAndReportsLostOutput) {

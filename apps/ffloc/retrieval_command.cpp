@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <chrono>
+#include <functional>
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
@@ -13,6 +14,7 @@
 #include "command_model.h"
 #include "command_options.h"
 #include "commands.h"
+#include "ffloc/classical/classical_map.h"
 #include "ffloc/classical/sift_features.h"
 #include "ffloc/classical/vlad.h"
 #include "ffloc/core/clock.h"
@@ -42,32 +44,116 @@ struct RetrievalArguments {
   size_t max_queries = 0;
   uint64_t seed = 0;
   std::string json_path;
-  std::string retrieval = "token-vlad";
+  std::string retrieval;  // empty: the map's own (token-vlad for FastForward, vlad for classical)
   bool quiet = false;
+  std::vector<std::string> fastforward_flags_given;
+};
+
+// What retrieval ranks, from a map of either method: its images, their global descriptors, and
+// how a query is described the way the map's localizer describes it.
+struct RankedMap {
+  std::vector<std::string> names;
+  std::vector<Pose> poses;
+  std::vector<std::vector<float>> descriptors;
+  std::function<std::vector<float>(const cv::Mat& rgb, const Frame& frame)> describe;
+  std::string retrieval;
+  std::string model_id, model_description;  // FastForward's; empty for a classical map
 };
 
 // The map's images must be the dataset's frames, with the same poses, or the map and the queries
 // live in different worlds and "nearest camera" means nothing (datasets share names like
 // images/0000.jpg, so the name alone does not tell).
-void checkMapAgainstDataset(const MapFile& map, const std::string& map_path, const Scene& scene, int64_t enc_dim) {
+void checkMapAgainstDataset(const RankedMap& map, const std::string& map_path, const Scene& scene) {
   std::map<std::string, const Frame*> frames;
   for (const Frame& frame : scene.frames) frames[frame.name] = &frame;
-  const size_t length = static_cast<size_t>(2 * enc_dim);
-  for (const MapImage& image : map.images) {
-    const auto found = frames.find(image.name);
+  for (size_t i = 0; i < map.names.size(); ++i) {
+    const auto found = frames.find(map.names[i]);
     if (found == frames.end())
-      throwInputError(map_path, 0, "image '" + image.name + "' is not a frame of dataset " + scene.root.string() +
+      throwInputError(map_path, 0, "image '" + map.names[i] + "' is not a frame of dataset " + scene.root.string() +
                                        " (the map was built from another dataset)");
     const Pose& pose = found->second->camera_to_world;
     const double tolerance = 1e-6 * std::max(1.0, pose.t.norm());
-    if ((image.camera_to_world.matrix() - pose.matrix()).cwiseAbs().maxCoeff() > tolerance)
-      throwInputError(map_path, 0, "image '" + image.name + "': pose differs from that frame's in dataset " +
+    if ((map.poses[i].matrix() - pose.matrix()).cwiseAbs().maxCoeff() > tolerance)
+      throwInputError(map_path, 0, "image '" + map.names[i] + "': pose differs from that frame's in dataset " +
                                        scene.root.string() + " (the map was built from another dataset)");
-    if (image.descriptor.size() != length)
-      throwInputError(map_path, 0, "image '" + image.name + "': descriptor has " +
-                                       std::to_string(image.descriptor.size()) + " values, the model's has " +
-                                       std::to_string(length));
   }
+}
+
+// A classical map ranks its images by their VLAD descriptors, as ClassicalLocalizer does.
+RankedMap classicalRankedMap(const RetrievalArguments& args) {
+  for (const std::string& flag : args.fastforward_flags_given)
+    throw InputError(flag + ": applies to FastForward maps; " + args.map_path +
+                     " is a classical map, which ranks its images by their VLAD descriptors");
+  auto map = std::make_shared<const ClassicalMap>(readClassicalMap(args.map_path));
+  RankedMap ranked;
+  ranked.retrieval = "vlad";
+  for (const ClassicalMapImage& image : map->images) {
+    ranked.names.push_back(image.name);
+    ranked.poses.push_back(image.camera_to_world);
+    ranked.descriptors.emplace_back(image.global_descriptor.data(),
+                                    image.global_descriptor.data() + image.global_descriptor.size());
+  }
+  ranked.describe = [map](const cv::Mat& rgb, const Frame& frame) {
+    const Eigen::VectorXf vlad =
+        map->vocabulary.describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name, map->sift).descriptors);
+    return std::vector<float>(vlad.data(), vlad.data() + vlad.size());
+  };
+  return ranked;
+}
+
+RankedMap fastForwardRankedMap(const RetrievalArguments& args) {
+  auto model = std::make_shared<const LoadedModel>(loadCommandModel(args.model));
+  const MapFile map = readMapFile(args.map_path, model->id);
+  const int64_t enc_dim = model->model->config().dust3r.enc_dim;
+  if (map.token_dim != enc_dim)
+    throwInputError(args.map_path, 0, "token width " + std::to_string(map.token_dim) + " differs from the model's " +
+                                          std::to_string(enc_dim));
+  RankedMap ranked;
+  ranked.retrieval = args.retrieval.empty() ? "token-vlad" : args.retrieval;
+  ranked.model_id = model->id;
+  ranked.model_description = model->description;
+  const FastForwardRetrieval retrieval = parseFastForwardRetrieval(ranked.retrieval);
+  if (retrieval == FastForwardRetrieval::kVlad && map.vlad_centres.empty())
+    throwInputError(args.map_path, 0, "the map has no VLAD vocabulary (build it with 'ffloc map --vlad')");
+  std::shared_ptr<const TokenVlad> token_vlad;
+  if (retrieval == FastForwardRetrieval::kTokenVlad) token_vlad = std::make_shared<const TokenVlad>(map);
+  const size_t length = static_cast<size_t>(2 * enc_dim);
+  for (size_t i = 0; i < map.images.size(); ++i) {
+    const MapImage& image = map.images[i];
+    if (retrieval == FastForwardRetrieval::kEncoder && image.descriptor.size() != length)
+      throwInputError(args.map_path, 0, "image '" + image.name + "': descriptor has " +
+                                            std::to_string(image.descriptor.size()) + " values, the model's has " +
+                                            std::to_string(length));
+    ranked.names.push_back(image.name);
+    ranked.poses.push_back(image.camera_to_world);
+    if (token_vlad) {
+      const Eigen::VectorXf& vlad = token_vlad->imageDescriptors()[i];
+      ranked.descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
+    } else {
+      ranked.descriptors.push_back(retrieval == FastForwardRetrieval::kVlad ? image.vlad_descriptor : image.descriptor);
+    }
+  }
+  auto vocabulary = std::make_shared<const VladVocabulary>(
+      map.vlad_centres.empty() ? VladVocabulary()
+                               : VladVocabulary(Eigen::Map<const VladVocabulary::RowMatrixXf>(
+                                     map.vlad_centres.data(), static_cast<Eigen::Index>(map.vlad_centres.size() / 128), 128)));
+  // The map does not record its preprocessing and pooling settings; `ffloc map` uses the defaults.
+  ranked.describe = [model, token_vlad, vocabulary, retrieval](const cv::Mat& rgb, const Frame& frame) {
+    const MappingOptions mapping_options;
+    if (retrieval == FastForwardRetrieval::kVlad) {
+      const Eigen::VectorXf vlad = vocabulary->describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name).descriptors);
+      return std::vector<float>(vlad.data(), vlad.data() + vlad.size());
+    }
+    if (token_vlad) {
+      const Dust3rEncoding encoding =
+          queryEncoding(*model->model, rgb, frame.intrinsics, frame.name, mapping_options.long_side);
+      const Eigen::VectorXf vlad = token_vlad->describe(encoding.tokens);
+      return std::vector<float>(vlad.data(), vlad.data() + vlad.size());
+    }
+    return queryDescriptor(*model->model, rgb, frame.intrinsics, frame.name, mapping_options.long_side,
+                           mapping_options.descriptor);
+  };
+  return ranked;
 }
 
 std::string fixed(double value, int digits) {
@@ -97,20 +183,13 @@ void runRetrieval(const RetrievalArguments& args) {
   if (!json_folder.empty() && !std::filesystem::is_directory(json_folder))
     throwInputError(args.json_path, 0, "--json: folder " + json_folder.string() + " does not exist");
 
-  const LoadedModel model = loadCommandModel(args.model);
-  const MapFile map = readMapFile(args.map_path, model.id);
-  const int64_t enc_dim = model.model->config().dust3r.enc_dim;
-  if (map.images.empty()) throwInputError(args.map_path, 0, "map holds no images");
-  if (map.token_dim != enc_dim)
-    throwInputError(args.map_path, 0, "token width " + std::to_string(map.token_dim) + " differs from the model's " +
-                                          std::to_string(enc_dim));
-
-  const FastForwardRetrieval retrieval = parseFastForwardRetrieval(args.retrieval);
-  if (retrieval == FastForwardRetrieval::kVlad && map.vlad_centres.empty())
-    throwInputError(args.map_path, 0, "the map has no VLAD vocabulary (build it with 'ffloc map --vlad')");
+  const RankedMap map = parseLocalizationMethod(readMapHeader(args.map_path).method) == LocalizationMethod::kClassical
+                            ? classicalRankedMap(args)
+                            : fastForwardRankedMap(args);
+  if (map.names.empty()) throwInputError(args.map_path, 0, "map holds no images");
   const Scene scene = loadDataset(args.dataset, args.format);
   requireSplits(scene);
-  checkMapAgainstDataset(map, args.map_path, scene, enc_dim);
+  checkMapAgainstDataset(map, args.map_path, scene);
   std::vector<size_t> query_frames = scene.queryIndices();
   if (args.max_queries > 0 && args.max_queries < query_frames.size()) {
     std::vector<size_t> kept;
@@ -118,44 +197,14 @@ void runRetrieval(const RetrievalArguments& args) {
     query_frames = kept;
   }
 
-  std::optional<TokenVlad> token_vlad;
-  if (retrieval == FastForwardRetrieval::kTokenVlad) token_vlad.emplace(map);
-  std::vector<Pose> mapping_poses, query_poses;
-  std::vector<std::vector<float>> mapping_descriptors, query_descriptors;
-  for (size_t i = 0; i < map.images.size(); ++i) {
-    const MapImage& image = map.images[i];
-    mapping_poses.push_back(image.camera_to_world);
-    if (token_vlad) {
-      const Eigen::VectorXf& vlad = token_vlad->imageDescriptors()[i];
-      mapping_descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
-    } else {
-      mapping_descriptors.push_back(retrieval == FastForwardRetrieval::kVlad ? image.vlad_descriptor : image.descriptor);
-    }
-  }
-  const VladVocabulary vocabulary =
-      map.vlad_centres.empty() ? VladVocabulary()
-                               : VladVocabulary(Eigen::Map<const VladVocabulary::RowMatrixXf>(
-                                     map.vlad_centres.data(), static_cast<Eigen::Index>(map.vlad_centres.size() / 128), 128));
-  // The map does not record its preprocessing and pooling settings; `ffloc map` uses the defaults.
-  const MappingOptions mapping_options;
-  ProgressBar progress("encoding queries", query_frames.size(), args.quiet);
+  std::vector<Pose> query_poses;
+  std::vector<std::vector<float>> query_descriptors;
+  ProgressBar progress("describing queries", query_frames.size(), args.quiet);
   double encoding_seconds = 0;
   for (size_t i = 0; i < query_frames.size(); ++i) {
     const Frame& frame = scene.frames[query_frames[i]];
     const auto start = std::chrono::steady_clock::now();
-    const cv::Mat rgb = readImageRgb(frame.image_path);
-    if (retrieval == FastForwardRetrieval::kVlad) {
-      const Eigen::VectorXf vlad = vocabulary.describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name).descriptors);
-      query_descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
-    } else if (token_vlad) {
-      const Dust3rEncoding encoding =
-          queryEncoding(*model.model, rgb, frame.intrinsics, frame.name, mapping_options.long_side);
-      const Eigen::VectorXf vlad = token_vlad->describe(encoding.tokens);
-      query_descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
-    } else {
-      query_descriptors.push_back(queryDescriptor(*model.model, rgb, frame.intrinsics, frame.name,
-                                                  mapping_options.long_side, mapping_options.descriptor));
-    }
+    query_descriptors.push_back(map.describe(readImageRgb(frame.image_path), frame));
     encoding_seconds += secondsSince(start);
     query_poses.push_back(frame.camera_to_world);
     progress.update(i + 1);
@@ -166,9 +215,9 @@ void runRetrieval(const RetrievalArguments& args) {
   options.top_k = args.top_k;
   options.seed = args.seed;
   const RetrievalRecall result =
-      measureRetrievalRecall(mapping_poses, query_poses, mapping_descriptors, query_descriptors, options);
+      measureRetrievalRecall(map.poses, query_poses, map.descriptors, query_descriptors, options);
   std::cout << "dataset " << scene.root.string() << ", map " << args.map_path << "\n";
-  printTable(result, query_frames.size(), map.images.size());
+  printTable(result, query_frames.size(), map.names.size());
   const double encoding_ms = 1e3 * encoding_seconds / static_cast<double>(query_frames.size());
   std::cout << "reading, preparing and encoding a query: " << fixed(encoding_ms, 1) << " ms per query\n";
 
@@ -179,22 +228,22 @@ void runRetrieval(const RetrievalArguments& args) {
   const size_t largest_k = *std::max_element(args.top_k.begin(), args.top_k.end());
   nlohmann::json per_query = nlohmann::json::array();
   for (size_t q = 0; q < query_frames.size(); ++q) {
-    const std::vector<size_t> top = topKBySimilarity(mapping_descriptors, query_descriptors[q], largest_k);
+    const std::vector<size_t> top = topKBySimilarity(map.descriptors, query_descriptors[q], largest_k);
     nlohmann::json top_names = nlohmann::json::array();
-    for (size_t index : top) top_names.push_back(map.images[index].name);
+    for (size_t index : top) top_names.push_back(map.names[index]);
     per_query.push_back({{"name", scene.frames[query_frames[q]].name},
-                         {"nearest", map.images[result.nearest[q]].name},
+                         {"nearest", map.names[result.nearest[q]]},
                          {"rank", result.rank[q]},
                          {"top", top_names}});
   }
   const nlohmann::json out = {{"dataset", scene.root.string()},
                               {"map", args.map_path},
-                              {"model_id", model.id},
-                              {"model", model.description},
-                              {"mapping_images", map.images.size()},
+                              {"model_id", map.model_id},
+                              {"model", map.model_description},
+                              {"mapping_images", map.names.size()},
                               {"queries", query_frames.size()},
                               {"random_seed", args.seed},
-                              {"retrieval", args.retrieval},
+                              {"retrieval", map.retrieval},
                               {"recall", recall},
                               {"median_rank", result.median_rank},
                               {"encoding_ms_per_query", encoding_ms},
@@ -212,7 +261,7 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
       "Measure image retrieval on a dataset's query split: for each K, the fraction of queries whose K mapping "
       "images selected by global-descriptor retrieval (and, for reference, by uniform and random selection) contain "
       "the mapping camera nearest to the query's ground-truth pose; also the median rank of that camera.");
-  cmd->add_option("--map", args->map_path, "Map file from 'ffloc map' built from this dataset")->required();
+  cmd->add_option("--map", args->map_path, "Map file from 'ffloc map' built from this dataset (either method)")->required();
   addModelOptions(*cmd, args->model, "The model the map was built with (same forms as for 'ffloc map')");
   cmd->add_option("--dataset", args->dataset, "Dataset folder; its query split is measured")->required();
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
@@ -224,14 +273,16 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the random selection")->check(notNegative())->capture_default_str();
   cmd->add_option("--retrieval", args->retrieval,
-                  "What ranks the mapping images: encoder (the model's pooled tokens), vlad (the classical "
-                  "descriptor; the map must have been built with --vlad) or token-vlad (a VLAD of the model's "
-                  "tokens, its vocabulary learned from the map's)")
-      ->capture_default_str();
+                  "FastForward maps: what ranks the mapping images: encoder (the model's pooled tokens), vlad (the "
+                  "classical descriptor; the map must have been built with --vlad) or token-vlad (a VLAD of the "
+                  "model's tokens, its vocabulary learned from the map's; the default). A classical map ranks by "
+                  "its VLAD descriptors, as it localizes");
   cmd->add_option("--json", args->json_path, "Write the recall table and per-query ranks as JSON here");
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   for (const char* path_flag : {"--map", "--dataset", "--json"}) cmd->get_option(path_flag)->check(nonEmptyPath());
-  cmd->callback([args, &run] {
+  cmd->callback([args, cmd, &run] {
+    for (const char* flag : {"--model", "--dtype", "--retrieval"})
+      if (cmd->count(flag) > 0) args->fastforward_flags_given.push_back(flag);
     run = [args] {
       runRetrieval(*args);
       return 0;
