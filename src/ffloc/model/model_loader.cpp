@@ -109,6 +109,15 @@ RandomModelSpec parseRandomModelSpec(const std::string& spec) {
   return parsed;
 }
 
+// "<origin>/<sizes>/<fingerprint>": the fingerprint covers the parameters and the whole
+// architecture, preprocessing included. Of the parameters alone, a checkpoint whose metadata
+// changed its dense-SIFT window sizes or input size was taken for the model a map was built with,
+// and localized nothing.
+std::string modelIdentity(const std::string& origin, FastForwardModel& model) {
+  const uint64_t fingerprint = hashString(toJson(model.config()).dump(), parameterFingerprint(model));
+  return origin + "/" + sizesName(model.config()) + "/" + hex64(fingerprint);
+}
+
 LoadedModel randomModel(const std::string& spec) {
   const RandomModelSpec parsed = parseRandomModelSpec(spec);
   const std::string& preset = parsed.preset;
@@ -117,10 +126,10 @@ LoadedModel randomModel(const std::string& spec) {
   LoadedModel loaded;
   loaded.model = std::make_unique<FastForwardModel>(config);
   randomizeParameters(*loaded.model, seed);
-  loaded.id = "random-" + preset + "/" + sizesName(config) + "/" + hex64(parameterFingerprint(*loaded.model));
+  loaded.id = modelIdentity("random-" + preset, *loaded.model);
   if (config.query_head == QueryHeadKind::kMatching) {
     loaded.model->initializeMatchingHeadAsNearestNeighbour();
-    loaded.id = "init-" + preset + "/" + sizesName(config) + "/" + hex64(parameterFingerprint(*loaded.model));
+    loaded.id = modelIdentity("init-" + preset, *loaded.model);
     loaded.description = "untrained " + preset + " FastForward (seed " + std::to_string(seed) +
                          "): nearest-neighbour matching of its dense-SIFT tokens";
   } else {
@@ -235,13 +244,12 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
       config = fastForwardConfigFromJson(parseJson(architecture->second, source), source);
       loaded.model = std::make_unique<FastForwardModel>(config);
       loaded.model->loadWeights(*archive);
-      loaded.id = "fastforward/" + sizesName(config) + "/" + hex64(parameterFingerprint(*loaded.model));
+      loaded.id = modelIdentity("fastforward", *loaded.model);
       loaded.description = "FastForward checkpoint " + spec;
       loaded.model->to(at::kCPU, options.dtype, options.dtype);
       return loaded;
     }
     config.dust3r = configFromArchive(*archive);
-    const std::string sizes = sizesName(config.dust3r);
     if (archive->contains("map_head.weight")) {
       const TensorView& fc1 = archive->at("ray_embed.fc1.weight");
       if (fc1.shape.size() != 2) throwInputError(spec, 0, "tensor 'ray_embed.fc1.weight': expected 2 dimensions");
@@ -249,12 +257,12 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
       config.input_long_side = inputLongSide(*archive, config.dust3r.patch_size);
       loaded.model = std::make_unique<FastForwardModel>(config);
       loaded.model->loadWeights(*archive);
-      loaded.id = "fastforward/" + sizes + "/" + hex64(parameterFingerprint(*loaded.model));
+      loaded.id = modelIdentity("fastforward", *loaded.model);
       loaded.description = "FastForward checkpoint " + spec;
     } else if (archive->contains("downstream_head1.dpt.head.4.weight")) {
       loaded.model = std::make_unique<FastForwardModel>(config);
       loaded.model->initializeFromDust3r(*archive, options.init_seed);
-      loaded.id = "dust3r-init/" + sizes + "/" + hex64(parameterFingerprint(*loaded.model));
+      loaded.id = modelIdentity("dust3r-init", *loaded.model);
       loaded.description = "FastForward initialised from DUSt3R checkpoint " + spec +
                            " (ray MLP and map head untrained)";
     } else {

@@ -30,9 +30,10 @@ struct ModelLoadOptions {
 
 struct LoadedModel {
   std::unique_ptr<FastForwardModel> model;
-  // Identity of the weights, stored in every map so a map is only used with the model that
-  // encoded it: "<origin>/<sizes>/<fingerprint of the float32 parameters>". The fingerprint is of
-  // values, not files, so a .pth and its safetensors conversion give the same id.
+  // Identity of the model, stored in every map so a map is only used with the model that
+  // encoded it: "<origin>/<sizes>/<fingerprint of the float32 parameters and the architecture,
+  // preprocessing included>". The fingerprint is of values, not files, so a .pth and its
+  // safetensors conversion give the same id.
   std::string id;
   std::string description;  // one line for logs
 };

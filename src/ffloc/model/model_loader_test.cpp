@@ -68,5 +68,25 @@ TEST(ModelLoader, FilesWithoutChecksumsLoadAsBefore) {
   EXPECT_NE(parameterFingerprint(*damaged.model), parameterFingerprint(*original.model));
 }
 
+// The identity maps are checked against covered the parameters only: a checkpoint whose metadata
+// changed the preprocessing (dense-SIFT windows, input size) was taken for the model a map was
+// built with, and localized nothing (found by an outside probe).
+TEST(ModelLoader, TheIdentityCoversTheArchitectureBesideTheParameters) {
+  const fs::path dir = testing::makeTempDir("ffloc-model-identity");
+  LoadedModel original = loadModel("random:tiny:3");
+  const fs::path file = dir / "model.safetensors";
+  saveModel(*original.model, file);
+  removeChecksums(file);
+  const std::string before = loadModel(file.string()).id;
+  testing::editMetadata(file, [](nlohmann::json& metadata) {
+    nlohmann::json architecture = nlohmann::json::parse(metadata["architecture"].get<std::string>());
+    architecture["input_long_side"] = architecture["input_long_side"].get<int>() + 64;
+    metadata["architecture"] = architecture.dump();
+  });
+  const LoadedModel resized = loadModel(file.string());
+  EXPECT_EQ(parameterFingerprint(*resized.model), parameterFingerprint(*original.model));
+  EXPECT_NE(resized.id, before);
+}
+
 }  // namespace
 }  // namespace ffloc
