@@ -9,6 +9,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <vector>
 
 #include "ffloc/core/error.h"
 #include "ffloc/io/mapped_file.h"
@@ -28,6 +29,10 @@ constexpr int kMaxHeaderDepth = 8;
 // The reference implementation refuses headers above 100 MB; the official 2.2 GB DUSt3R
 // checkpoint needs ~100 KB.
 constexpr uint64_t kMaxHeaderBytes = 100ull << 20;
+
+// A header's lists are shapes and data offsets: a few values each. One of 50 million zeros
+// (100 MB of header) grew to 2.5 GB parsed before anything looked at it; refused while parsing.
+constexpr int kMaxHeaderListLength = 64;
 
 class SafetensorsArchive : public TensorArchive {
  public:
@@ -122,11 +127,23 @@ Json SafetensorsArchive::parseHeader(const char* text, size_t size) const {
   // tensor, so it is caught while parsing.
   std::set<std::string> seen;
   std::string duplicate;
+  std::vector<int> list_lengths;  // per open container: values so far in a list, -1 in an object
   const Json::parser_callback_t catch_duplicates = [&](int depth, Json::parse_event_t event,
                                                        Json& parsed) {
     if (depth > kMaxHeaderDepth) {
       fail("header: JSON nested deeper than " + std::to_string(kMaxHeaderDepth) + " levels");
     }
+    const bool adds_a_value = event == Json::parse_event_t::value || event == Json::parse_event_t::array_start ||
+                              event == Json::parse_event_t::object_start;
+    if (adds_a_value && !list_lengths.empty() && list_lengths.back() >= 0 &&
+        ++list_lengths.back() > kMaxHeaderListLength) {
+      fail("header: a list of more than " + std::to_string(kMaxHeaderListLength) +
+           " values (shapes and data offsets hold a few)");
+    }
+    if (event == Json::parse_event_t::array_start) list_lengths.push_back(0);
+    if (event == Json::parse_event_t::object_start) list_lengths.push_back(-1);
+    if ((event == Json::parse_event_t::array_end || event == Json::parse_event_t::object_end) && !list_lengths.empty())
+      list_lengths.pop_back();
     if (event == Json::parse_event_t::key && depth == 1 && parsed.is_string()) {
       if (!seen.insert(parsed.get<std::string>()).second && duplicate.empty()) {
         duplicate = parsed.get<std::string>();

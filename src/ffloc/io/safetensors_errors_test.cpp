@@ -115,6 +115,13 @@ TEST_F(SafetensorsErrors, BadTensorEntriesNameTheTensorAndField) {
   const std::string deep = std::string(200000, '[') + std::string(200000, ']');
   expectFailure(withHeader(R"({"w":{"dtype":"F32","shape":[1,)" + deep + R"(],"data_offsets":[0,4]}})", 4),
                 {"nested deeper than 8"});
+  // A long list is refused while parsing: 50 million zeros took 2.5 GB before (outside probe).
+  std::string zeros = "0";
+  for (int i = 0; i < 64; ++i) zeros += ",0";
+  expectFailure(withHeader(R"({"w":{"dtype":"U8","shape":[)" + zeros + R"(],"data_offsets":[0,0]}})", 0),
+                {"a list of more than 64 values"});
+  EXPECT_EQ(failure(withHeader(R"({"w":{"dtype":"U8","shape":[)" + zeros.substr(2) + R"(],"data_offsets":[0,0]}})", 0)),
+            "(opened without error)");  // 64 values: an empty tensor of rank 64
 }
 
 TEST_F(SafetensorsErrors, EmptyTensorsMayShareOffsets) {
