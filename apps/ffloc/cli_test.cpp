@@ -218,6 +218,13 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
   EXPECT_EQ(run.exit_code, 2) << run.output;
   EXPECT_TRUE(contains(run.output, "--retrieval: the map has no VLAD descriptors (build it with 'ffloc map --vlad')"))
       << run.output;
+  // An append cannot add them: refused before any image is encoded, not blamed on the first one.
+  const CliRun append = runCli({"map", "--dataset", scene.string(), "--method", "fastforward", "-o", map.string(),
+                                "--append", "--vlad", "--quiet"});
+  EXPECT_EQ(append.exit_code, 2) << append.output;
+  EXPECT_TRUE(contains(append.output, "map: was built without VLAD descriptors, which an append cannot add to the "
+                                      "images already in it; rebuild it with 'ffloc map --vlad'"))
+      << append.output;
   // retrieval --json given the map's path, or a file of the dataset, replaced it, exit 0.
   const auto map_size = fs::file_size(map);
   for (const fs::path& output : {map, scene / "manifest.json"}) {

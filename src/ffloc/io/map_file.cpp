@@ -245,7 +245,7 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
   map.metric = top.boolean("metric");
   if (!expected_model_id.empty() && map.model_id != expected_model_id)
     throwInputError(file, 0, "map was built with model '" + map.model_id + "', but the loaded model is '" +
-                                 expected_model_id + "': rebuild the map with this model (ffloc map)");
+                                 expected_model_id + "': load the model the map was built with, or rebuild the map with this one");
 
   const nlohmann::json& checksums = top.get("checksums");
   if (!checksums.is_object()) top.fail("checksums", "expected an object of tensor name -> checksum");

@@ -89,6 +89,10 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
     throw InputError(scene.root.string() + ": dataset units (" + (scene.metric ? "metric" : "non-metric") +
                      ") differ from the map's (" + (map.metric ? "metric" : "non-metric") + ")");
   if (map.images.empty()) map.metric = scene.metric;
+  // Found after every new image was encoded, and blamed on the first old image.
+  if (options.vlad && map.vlad_centres.empty() && !map.images.empty())
+    throw InputError("map: was built without VLAD descriptors, which an append cannot add to the images already in "
+                     "it; rebuild it with MappingOptions::vlad");
 
   if (model.model->config().usesTokenPoints()) {
     const bool any_depth =
