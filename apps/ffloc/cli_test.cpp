@@ -115,6 +115,8 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
   EXPECT_EQ(extra.exit_code, 2) << extra.output;
   const CliRun unknown = runCli({"localise"});
   EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
+  // It said "A subcommand is required", as if none had been typed.
+  EXPECT_TRUE(contains(unknown.output, "error: unknown command 'localise' (commands: eval, synth,")) << unknown.output;
   const CliRun help = runCli({"convert", "--help"});
   EXPECT_EQ(help.exit_code, 0) << help.output;
   EXPECT_TRUE(contains(help.output, "--input")) << help.output;
