@@ -212,6 +212,9 @@ std::string modelSpecProblem(const std::string& requested) {
   std::error_code error;
   const std::filesystem::file_status status = std::filesystem::status(path, error);
   if (requested == "default" && status.type() != std::filesystem::file_type::regular) {
+    const char* override_path = std::getenv("FFLOC_MODEL");
+    if (override_path != nullptr && *override_path != '\0')
+      return "the default model is FFLOC_MODEL's '" + path + "', which is not a file";
     return "the default model '" + path + "' is missing (set FFLOC_MODEL or name a model file; docs/training.md trains one)";
   }
   if (status.type() == std::filesystem::file_type::not_found) return "'" + path + "': no such file";

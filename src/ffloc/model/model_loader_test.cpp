@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/data/scene_test_util.h"
@@ -66,6 +68,19 @@ TEST(ModelLoader, FilesWithoutChecksumsLoadAsBefore) {
   LoadedModel damaged = loadModel(file.string());
   EXPECT_EQ(damaged.model->config().dust3r.enc_heads, 2);
   EXPECT_NE(parameterFingerprint(*damaged.model), parameterFingerprint(*original.model));
+}
+
+// FFLOC_MODEL naming nothing was reported as the shipped model missing, "set FFLOC_MODEL".
+TEST(ModelLoader, AMissingDefaultModelSaysWhereItWasLookedFor) {
+  const char* set = std::getenv("FFLOC_MODEL");
+  const std::string before = set != nullptr ? set : "";
+  ::setenv("FFLOC_MODEL", "/nonexistent/model.safetensors", 1);
+  EXPECT_EQ(modelSpecProblem("default"), "the default model is FFLOC_MODEL's '/nonexistent/model.safetensors', which is not a file");
+  ::unsetenv("FFLOC_MODEL");
+  EXPECT_EQ(modelSpecProblem("default"), "");  // the shipped one
+  if (!before.empty()) ::setenv("FFLOC_MODEL", before.c_str(), 1);
+  EXPECT_EQ(modelSpecProblem("random:tiny:x"), "'random:tiny:x': seed must be an integer");
+  EXPECT_EQ(modelSpecProblem("/nonexistent.pth"), "'/nonexistent.pth': no such file");
 }
 
 // The identity maps are checked against covered the parameters only: a checkpoint whose metadata
