@@ -5,10 +5,12 @@
 #include <regex>
 
 #include "ffloc/core/error.h"
+#include "ffloc/io/input_file.h"
 
 namespace ffloc::cli {
 
 ReferenceTiming readReferenceTiming(const std::filesystem::path& path) {
+  requireRegularFile(path, "reference timing file");  // a FIFO blocked the bench forever
   std::ifstream file(path);
   if (!file) throwInputError(path.string(), 0, "cannot open the reference timing file");
   const std::regex process(R"(^\s*(fp32|bf16) process \d+:\s*$)");

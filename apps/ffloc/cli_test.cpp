@@ -1,6 +1,7 @@
 // The CLI's refusals as a user meets them: `ffloc` itself is run, and each bad input must end
 // with exit status 2 and a message naming the file or the field, before any long computation.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -487,6 +488,13 @@ TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {
     EXPECT_EQ(run.exit_code, 2) << arguments[0] << ": " << run.output;
     EXPECT_TRUE(contains(run.output, flag + ": must be at least 0, got -1")) << arguments[0] << ": " << run.output;
   }
+  // A FIFO given as the reference timings blocked the bench until someone wrote to it.
+  const fs::path fifo = dir_ / "timings.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const CliRun bench = runCli({"bench", "model", "--reference", fifo.string()});
+  EXPECT_EQ(bench.exit_code, 2) << bench.output;
+  EXPECT_TRUE(contains(bench.output, fifo.string() + ": reference timing file expected, found something that is not"))
+      << bench.output;
 }
 
 // Accepted before: an empty method list ran classical, a method named twice ran twice, NaN
