@@ -35,6 +35,9 @@ ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
   std::error_code ignored;
   if (std::filesystem::equivalent(input, output, ignored))
     throwInputError(output.string(), 0, "output: is the input file; write the converted weights to another path");
+  // A folder failed only at the final rename, after the whole conversion.
+  if (std::filesystem::is_directory(output, ignored))
+    throwInputError(output.string(), 0, "output: is a folder; name the safetensors file to write");
   const std::unique_ptr<TensorArchive> archive = openTensorArchive(input);
   // Converted unchecked, a damaged checkpoint would come out as a file with nothing to check.
   verifyChecksums(*archive, resolveThreadCount(0));

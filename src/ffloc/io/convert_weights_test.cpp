@@ -8,6 +8,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/half.h"
+#include "ffloc/io/tensor_archive.h"
 
 namespace ffloc {
 namespace {
@@ -41,6 +42,33 @@ TEST(ConvertWeights, CheckpointBecomesTheHubSafetensors) {
   for (const std::string& name : reference->names()) reference_bytes += reference->at(name).nbytes;
   EXPECT_EQ(summary.bytes_written, reference_bytes);
   std::filesystem::remove_all(dir);
+}
+
+// A folder as the output failed at the final rename, after the whole conversion; a tensor name
+// that is not UTF-8 (a .pth's) was blamed on the output ("cannot encode the header").
+TEST(ConvertWeights, AFolderOutputAndANameNoHeaderCanHoldAreRefusedNamingTheirCause) {
+  const auto dir = testing::makeTempDir("ffloc-convert-refusals");
+  const float values[2] = {1.f, 2.f};
+  TensorView view;
+  view.name = "w";
+  view.dtype = DType::kF32;
+  view.shape = {2};
+  view.data = reinterpret_cast<const uint8_t*>(values);
+  view.nbytes = sizeof(values);
+  writeSafetensors(dir / "in.safetensors", {view}, {});
+  try {
+    convertWeights(dir / "in.safetensors", dir, ConvertWeightsOptions{});
+    ADD_FAILURE() << "converted into a folder";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("output: is a folder"), std::string::npos) << e.what();
+  }
+  view.name = "w\xff";
+  try {
+    writeSafetensors(dir / "out.safetensors", {view}, {});
+    ADD_FAILURE() << "wrote a name that is not UTF-8";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("tensor name 'w\xff' is not UTF-8"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ConvertWeights, CastsFloatTensorsOnly) {

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/io/mapped_file.h"
 #include "ffloc/io/tensor_archive.h"
 
@@ -338,6 +339,11 @@ void writeSafetensors(const std::filesystem::path& path, const std::vector<Tenso
   try {
     text = header.dump();
   } catch (const Json::exception& error) {
+    // A name read from the input that is not UTF-8 (a .pth's), not the output, is at fault.
+    for (const TensorView& view : tensors)
+      if (!isUtf8(view.name))
+        throwInputError(file, 0, "tensor name '" + escapeControlCharacters(view.name) +
+                                     "' is not UTF-8, which a safetensors header (JSON) cannot hold");
     throwInputError(file, 0, std::string("cannot encode the header: ") + error.what());
   }
   text.append((8 - text.size() % 8) % 8, ' ');
