@@ -327,6 +327,12 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   EXPECT_EQ(two.exit_code, 2) << two.output;
   EXPECT_TRUE(contains(two.output, "two.txt:3: query 'images/query_0000_near.png': cx, cy: the principal point (900, 95.5)"))
       << two.output;
+  // A single --image query named neither itself nor its flag.
+  const std::string image = (scene / "images" / "query_0000_near.png").string();
+  const CliRun single = runCli({"localize", "--map", map.string(), "--image", image, "--intrinsics", "200,200,900,95.5"});
+  EXPECT_EQ(single.exit_code, 2) << single.output;
+  EXPECT_TRUE(contains(single.output, "error: query '" + image + "': cx, cy: the principal point (900, 95.5)"))
+      << single.output;
   // A path with spaces (split at its first space, it was refused), after a UTF-8 byte order mark,
   // with Windows line ends and intrinsics apart by commas; and a NUL byte, which cut the path short.
   fs::copy_file(scene / "images" / "query_0000_near.png", scene / "images" / "near view.png");

@@ -277,7 +277,12 @@ int runLocalize(const LocalizeArguments& args) {
       }
       if (result.pnp.ok()) estimated_cameras.emplace_back(result.pnp.camera_to_world, result.camera);
     } catch (const InputError& e) {
-      const std::string error = query.location.empty() ? e.what() : query.location + ": " + e.what();
+      // An --image query's error named neither it nor the flag when about its intrinsics.
+      const std::string what = e.what();
+      const std::string location = !query.location.empty() ? query.location
+                                   : what.find(query.path.string()) == std::string::npos ? "query '" + query.path.string() + "'"
+                                                                                         : "";
+      const std::string error = location.empty() ? what : location + ": " + what;
       if (queries.size() == 1) throw InputError(error);
       r = {{"name", query.name}, {"status", "error"}, {"error", error}};
       any_input_error = true;
