@@ -66,6 +66,11 @@ int runMap(const MapArguments& args) {
               << (options.classical.use_depth ? "depth where the frames have it, " : "") << "triangulated elsewhere), "
               << report.links << " links\n";
   }
+  // A dataset with depth for some frames only mapped the others without a word.
+  if (report.added_without_points > 0)
+    std::cerr << "warning: " << report.added_without_points << " of the " << report.added
+              << " images added have no depth, so their tokens carry no 3D points and the model cannot place a "
+                 "query on them\n";
   printSummary(report.added, report.skipped_duplicates, report.seconds, report.images, args.output);
   return 0;
 }

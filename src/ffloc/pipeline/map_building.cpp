@@ -101,6 +101,7 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   report.images = map.images.size();
   report.added = added.added;
   report.skipped_duplicates = added.skipped_duplicates;
+  report.added_without_points = added.added_without_points;
   report.seconds = added.seconds;
   return report;
 }

@@ -42,6 +42,7 @@ struct MapBuildReport {
   size_t skipped_featureless = 0;  // classical: images with fewer than two keypoints
   size_t points = 0;               // classical
   size_t links = 0;                // classical
+  size_t added_without_points = 0;  // fastforward: MappingReport's
   double seconds = 0;
 };
 

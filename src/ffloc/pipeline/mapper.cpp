@@ -126,6 +126,7 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
       to_add.size(), workers,
       [&](size_t i) { return encodeMappingImage(network, *to_add[i], options); },
       [&](size_t i, MapImage&& image) {
+        if (network.config().usesTokenPoints() && image.token_points.empty()) ++report.added_without_points;
         map.images.push_back(std::move(image));
         ++report.added;
         progress.update(i + 1);

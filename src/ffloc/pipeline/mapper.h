@@ -31,6 +31,9 @@ struct MappingOptions {
 struct MappingReport {
   size_t added = 0;
   size_t skipped_duplicates = 0;  // names already in the map
+  // Added without depth for a model that matches on its tokens' 3D points: nothing in them can
+  // be matched, so a query these images alone see is not placed.
+  size_t added_without_points = 0;
   double seconds = 0;             // reading, preprocessing and encoding the added images
 };
 

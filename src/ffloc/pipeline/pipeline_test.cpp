@@ -438,6 +438,15 @@ TEST(Pipeline, MatchingModelMapsCarryTokenPointsAndNeedDepth) {
     EXPECT_TRUE(a == b || (std::isnan(a) && std::isnan(b))) << i;
   }
 
+  // Depth for some frames only: the others are mapped without points, and the report says how many.
+  Scene partly = scene;
+  partly.frames[1].depth.reset();
+  MapFile some = emptyMap(model, scene.metric);
+  const MappingReport partial = addToMap(some, model, partly, range(0, 3), quiet);
+  EXPECT_EQ(partial.added, 3u);
+  EXPECT_EQ(partial.added_without_points, 1u);
+  EXPECT_TRUE(some.images[1].token_points.empty());
+
   for (Frame& frame : scene.frames) frame.depth.reset();
   MapFile without = emptyMap(model, scene.metric);
   try {
