@@ -139,7 +139,10 @@ void writeClassicalMap(const ClassicalMap& map, const std::filesystem::path& pat
   const std::string body_text = body.dump();
   const nlohmann::json header = {{"method", kMethod}, {"version", ClassicalMap::kVersion},
                                  {"body_checksum", hex64(fnv1a64(body_text))}};
-  writeSafetensors(path, tensors, {{kMapMetadataKey, header.dump()}, {kBodyKey, body_text}});
+  // The header checksummed too: a flipped byte in its "method" key read the map as FastForward's.
+  std::map<std::string, std::string> metadata = mapMetadataEntries(header, path.string());
+  metadata[kBodyKey] = body_text;
+  writeSafetensors(path, tensors, metadata);
 }
 
 ClassicalMap readClassicalMap(const std::filesystem::path& path) {

@@ -110,6 +110,18 @@ TEST_F(ClassicalTest, MapRoundTripsThroughItsFile) {
   EXPECT_TRUE(reread.vocabulary.centres().isApprox(map.vocabulary.centres()));
   ASSERT_EQ(reread.images.size(), map.images.size());
   for (size_t i = 0; i < map.images.size(); ++i) expectSameImage(map.images[i], reread.images[i]);
+
+  // One flipped bit in the header's "method" key read the map as a FastForward one ("field
+  // 'model_id': missing"); the header is checksummed now (found by an outside probe).
+  {
+    std::fstream file(path, std::ios::in | std::ios::out | std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(file)), {});
+    const size_t at = bytes.find("\\\"method\\\"");
+    ASSERT_NE(at, std::string::npos);
+    file.seekp(static_cast<std::streamoff>(at + 3));
+    file.put(static_cast<char>(bytes[at + 3] ^ 1));
+  }
+  EXPECT_NE(inputErrorOf([&] { readClassicalMap(path); }).find("map metadata checksum mismatch"), std::string::npos);
 }
 
 // A small, weakly textured image is described again at the low contrast threshold up to
