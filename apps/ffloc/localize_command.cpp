@@ -277,11 +277,13 @@ int runLocalize(const LocalizeArguments& args) {
       }
       if (result.pnp.ok()) estimated_cameras.emplace_back(result.pnp.camera_to_world, result.camera);
     } catch (const InputError& e) {
-      // An --image query's error named neither it nor the flag when about its intrinsics.
-      const std::string what = e.what();
+      // An --image query's error named neither it nor the flag when about its intrinsics; one that
+      // names a flag or the image says enough.
+      const std::string what = withFlagName(e.what());
+      const bool named = what.rfind("--", 0) == 0 || what.find(query.path.string()) != std::string::npos;
       const std::string location = !query.location.empty() ? query.location
-                                   : what.find(query.path.string()) == std::string::npos ? "query '" + query.path.string() + "'"
-                                                                                         : "";
+                                   : named                 ? ""
+                                                           : "query '" + query.path.string() + "'";
       const std::string error = location.empty() ? what : location + ": " + what;
       if (queries.size() == 1) throw InputError(error);
       r = {{"name", query.name}, {"status", "error"}, {"error", error}};

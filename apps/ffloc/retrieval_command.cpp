@@ -20,6 +20,7 @@
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
+#include "ffloc/core/threads.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/io/image.h"
@@ -84,6 +85,7 @@ RankedMap classicalRankedMap(const RetrievalArguments& args) {
   for (const std::string& flag : args.fastforward_flags_given)
     throw InputError(flag + ": applies to FastForward maps; " + args.map_path +
                      " is a classical map, which ranks its images by their VLAD descriptors");
+  setLibraryThreadCount(args.model.threads);  // SIFT's, as no network loads to set them
   auto map = std::make_shared<const ClassicalMap>(readClassicalMap(args.map_path));
   RankedMap ranked;
   ranked.retrieval = "vlad";
@@ -104,6 +106,7 @@ RankedMap classicalRankedMap(const RetrievalArguments& args) {
 RankedMap fastForwardRankedMap(const RetrievalArguments& args) {
   auto model = std::make_shared<const LoadedModel>(loadCommandModel(args.model));
   const MapFile map = readMapFile(args.map_path, model->id);
+  if (map.images.empty()) throwInputError(args.map_path, 0, "map holds no images");
   const int64_t enc_dim = model->model->config().dust3r.enc_dim;
   if (map.token_dim != enc_dim)
     throwInputError(args.map_path, 0, "token width " + std::to_string(map.token_dim) + " differs from the model's " +

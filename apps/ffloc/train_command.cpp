@@ -225,6 +225,7 @@ void requireTheSameSettingsOnEveryRank(DataParallel& parallel, const TrainingCon
 
 // A run refused after it made its --out folder (a model that names no parameter, a rank that
 // never joined) left that folder behind empty; it goes, unless something but the lock is in it.
+// Made after the run's lock is declared, so that it is destroyed while the lock is still held.
 class RemoveNewFolderOnError {
  public:
   // Only rank 0 removes: the other ranks may share the folder with it.
@@ -241,7 +242,9 @@ class RemoveNewFolderOnError {
     for (fs::directory_iterator entry(folder_, error), end; !error && entry != end; entry.increment(error)) {
       if (entry->path().filename() != lock_name_) return;
     }
-    if (!error) fs::remove_all(folder_, error);
+    if (error) return;
+    fs::remove(folder_ / lock_name_, error);
+    fs::remove(folder_, error);  // not recursive: whatever came in meanwhile stays, and so does the folder
   }
 
  private:
@@ -272,12 +275,12 @@ void runTrain(const TrainArguments& args) {
     throwInputError(run_dir.string(), 0, "already holds a training run; pass --resume to continue it");
   }
   const fs::path lock_target = run_dir / "run";
+  // Two runs resuming into one folder at once both wrote its checkpoints and its log.
+  std::optional<WriterLock> run_lock;
   const RemoveNewFolderOnError cleanup(run_dir, writerLockFile(lock_target).filename(), lead);
   std::error_code error;
   fs::create_directories(run_dir, error);
   if (error) throw InputError("--out: cannot create '" + run_dir.string() + "': " + error.message());
-  // Two runs resuming into one folder at once both wrote its checkpoints and its log.
-  std::optional<WriterLock> run_lock;
   if (lead) {
     run_lock.emplace(lock_target, [&] {
       throw InputError("--out: '" + run_dir.string() + "' is in use by another 'ffloc train'; wait for it to end");

@@ -5,6 +5,9 @@
 
 namespace ffloc {
 
+// The lock file of `target`'s writers.
+std::filesystem::path writerLockFile(const std::filesystem::path& target);
+
 // An exclusive advisory lock (flock) for the writers of one file, held while the object lives:
 // writers that read the file, add to it and rename a new one into place take it, so that two of
 // them at once do not both start from the same old file and the later rename drop the earlier
@@ -13,9 +16,6 @@ namespace ffloc {
 // Blocks while another process holds it, after calling `on_wait` (when given) once; an
 // exception from `on_wait` refuses to wait. InputError naming the lock file when it cannot be
 // created or locked.
-// The lock file of `target`'s writers.
-std::filesystem::path writerLockFile(const std::filesystem::path& target);
-
 class WriterLock {
  public:
   WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait);

@@ -11,6 +11,7 @@
 #include "ffloc/data/depth.h"
 #include "ffloc/data/scene_test_util.h"
 #include "ffloc/geometry/camera.h"
+#include "ffloc/io/testing/exif_jpeg.h"
 
 namespace ffloc {
 namespace {
@@ -224,6 +225,11 @@ TEST(BadInput, ColmapTranslationsByteOrderMarksAndEveryImageAreChecked) {
   EXPECT_EQ(loadDataset(dir).frames.size(), 2u);
   dir = makeColmap();
   writeImage(dir / "images/b.png", 6, 8);
+  expectInputError([&] { loadDataset(dir); }, {"frame 'images/b.png'", "the intrinsics are for a 8x6 image", "is 6x8"});
+  // Stored at the claimed size but turned by its EXIF orientation: the check after the first
+  // image of a size took the stored size.
+  dir = makeColmap();
+  writeTextFile(dir / "images/b.png", testing::jpegWithExifOrientation(cv::Mat3b(6, 8, cv::Vec3b(9, 9, 9)), 6));
   expectInputError([&] { loadDataset(dir); }, {"frame 'images/b.png'", "the intrinsics are for a 8x6 image", "is 6x8"});
   dir = makeColmap();
   writeTextFile(dir / "images/b.png", "not an image");

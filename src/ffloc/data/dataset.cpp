@@ -77,7 +77,8 @@ void requirePlausibleFrames(const Scene& scene) {
       if (!first_of_its_size && !header) {
         // Not a PNG or JPEG: its signature is checked, not decoded for every frame (TIFF, BMP).
         requireDecodableImageFile(frame.image_path, "cannot decode image");
-      } else if (first_of_its_size || header != std::optional<cv::Size>(claimed)) {
+      } else if (first_of_its_size || fileImageSize(frame.image_path) != std::optional<cv::Size>(claimed)) {
+        // As decoded: a JPEG of the claimed size stored but turned by its EXIF orientation passed.
         const cv::Size image = readImageSize(frame.image_path);
         if (image != claimed)
           throw InputError("the intrinsics are for a " + std::to_string(claimed.width) + "x" +

@@ -28,8 +28,8 @@ struct StoredFrame {
   bool with_exif = false;
 };
 
-// A PNG's IHDR, and an eXIf chunk among those before the image data (libpng reads those with
-// the header; OpenCV applies its orientation).
+// A PNG's IHDR, and an eXIf chunk anywhere before IEND (OpenCV reads one before the image data
+// with the header and one after it at the end, and applies either's orientation).
 std::optional<StoredFrame> pngFrame(std::istream& in) {
   std::array<unsigned char, 24> header{};
   in.seekg(0);
@@ -43,7 +43,7 @@ std::optional<StoredFrame> pngFrame(std::istream& in) {
   std::array<unsigned char, 8> chunk{};
   while (in.read(reinterpret_cast<char*>(chunk.data()), chunk.size())) {
     const std::string type(chunk.begin() + 4, chunk.end());
-    if (type == "IDAT" || type == "IEND") break;
+    if (type == "IEND") break;
     if (type == "eXIf") {
       frame.with_exif = true;
       break;
@@ -97,10 +97,14 @@ std::optional<StoredFrame> jpegFrame(std::istream& in) {
     // An APP1 segment too short for a tag is skipped like any other (seeking back by a tag that
     // was never read returned to this marker, forever: found by the image_size fuzzer).
     if (type == 0xE1 && length >= 6) {
-      char tag[4];
-      if (!in.read(tag, 4)) return walkEnded();
-      frame.with_exif = frame.with_exif || std::string(tag, 4) == "Exif";
-      read += 4;
+      char tag[10];
+      const uint32_t tag_length = length >= 12 ? 10 : 4;
+      if (!in.read(tag, tag_length)) return walkEnded();
+      // OpenCV takes an APP1 holding a TIFF header after its six-byte tag as EXIF, whatever the tag.
+      const std::string tiff = tag_length == 10 ? std::string(tag + 6, 4) : "";
+      frame.with_exif = frame.with_exif || std::string(tag, 4) == "Exif" || tiff == std::string("II*\0", 4) ||
+                        tiff == std::string("MM\0*", 4);
+      read += tag_length;
     }
     in.seekg(static_cast<std::streamoff>(length - read), std::ios::cur);
   }
@@ -135,6 +139,12 @@ std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return std::nullopt;
   return headerSize(in, false);
+}
+
+std::optional<cv::Size> fileImageSize(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  return headerSize(in, true);
 }
 
 cv::Size readImageSize(const std::filesystem::path& path) {

@@ -27,4 +27,8 @@ std::optional<cv::Size> encodedFrameSize(const std::string& bytes);
 // header does not tell. For explaining why a decoder refused a file.
 std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path);
 
+// encodedImageSize for a file: its size as decoded, when its PNG or JPEG header settles that
+// (nullopt for other formats and for files with EXIF data).
+std::optional<cv::Size> fileImageSize(const std::filesystem::path& path);
+
 }  // namespace ffloc

@@ -7,6 +7,7 @@
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/image.h"
 #include "ffloc/io/image_format.h"
+#include "ffloc/io/testing/exif_jpeg.h"
 #include "ffloc/data/scene_test_util.h"
 
 namespace ffloc {
@@ -151,12 +152,9 @@ uint32_t crc32(const std::string& bytes) {
 TEST(ImageSize, AJpegsExifOrientationTurnsItsSizeAsDecodingDoes) {
   std::vector<uchar> jpeg;
   cv::imencode(".jpg", cv::Mat3b(7, 13, cv::Vec3b(1, 2, 3)), jpeg);
-  // APP1: "Exif", a big-endian TIFF header, one IFD entry: Orientation (0x0112), SHORT, 6.
-  const std::string app1("\xff\xe1\x00\x22" "Exif\0\0" "MM\0\x2a\0\0\0\x08" "\0\x01"
-                         "\x01\x12\0\x03\0\0\0\x01\0\x06\0\0" "\0\0\0\0", 36);
+  const std::string app1 = testing::exifOrientationSegment(6);
   const auto dir = testing::makeTempDir("ffloc-exif-orientation");
-  testing::writeTextFile(dir / "portrait.jpg",
-                         std::string(jpeg.begin(), jpeg.begin() + 2) + app1 + std::string(jpeg.begin() + 2, jpeg.end()));
+  testing::writeTextFile(dir / "portrait.jpg", testing::jpegWithExifOrientation(cv::Mat3b(7, 13, cv::Vec3b(1, 2, 3)), 6));
   EXPECT_EQ(readImageRgb(dir / "portrait.jpg").size(), cv::Size(7, 13));
   EXPECT_EQ(readImageSize(dir / "portrait.jpg"), cv::Size(7, 13));
 
@@ -166,7 +164,14 @@ TEST(ImageSize, AJpegsExifOrientationTurnsItsSizeAsDecodingDoes) {
   const size_t frame_end = frame_at + 2 + (jpeg[frame_at + 2] << 8 | jpeg[frame_at + 3]);
   testing::writeTextFile(dir / "late_exif.jpg", std::string(jpeg.begin(), jpeg.begin() + frame_end) + app1 +
                                                     std::string(jpeg.begin() + frame_end, jpeg.end()));
-  EXPECT_EQ(readImageSize(dir / "late_exif.jpg"), readImageRgb(dir / "late_exif.jpg").size());
+  EXPECT_EQ(readImageRgb(dir / "late_exif.jpg").size(), cv::Size(7, 13));
+  EXPECT_EQ(readImageSize(dir / "late_exif.jpg"), cv::Size(7, 13));
+  // OpenCV takes an APP1 holding a TIFF header as EXIF whatever its tag.
+  std::string other_tag = app1;
+  other_tag.replace(4, 4, "XXXX");
+  testing::writeTextFile(dir / "other_tag.jpg",
+                         std::string(jpeg.begin(), jpeg.begin() + 2) + other_tag + std::string(jpeg.begin() + 2, jpeg.end()));
+  EXPECT_EQ(readImageSize(dir / "other_tag.jpg"), readImageRgb(dir / "other_tag.jpg").size());
 
   // A PNG's eXIf chunk (before the image data) is applied alike.
   std::vector<uchar> png;
@@ -179,7 +184,14 @@ TEST(ImageSize, AJpegsExifOrientationTurnsItsSizeAsDecodingDoes) {
   const size_t after_header = 8 + 8 + 13 + 4;
   testing::writeTextFile(dir / "portrait.png", std::string(png.begin(), png.begin() + after_header) + chunk +
                                                    crc_bytes + std::string(png.begin() + after_header, png.end()));
-  EXPECT_EQ(readImageSize(dir / "portrait.png"), readImageRgb(dir / "portrait.png").size());
+  EXPECT_EQ(readImageRgb(dir / "portrait.png").size(), cv::Size(7, 13));
+  EXPECT_EQ(readImageSize(dir / "portrait.png"), cv::Size(7, 13));
+  // After the image data, just before IEND (12 bytes: length, type, CRC), it is applied too.
+  const size_t iend = png.size() - 12;
+  testing::writeTextFile(dir / "late.png", std::string(png.begin(), png.begin() + iend) + chunk + crc_bytes +
+                                               std::string(png.begin() + iend, png.end()));
+  EXPECT_EQ(readImageRgb(dir / "late.png").size(), cv::Size(7, 13));
+  EXPECT_EQ(readImageSize(dir / "late.png"), cv::Size(7, 13));
 }
 
 TEST(ImageSize, AgreesWithDecodingOnTheSharedSamples) {

@@ -235,6 +235,9 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
     throwInputError(file, 0, "map was built with the " + header.method +
                                  " method, not fastforward (localize it with the method it was built with)");
   const int version = header.version;
+  if (version == 1)
+    throwInputError(file, 0, "map version 1 identifies its model by the weights alone, and this build by the weights "
+                             "and the architecture: rebuild the map with ffloc map");
   if (version != MapFile::kVersion)
     throwInputError(file, 0, "map version " + std::to_string(version) + " is not supported (this build reads version " +
                                  std::to_string(MapFile::kVersion) + ")");

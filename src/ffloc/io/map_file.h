@@ -64,7 +64,9 @@ struct MapImage {
 // whose JSON metadata holds the poses, intrinsics, preprocessing geometry and image names, a
 // checksum of every tensor, and the identity of the model that made the tokens.
 struct MapFile {
-  static constexpr int kVersion = 1;
+  // 2: the model identity covers the architecture (model_loader.h); a version 1 map's does not,
+  // so no model of this build matches it.
+  static constexpr int kVersion = 2;
 
   std::string model_id;  // identity of the weights that produced the tokens
   int token_dim = 0;

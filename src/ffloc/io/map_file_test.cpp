@@ -12,6 +12,7 @@
 #include "ffloc/core/hash.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/half.h"
+#include "ffloc/io/testing/safetensors_edit.h"
 
 namespace ffloc {
 namespace {
@@ -254,6 +255,21 @@ TEST(MapFile, RefusesMetadataThatNoMapWouldHold) {
   descriptors[17] = std::nanf("");
   rewriteSealed(path, [](nlohmann::json&) {}, descriptors);
   EXPECT_NE(readError(path).find("'descriptors' holds NaN"), std::string::npos) << readError(path);
+}
+
+// Version 2 identifies the model by its architecture too: a version 1 map's identity matches no
+// model of this build, and "load the model the map was built with" would mislead.
+TEST(MapFile, AVersionOneMapIsToldToBeRebuilt) {
+  const auto dir = testing::makeTempDir("ffloc-map");
+  const auto path = dir / "old.ffmap";
+  writeMapFile(smallMap(), path);
+  testing::editMetadata(path, [](nlohmann::json& metadata) {
+    nlohmann::json description = nlohmann::json::parse(metadata[kMapMetadataKey].get<std::string>());
+    description["version"] = 1;
+    for (const auto& [key, value] : mapMetadataEntries(description, "old.ffmap")) metadata[key] = value;
+  });
+  EXPECT_NE(readError(path).find("map version 1 identifies its model by the weights alone"), std::string::npos)
+      << readError(path);
 }
 
 TEST(MapFile, MetadataChecksumCatchesAChangedPose) {

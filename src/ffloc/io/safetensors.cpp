@@ -31,9 +31,11 @@ constexpr int kMaxHeaderDepth = 8;
 // checkpoint needs ~100 KB.
 constexpr uint64_t kMaxHeaderBytes = 100ull << 20;
 
-// A header's lists are shapes and data offsets: a few values each. One of 50 million zeros
-// (100 MB of header) grew to 2.5 GB parsed before anything looked at it; refused while parsing.
+// A header's lists are shapes and data offsets, and its objects below the top tensor entries
+// (three keys) and the metadata: a few values each. A list of 50 million zeros (100 MB of header)
+// grew to 2.5 GB parsed before anything looked at it; both are bounded while parsing.
 constexpr int kMaxHeaderListLength = 64;
+constexpr int kMaxTensorEntryKeys = 16;
 
 class SafetensorsArchive : public TensorArchive {
  public:
@@ -128,7 +130,14 @@ Json SafetensorsArchive::parseHeader(const char* text, size_t size) const {
   // tensor, so it is caught while parsing.
   std::set<std::string> seen;
   std::string duplicate;
-  std::vector<int> list_lengths;  // per open container: values so far in a list, -1 in an object
+  // Per open container: its values (a list) or keys (an object) so far, and how many it may hold.
+  struct Open {
+    int count = 0;
+    int limit = 0;  // 0: unbounded (the top object, the metadata)
+    bool list = false;
+  };
+  std::vector<Open> open;
+  std::string top_key;
   const Json::parser_callback_t catch_duplicates = [&](int depth, Json::parse_event_t event,
                                                        Json& parsed) {
     if (depth > kMaxHeaderDepth) {
@@ -136,15 +145,20 @@ Json SafetensorsArchive::parseHeader(const char* text, size_t size) const {
     }
     const bool adds_a_value = event == Json::parse_event_t::value || event == Json::parse_event_t::array_start ||
                               event == Json::parse_event_t::object_start;
-    if (adds_a_value && !list_lengths.empty() && list_lengths.back() >= 0 &&
-        ++list_lengths.back() > kMaxHeaderListLength) {
-      fail("header: a list of more than " + std::to_string(kMaxHeaderListLength) +
-           " values (shapes and data offsets hold a few)");
+    const bool counts = (adds_a_value && !open.empty() && open.back().list) ||
+                        (event == Json::parse_event_t::key && !open.empty() && !open.back().list);
+    if (counts && open.back().limit > 0 && ++open.back().count > open.back().limit) {
+      fail(open.back().list ? "header: a list of more than " + std::to_string(kMaxHeaderListLength) +
+                                  " values (shapes and data offsets hold a few)"
+                            : "header: tensor '" + top_key + "' has more than " + std::to_string(kMaxTensorEntryKeys) +
+                                  " fields (dtype, shape and data_offsets)");
     }
-    if (event == Json::parse_event_t::array_start) list_lengths.push_back(0);
-    if (event == Json::parse_event_t::object_start) list_lengths.push_back(-1);
-    if ((event == Json::parse_event_t::array_end || event == Json::parse_event_t::object_end) && !list_lengths.empty())
-      list_lengths.pop_back();
+    if (event == Json::parse_event_t::key && depth == 1 && parsed.is_string()) top_key = parsed.get<std::string>();
+    if (event == Json::parse_event_t::array_start) open.push_back({0, kMaxHeaderListLength, true});
+    if (event == Json::parse_event_t::object_start)
+      open.push_back({0, open.empty() || top_key == "__metadata__" ? 0 : kMaxTensorEntryKeys, false});
+    if ((event == Json::parse_event_t::array_end || event == Json::parse_event_t::object_end) && !open.empty())
+      open.pop_back();
     if (event == Json::parse_event_t::key && depth == 1 && parsed.is_string()) {
       if (!seen.insert(parsed.get<std::string>()).second && duplicate.empty()) {
         duplicate = parsed.get<std::string>();

@@ -122,6 +122,11 @@ TEST_F(SafetensorsErrors, BadTensorEntriesNameTheTensorAndField) {
                 {"a list of more than 64 values"});
   EXPECT_EQ(failure(withHeader(R"({"w":{"dtype":"U8","shape":[)" + zeros.substr(2) + R"(],"data_offsets":[0,0]}})", 0)),
             "(opened without error)");  // 64 values: an empty tensor of rank 64
+  // So is a tensor entry of many keys (a review: 100 MB of them parsed to about 1 GB).
+  std::string keys;
+  for (int i = 0; i < 17; ++i) keys += ",\"k" + std::to_string(i) + "\":0";
+  expectFailure(withHeader(R"({"w":{"dtype":"U8","shape":[0],"data_offsets":[0,0])" + keys + "}}", 0),
+                {"tensor 'w' has more than 16 fields"});
 }
 
 TEST_F(SafetensorsErrors, EmptyTensorsMayShareOffsets) {

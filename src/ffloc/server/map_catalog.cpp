@@ -39,7 +39,8 @@ struct MapCatalog::Slot {
   mutable std::mutex mutex;  // guards current, stamp, last_check
   std::shared_ptr<const ServedMap> current;
   std::string withdrawn;  // why `current` is no longer served; empty while it is
-  FileStamp stamp;
+  FileStamp stamp;         // of the file last looked at
+  FileStamp served_stamp;  // of the file `current` was opened from
   std::chrono::steady_clock::time_point last_check;
   mutable std::mutex reloading;  // one reload of a map at a time
 };
@@ -56,6 +57,7 @@ MapCatalog::MapCatalog(std::vector<Source> sources, MapOpener open, std::chrono:
     }
     auto slot = std::make_unique<Slot>();
     stampOf(source.path, slot->stamp);
+    slot->served_stamp = slot->stamp;
     slot->current = std::make_shared<const ServedMap>(open_(source.path));
     slot->last_check = std::chrono::steady_clock::now();
     slot->source = std::move(source);
@@ -88,8 +90,11 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
   std::unique_lock<std::mutex> reload(slot.reloading, std::try_to_lock);
   {
     const std::lock_guard<std::mutex> lock(slot.mutex);
-    // Another request is reopening it, or the file is missing (mid-replacement) or unchanged.
-    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || stamp == slot.stamp) return served(slot);
+    // Another request is reopening it, or the file is missing (mid-replacement) or unchanged. A
+    // withdrawn map is tried again whatever its stamp: an in-place writer may finish within one
+    // tick of the modification time, and an open may have failed for want of memory.
+    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || (stamp == slot.stamp && slot.withdrawn.empty()))
+      return served(slot);
   }
   std::shared_ptr<const ServedMap> reopened;
   std::string failure;
@@ -99,10 +104,13 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
     failure = e.what();
   }
   const std::lock_guard<std::mutex> lock(slot.mutex);
-  const bool in_place = stamp.sameFile(slot.stamp);
+  // A broken file renamed over the served one and then written over in place leaves the served
+  // version intact: it is the served file that must have changed.
+  const bool in_place = stamp.sameFile(slot.served_stamp);
   slot.stamp = stamp;  // a broken replacement is not retried until the file changes again
   if (reopened) {
     slot.current = std::move(reopened);
+    slot.served_stamp = stamp;
     slot.withdrawn.clear();
     if (log_) log_("map '" + slot.source.name + "': reloaded " + slot.source.path.string());
   } else if (in_place) {
