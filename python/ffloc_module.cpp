@@ -242,7 +242,10 @@ void refuseUnknown(const std::vector<std::string>& unused, const std::string& fu
 std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
   if (!py::isinstance<py::str>(value) && !py::hasattr(value, "__fspath__"))
     throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
-  return py::str(py::module_::import("os").attr("fspath")(value)).cast<std::string>();
+  const std::string path = py::str(py::module_::import("os").attr("fspath")(value)).cast<std::string>();
+  // build_map(out='') built the whole map, then failed to rename it into place.
+  if (path.empty()) throw InputError(argument + ": the path is empty");
+  return path;
 }
 
 Scene sceneFrom(const py::handle& value, const std::string& format) {
@@ -456,7 +459,8 @@ PYBIND11_MODULE(_ffloc, m) {
         py::arg("path"), py::arg("format") = "auto", "Reads a dataset folder (format 'auto' detects it)");
 
   m.def("read_image",
-        [](const std::string& path) {
+        [](const py::handle& path_argument) {
+          const std::string path = pathArgument(path_argument, "path", "an image file path");
           cv::Mat rgb;
           {
             py::gil_scoped_release unlocked;
@@ -467,7 +471,11 @@ PYBIND11_MODULE(_ffloc, m) {
         py::arg("path"), "An image file as ffloc reads it: H x W x 3 uint8 RGB");
 
   py::class_<Map>(m, "Map", "A map file opened for queries")
-      .def_static("load", &Map::load, py::arg("path"), py::arg("model") = "default", py::arg("dtype") = "f32",
+      .def_static("load",
+                  [](const py::handle& path, const std::string& model, const std::string& dtype, int threads) {
+                    return Map::load(pathArgument(path, "path", "a map file path"), model, dtype, threads);
+                  },
+                  py::arg("path"), py::arg("model") = "default", py::arg("dtype") = "f32",
                   py::arg("threads") = 0, "Opens a map from 'ffloc map' (model: for fastforward maps)")
       .def_readonly("path", &Map::path)
       .def_property_readonly("method", [](const Map& map) { return std::string(toString(map.localizer().method())); })
@@ -503,9 +511,10 @@ PYBIND11_MODULE(_ffloc, m) {
 
   m.def(
       "build_map",
-      [](const py::handle& scene_or_path, const std::string& out, const std::string& method, const py::object& model,
+      [](const py::handle& scene_or_path, const py::handle& out_argument, const std::string& method, const py::object& model,
          const py::object& dtype, bool append, const py::object& use_depth, const py::object& max_image_size,
          const py::object& max_features, const py::object& vlad, int threads, const std::string& format, bool quiet) {
+        const std::string out = pathArgument(out_argument, "out", "a map file path");
         MapBuildOptions options;
         options.method = parseLocalizationMethod(method);
         options.append = append;
@@ -580,18 +589,30 @@ PYBIND11_MODULE(_ffloc, m) {
              std::vector<std::string> unused;
              const LocalizeOptions options = localizeOptions(querySettings(kwargs, unused));
              refuseUnknown(unused, "Localizer");
+             std::vector<std::string> given;
+             for (const auto& [key, value] : kwargs) given.push_back(py::str(key).cast<std::string>());
+             Map opened;
              if (py::isinstance<Map>(map)) {
                // A Map holds the model it was opened with: another one named here was ignored.
                if (model || dtype)
                  throw InputError(std::string(model ? "model" : "dtype") +
                                   ": a Map is opened with its model; pass it to ffloc.Map.load(path, model=..., "
                                   "dtype=...), or give Localizer the map's path");
-               Map opened = map.cast<Map>();
+               opened = map.cast<Map>();
                opened.threads = threads;
-               return PyLocalizer(std::move(opened), options);
+             } else {
+               const std::string path = pathArgument(map, "map", "an ffloc.Map or a map file path");
+               opened = Map::load(path, model.value_or("default"), dtype.value_or("f32"), threads);
+               if (model) given.push_back("model");
+               if (dtype) given.push_back("dtype");
              }
-             const std::string path = pathArgument(map, "map", "an ffloc.Map or a map file path");
-             return PyLocalizer(Map::load(path, model.value_or("default"), dtype.value_or("f32"), threads), options);
+             // As the CLI refuses their flags: a setting the map's method ignores was taken silently.
+             const LocalizationMethod method = opened.localizer().method();
+             for (const std::string& field : given)
+               if (!methodUsesSetting(method, field))
+                 throw InputError(field + ": the map is a " + std::string(toString(method)) +
+                                  " map, which does not use it");
+             return PyLocalizer(std::move(opened), options);
            }),
            py::arg("map"), py::arg("model") = py::none(), py::arg("dtype") = py::none(), py::arg("threads") = 0,
            "map: a Map or a map file; keyword query options as the CLI's flags (preset, top_k, features, seed, "

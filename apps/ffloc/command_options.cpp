@@ -173,7 +173,11 @@ void refuseOutputOverInputs(const std::string& flag, const std::string& path,
 }
 
 std::filesystem::path sameFolderKey(const std::string& path) {
-  std::filesystem::path canonical = std::filesystem::weakly_canonical(path);
+  // A pipe's path (bash's >(cat) is /dev/fd/63, a link to "pipe:[N]") has no canonical form: it
+  // threw, an internal error; it is compared as given.
+  std::error_code error;
+  std::filesystem::path canonical = std::filesystem::weakly_canonical(path, error);
+  if (error) canonical = std::filesystem::absolute(path, error).lexically_normal();
   // weakly_canonical keeps a trailing separator: "d/" would differ from "d".
   return canonical.has_filename() ? canonical : canonical.parent_path();
 }

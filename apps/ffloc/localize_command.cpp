@@ -3,6 +3,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -203,16 +204,15 @@ void refuseOutputsOverInputsOrEachOther(const LocalizeArguments& args, const std
 }
 
 // The map decides the method; a flag of the other one would be ignored without a word (a model
-// path that does not exist, on a classical map, was).
-const std::vector<std::string> kFastForwardFlags = {"--model",     "--dtype",     "--features",
-                                                   "--selection", "--retrieval", "--no-verify"};
-const std::vector<std::string> kClassicalFlags = {"--no-pose-guided"};
+// path that does not exist, on a classical map, was). The flags of settings one method alone uses.
+const std::map<std::string, std::string> kSettingOfFlag = {
+    {"--model", "model"},         {"--dtype", "dtype"},         {"--features", "features"},
+    {"--selection", "selection"}, {"--retrieval", "retrieval"}, {"--no-verify", "verify"},
+    {"--no-pose-guided", "pose_guided"}};
 
 void refuseOptionsOfTheOtherMethod(const LocalizeArguments& args, LocalizationMethod method) {
-  const bool classical = method == LocalizationMethod::kClassical;
   for (const std::string& flag : args.flags_given) {
-    const std::vector<std::string>& others = classical ? kFastForwardFlags : kClassicalFlags;
-    if (std::find(others.begin(), others.end(), flag) != others.end())
+    if (!methodUsesSetting(method, kSettingOfFlag.at(flag)))
       throw InputError(flag + ": the map is a " + toString(method) + " map, which does not use it");
   }
 }
@@ -335,9 +335,8 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
   for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"})
     cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, cmd, &run] {
-    for (const std::vector<std::string>* flags : {&kFastForwardFlags, &kClassicalFlags})
-      for (const std::string& flag : *flags)
-        if (cmd->count(flag) > 0) args->flags_given.push_back(flag);
+    for (const auto& [flag, setting] : kSettingOfFlag)
+      if (cmd->count(flag) > 0) args->flags_given.push_back(flag);
     run = [args] { return runLocalize(*args); };
   });
 }

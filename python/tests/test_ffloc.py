@@ -292,11 +292,25 @@ def test_arguments_of_the_wrong_type_raise_errors_naming_them():
 
 
 def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
-    opened = ffloc.Map.load(str(cli_map))
+    opened = ffloc.Map.load(cli_map)  # os.PathLike taken, as every path argument
     with pytest.raises(ffloc.Error, match="model: a Map is opened with its model; pass it to ffloc.Map.load"):
         ffloc.Localizer(opened, model="/nonexistent.safetensors")
     with pytest.raises(ffloc.Error, match="dtype: a Map is opened with its model"):
         ffloc.Localizer(opened, dtype="bf16")
+
+
+def test_settings_the_maps_method_ignores_and_empty_paths_are_refused(cli_map, scene_dir):
+    # A classical map took FastForward's settings silently, where the CLI refuses their flags.
+    for setting in (dict(features=10), dict(selection="random"), dict(retrieval="vlad"), dict(verify=False)):
+        with pytest.raises(ffloc.Error, match=list(setting)[0] + ": the map is a classical map, which does not use it"):
+            ffloc.Localizer(ffloc.Map.load(str(cli_map)), **setting)
+    with pytest.raises(ffloc.Error, match="model: the map is a classical map, which does not use it"):
+        ffloc.Localizer(str(cli_map), model="random:tiny")
+    # build_map(out="") built the whole map, then failed to rename it into place.
+    with pytest.raises(ffloc.Error, match="out: the path is empty"):
+        ffloc.build_map(str(scene_dir), out="")
+    # A max_points near 2**64 wrapped the sampling stride to 0: SIGFPE.
+    assert ffloc.Map.load(str(cli_map)).points(2**64 - 1).shape[1] == 3
 
 
 # Evaluation

@@ -51,8 +51,10 @@ std::vector<Eigen::Vector3d> ClassicalLocalizer::mapPoints(size_t max_points) co
   for (const ClassicalMapImage& image : map_.images) total += image.pointCount();
   std::vector<Eigen::Vector3d> points;
   if (total == 0 || max_points == 0) return points;
-  const size_t stride = (total + max_points - 1) / max_points;
-  points.reserve(std::min(total, max_points));
+  // Rounding up a max_points near 2^64 wrapped the stride to 0 (SIGFPE in Python's Map.points).
+  const size_t wanted = std::min(total, max_points);
+  const size_t stride = (total + wanted - 1) / wanted;
+  points.reserve(wanted);
   size_t index = 0;
   for (const ClassicalMapImage& image : map_.images) {
     for (size_t k = 0; k < image.points.size(); ++k) {

@@ -6,8 +6,9 @@
 namespace ffloc {
 
 // Writes text to a file atomically: a temporary file beside it, then a rename, so a reader never
-// sees half a file and an interrupted write leaves the old one intact. Throws InputError naming
-// the file when its folder does not exist or the write fails.
+// sees half a file and an interrupted write leaves the old one intact. A symbolic link's target
+// is written, and a device or pipe (/dev/null, /dev/stdout) written through, never replaced.
+// Throws InputError naming the file when its folder does not exist or the write fails.
 void writeTextFile(const std::filesystem::path& path, const std::string& text);
 
 }  // namespace ffloc

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <set>
 #include <sstream>
 
 #include "ffloc/core/clock.h"
@@ -11,6 +12,12 @@ namespace ffloc {
 
 const char* toString(LocalizationMethod method) {
   return method == LocalizationMethod::kClassical ? "classical" : "fastforward";
+}
+
+bool methodUsesSetting(LocalizationMethod method, const std::string& field) {
+  static const std::set<std::string> kFastForwardOnly = {"features", "selection", "retrieval", "verify", "model", "dtype"};
+  static const std::set<std::string> kClassicalOnly = {"pose_guided"};
+  return !(method == LocalizationMethod::kClassical ? kFastForwardOnly : kClassicalOnly).count(field);
 }
 
 LocalizationMethod parseLocalizationMethod(const std::string& name) {

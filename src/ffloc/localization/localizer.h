@@ -25,6 +25,12 @@ enum class LocalizationMethod { kClassical, kFastForward };
 const char* toString(LocalizationMethod method);                     // "classical", "fastforward"
 LocalizationMethod parseLocalizationMethod(const std::string& name);  // InputError naming "method"
 
+// Whether `method` uses the query setting `field` (QuerySettings' names, and "model" and "dtype"
+// for the network): FastForward alone uses features, selection, retrieval, verify, model and
+// dtype, the classical method alone pose_guided, both the rest. A setting the map's method would
+// ignore is refused by the CLI and the Python bindings alike.
+bool methodUsesSetting(LocalizationMethod method, const std::string& field);
+
 // Where FastForward takes its K mapping images from: the global descriptor pooled from encoder
 // tokens, or the classical VLAD descriptor stored beside them.
 // How FastForward ranks the mapping images: by the pooled encoder tokens, by the classical VLAD
