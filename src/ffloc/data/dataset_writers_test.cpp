@@ -9,6 +9,7 @@
 #include <string>
 
 #include "ffloc/core/error.h"
+#include "ffloc/data/dataset.h"
 #include "ffloc/data/format_io.h"
 #include "ffloc/core/testing/shared_data.h"
 
@@ -80,6 +81,45 @@ TEST_F(DatasetWriters, AMissingDepthFileIsNamedByEveryWriter) {
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("a.depth.png"), std::string::npos) << format << ": " << e.what();
     }
+  }
+}
+
+// Found by an outside probe: frames x.png and x.jpg both wrote their depth to x.depth, the
+// second replacing the first's, exit 0; a name starting with a space was written and then not
+// found by kapture's own reader (it trims fields); a folder named as kapture read as no frames.
+TEST_F(DatasetWriters, KaptureRefusesNamesItCouldNotReadBackAndAFolderThatIsNoKapture) {
+  fs::create_directories(dir_ / "source");
+  Scene scene = sceneFailingAtItsSecondFrame(dir_ / "source");
+  cv::imwrite((dir_ / "source" / "depth.png").string(), cv::Mat(48, 64, CV_16UC1, cv::Scalar(1500)));
+  for (Frame& frame : scene.frames) {
+    frame.image_path = dir_ / "source" / "a.png";
+    frame.depth = DepthSource{dir_ / "source" / "depth.png"};
+  }
+  scene.frames[0].name = "x.png";
+  scene.frames[1].name = "x.jpg";
+  try {
+    writeDataset(scene, "kapture", dir_ / "collide");
+    ADD_FAILURE() << "two frames' depth written to one file";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("its depth would be written to 'x.depth', as another frame's is"),
+              std::string::npos)
+        << e.what();
+  }
+  scene.frames.pop_back();
+  scene.frames[0].name = " lead.png";
+  try {
+    writeDataset(scene, "kapture", dir_ / "spaced");
+    ADD_FAILURE() << "a name kapture's reader trims was written";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("kapture paths cannot start or end with a space"), std::string::npos)
+        << e.what();
+  }
+  fs::create_directories(dir_ / "not_kapture");
+  try {
+    loadDataset(dir_ / "not_kapture", "kapture");
+    ADD_FAILURE() << "an empty folder read as kapture";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a kapture dataset"), std::string::npos) << e.what();
   }
 }
 

@@ -3,8 +3,10 @@
 // records_depth.txt, files under sensors/records_data/. A dataset is one such folder, or
 // mapping/ and query/ folders each holding one.
 #include <algorithm>
+#include <cctype>
 #include <map>
 #include <regex>
+#include <set>
 
 #include "ffloc/core/error.h"
 #include "ffloc/data/colmap_camera.h"
@@ -330,9 +332,15 @@ bool looksLikeKapture(const fs::path& dir) {
 
 Scene readKapture(const fs::path& dir) {
   Scene scene = emptyScene(dir, "kapture", true);
+  bool found = false;
   for (const auto& [folder, split] : kKaptureFolders)
-    if (fs::is_regular_file(dir / folder / "sensors" / "sensors.txt"))
+    if (fs::is_regular_file(dir / folder / "sensors" / "sensors.txt")) {
       readFolder((dir / folder).lexically_normal(), dir, split, scene);
+      found = true;
+    }
+  // Named with --format kapture, any folder read as a dataset of no frames, exit 0.
+  if (!found)
+    throwInputError(dir.string(), 0, "not a kapture dataset: no sensors/sensors.txt in it, nor in mapping/ or query/");
   return scene;
 }
 
@@ -343,6 +351,7 @@ std::vector<std::string> writeKapture(const Scene& scene, const fs::path& out) {
     const fs::path sensors_dir = out / folder_name / "sensors";
     std::vector<const Intrinsics*> cameras;
     std::string records, trajectories, depth_records;
+    std::set<std::string> depth_paths;
     bool any_depth = false;
     int timestamp = 0;
     for (size_t i = 0; i < scene.frames.size(); ++i) {
@@ -351,6 +360,9 @@ std::vector<std::string> writeKapture(const Scene& scene, const fs::path& out) {
       const std::string& path = paths[i];
       if (path.find(',') != std::string::npos)
         throwInputError(frame.name, 0, "kapture paths cannot contain ','");
+      // kapture's reader trims every field: such a name would not be found again.
+      if (std::isspace(static_cast<unsigned char>(path.front())) || std::isspace(static_cast<unsigned char>(path.back())))
+        throwInputError(frame.name, 0, "kapture paths cannot start or end with a space");
       size_t camera = 0;
       while (camera < cameras.size() && !sameIntrinsics(*cameras[camera], frame.intrinsics)) ++camera;
       if (camera == cameras.size()) cameras.push_back(&frame.intrinsics);
@@ -362,6 +374,11 @@ std::vector<std::string> writeKapture(const Scene& scene, const fs::path& out) {
       trajectories += ts + ", cam" + id + ", " + pose + "\n";
       if (frame.depth) {
         const std::string depth = fs::path(path).replace_extension(".depth").generic_string();
+        // x.png and x.jpg both wrote x.depth: the second's depth replaced the first's, exit 0.
+        if (!depth_paths.insert(depth).second)
+          throwInputError(frame.name, 0, "its depth would be written to '" + depth +
+                                             "', as another frame's is (names that differ only in their extension); "
+                                             "rename one of them");
         writeDepthRawFloat(frame, sensors_dir / "records_data" / depth);
         depth_records += ts + ", depth" + id + ", " + depth + "\n";
         trajectories += ts + ", depth" + id + ", " + pose + "\n";
