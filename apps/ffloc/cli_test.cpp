@@ -468,7 +468,8 @@ TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {
       {{"eval", "--dataset", data, "--json", ""}, "--json"},
       {{"localize", "--map", "", "--image", "q.png", "--intrinsics", "50,50,31.5,23.5"}, "--map"},
       {{"serve", "--map", ""}, "--map"},
-      {{"retrieval", "--map", map, "--dataset", ""}, "--dataset"}};
+      {{"retrieval", "--map", map, "--dataset", ""}, "--dataset"},
+      {{"convert-dataset", "--dataset", data, "--format", "kapture", "--out", ""}, "--out"}};
   for (const auto& [arguments, flag] : cases) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << arguments[0] << " " << flag << ": " << run.output;

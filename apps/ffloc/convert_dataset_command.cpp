@@ -45,7 +45,8 @@ void registerConvertDatasetCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--input-format", args->input_format, "Its format: auto, " + joined(datasetFormats()))
       ->capture_default_str();
   cmd->add_option("--format", args->format, "Format to write: " + joined(datasetWriterFormats()))->required();
-  cmd->add_option("--out", args->out, "New (or empty) folder to write into")->required();
+  cmd->add_option("--out", args->out, "New (or empty) folder to write into")->required()->check(nonEmptyPath());
+  cmd->get_option("--dataset")->check(nonEmptyPath());
   cmd->callback([args, &run] {
     run = [args] {
       runConvertDataset(*args);

@@ -44,7 +44,13 @@ void writeIntoNewFolder(const fs::path& out_dir, const std::function<void(const 
   fs::create_directories(out, created);
   if (created) throwInputError(out.string(), 0, "cannot create the output folder: " + created.message());
   try {
-    write(out);
+    try {
+      write(out);
+    } catch (const fs::filesystem_error& error) {
+      // A folder that cannot be written (immutable, read-only mount) ended as an internal error.
+      throwInputError(error.path1().empty() ? out.string() : error.path1().string(), 0,
+                      std::string("cannot write: ") + error.code().message());
+    }
   } catch (...) {
     std::error_code ignored;
     if (!outermost_created.empty()) {
