@@ -108,6 +108,16 @@ TEST(Report, CsvHasOneRowPerFrame) {
   EXPECT_NE(csv.find(",0.012300,-1.000000,0.456000,1.250000,0.010000,0.020000,3.500000\n"), std::string::npos) << csv;
   const std::string table = markdownTable({summarize({frame(0.01, 0.5)})}, {"d"});
   EXPECT_NE(table.find("units not metric"), std::string::npos);
+
+  // A frame 'a,b.png' shifted every later column of its row; a '|' in a dataset's name split
+  // its cell (found by an outside probe).
+  FrameResult comma = frame(0.01, 0.5);
+  comma.frame = "images/a,b \"q\".png";
+  comma.dataset = "w|e";
+  const std::string quoted = perFrameCsv({comma});
+  EXPECT_NE(quoted.find("\nw|e,"), std::string::npos) << quoted;
+  EXPECT_NE(quoted.find(",\"images/a,b \"\"q\"\".png\","), std::string::npos) << quoted;
+  EXPECT_NE(markdownTable({summarize({comma})}, {}).find("| w\\|e |"), std::string::npos);
 }
 
 // A scene with known geometry and a source that projects points the query camera sees, with a

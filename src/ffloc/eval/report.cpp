@@ -74,6 +74,26 @@ SummaryTable summaryTable(const std::vector<MethodSummary>& summaries, const std
   return table;
 }
 
+namespace {
+
+// A name with a comma or a quote (a frame 'a,b.png') shifted every later column of its row:
+// quoted as RFC 4180 has it.
+std::string csvField(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (const char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
+// A '|' in a dataset's name split its cell in two.
+std::string markdownCell(const std::string& text) {
+  std::string escaped;
+  for (const char c : text) escaped += c == '|' ? std::string("\\|") : std::string(1, c);
+  return escaped;
+}
+
+}  // namespace
+
 std::string markdownTable(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric) {
   const SummaryTable table = summaryTable(summaries, non_metric);
   std::ostringstream out;
@@ -85,7 +105,7 @@ std::string markdownTable(const std::vector<MethodSummary>& summaries, const std
   out << "\n";
   for (const std::vector<std::string>& row : table.rows) {
     out << "|";
-    for (const std::string& cell : row) out << " " << cell << " |";
+    for (const std::string& cell : row) out << " " << markdownCell(cell) << " |";
     out << "\n";
   }
   return out.str();
@@ -100,7 +120,7 @@ std::string perFrameCsv(const std::vector<FrameResult>& frames) {
          "predicted_centre_sigma_relative,predicted_rotation_sigma_deg,focal_scale,focal_scale_log_sigma,"
          "principal_point_shift,principal_point_shift_significance\n";
   for (const FrameResult& f : frames) {
-    out << f.dataset << "," << f.method << "," << f.frame << "," << toString(f.status) << ","
+    out << csvField(f.dataset) << "," << csvField(f.method) << "," << csvField(f.frame) << "," << toString(f.status) << ","
         << formatNumber(f.translation_error, 6) << "," << formatNumber(f.rotation_error_deg, 6) << ","
         << f.correspondences << "," << f.inliers << "," << f.source_seconds * 1000.0 << ","
         << f.pnp_seconds * 1000.0;
