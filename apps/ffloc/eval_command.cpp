@@ -231,7 +231,8 @@ int runEval(const EvalArguments& args) {
   }
   const std::string table = markdownTable(summaries, non_metric);
   std::cout << table;
-  if (!args.protocol.empty()) std::cerr << describeProtocol(benchmarkProtocol(args.protocol));
+  if (!args.protocol.empty())
+    std::cerr << describeProtocol(benchmarkProtocol(args.protocol), localize.top_k, localize.num_features);
   std::string csv_path = args.csv_path, markdown_path = args.markdown_path;
   if (!args.json_path.empty()) {
     nlohmann::json summary = summaryJson(summaries);

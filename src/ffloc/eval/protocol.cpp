@@ -70,11 +70,16 @@ void thinMappingFrames(Scene& scene, int stride) {
   }
 }
 
-std::string describeProtocol(const BenchmarkProtocol& p) {
+std::string describeProtocol(const BenchmarkProtocol& p, size_t top_k, int64_t features) {
   std::string columns = p.medians ? "median errors" : "";
   for (const std::string& key : p.accuracy_keys) columns += (columns.empty() ? "" : ", ") + key;
-  std::string text = "protocol " + p.name + " (" + (p.outdoor ? "outdoor" : "indoor") + "): top-K " +
-                     std::to_string(p.top_k) + ", N " + std::to_string(p.features);
+  // An override (--top-k 5) was printed as the paper's value the run did not use.
+  const auto setting = [](const std::string& name, int64_t used, int64_t paper) {
+    return name + " " + std::to_string(used) + (used == paper ? "" : " (the paper's " + std::to_string(paper) + ")");
+  };
+  std::string text = "protocol " + p.name + " (" + (p.outdoor ? "outdoor" : "indoor") + "): " +
+                     setting("top-K", static_cast<int64_t>(top_k), static_cast<int64_t>(p.top_k)) + ", " +
+                     setting("N", features, p.features);
   if (p.mapping_stride > 1) text += ", every " + std::to_string(p.mapping_stride) + "th mapping frame";
   text += "; the paper reports " + columns + " in " + p.paper_tables + "; FastForward's mapping time there: " +
           p.mapping_time + "\n";

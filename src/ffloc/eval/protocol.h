@@ -39,8 +39,9 @@ const BenchmarkProtocol& benchmarkProtocol(const std::string& name);
 // so a scan stored already thinned keeps the same rate in time; other names by their order.
 void thinMappingFrames(Scene& scene, int stride);
 
-// One paragraph for the report: the protocol's settings, the columns the paper reports and its
+// One paragraph for the report: the protocol's settings as run (`top_k` and `features`, the
+// paper's beside them where the user chose others), the columns the paper reports and its
 // mapping time.
-std::string describeProtocol(const BenchmarkProtocol& protocol);
+std::string describeProtocol(const BenchmarkProtocol& protocol, size_t top_k, int64_t features);
 
 }  // namespace ffloc

@@ -31,7 +31,9 @@ TEST(Protocol, PaperSettingsPerBenchmark) {
   EXPECT_EQ(benchmarkProtocol("7scenes").mapping_stride, 15);
   EXPECT_EQ(benchmarkProtocol("rio10").mapping_time, "10s");
   EXPECT_THROW(benchmarkProtocol("aachen"), InputError);
-  const std::string text = describeProtocol(benchmarkProtocol("wayspots"));
+  const std::string text = describeProtocol(benchmarkProtocol("wayspots"), 20, 3000);
+  EXPECT_NE(describeProtocol(benchmarkProtocol("wayspots"), 5, 3000).find("top-K 5 (the paper's 20), N 3000;"),
+            std::string::npos);
   EXPECT_NE(text.find("top-K 20, N 3000"), std::string::npos);
   EXPECT_NE(text.find("10cm_10deg"), std::string::npos);
 }
