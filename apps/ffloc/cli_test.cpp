@@ -200,6 +200,15 @@ TEST_F(Cli, EvalRefusesAManifestWhoseQueryImageIsMissingOrNotAnImage) {
   EXPECT_TRUE(contains(missing.output, "manifest.json: field 'frames[1].image'")) << missing.output;
   EXPECT_TRUE(contains(missing.output, "q.png")) << missing.output;
   // Not an image, or of the wrong size: Manifest.MissingBrokenOrMissizedImagesAreRefusedNamingTheFrame.
+
+  // A query image outside the dataset's folder, given as an output: replaced by the CSV, exit 0.
+  const fs::path outside = manifestDataset(dir_ / "outside", "../shared/q.png");
+  const std::string image = (dir_ / "shared" / "q.png").string();
+  const auto size = fs::file_size(image);
+  const CliRun over = runCli({"eval", "--dataset", outside.string(), "--methods", "oracle-depth", "--csv", image});
+  EXPECT_EQ(over.exit_code, 2) << over.output;
+  EXPECT_TRUE(contains(over.output, "--csv: '" + image + "' is a file of the dataset")) << over.output;
+  EXPECT_EQ(fs::file_size(image), size);
 }
 
 // Found after the whole computation before: an internal error, or a replacement character.

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <set>
 #include <sstream>
 
 #include "command_options.h"
@@ -84,16 +85,22 @@ std::vector<std::pair<std::string, std::string>> outputsAsked(const EvalArgument
   return outputs;
 }
 
-// An HTML report given a query image's path replaced the image, exit 0, and the dataset no
-// longer read back; two outputs of one path kept only the last. Outputs go beside the data, each
-// to its own file.
-void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
+// The outputs asked for and the files --json puts beside it unless told otherwise.
+std::vector<std::pair<std::string, std::string>> outputsWritten(const EvalArguments& args) {
   std::vector<std::pair<std::string, std::string>> outputs = outputsAsked(args);
-  if (!args.json_path.empty()) {  // the files --json puts beside it unless told otherwise
+  if (!args.json_path.empty()) {
     const std::string stem = std::filesystem::path(args.json_path).replace_extension().string();
     if (args.csv_path.empty()) outputs.emplace_back("--json (its CSV)", stem + ".frames.csv");
     if (args.markdown_path.empty()) outputs.emplace_back("--json (its table)", stem + ".md");
   }
+  return outputs;
+}
+
+// An HTML report given a query image's path replaced the image, exit 0, and the dataset no
+// longer read back; two outputs of one path kept only the last. Outputs go beside the data, each
+// to its own file.
+void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
+  const std::vector<std::pair<std::string, std::string>> outputs = outputsWritten(args);
   for (size_t i = 0; i < outputs.size(); ++i) {
     const auto& [flag, path] = outputs[i];
     for (size_t j = 0; j < i; ++j)
@@ -101,6 +108,19 @@ void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
         throw InputError(flag + ": '" + path + "' is also the output of " + outputs[j].first);
     refuseOutputOverInputs(flag, path, {{"the map being evaluated", args.map_path}}, args.datasets);
   }
+}
+
+// A manifest may name files outside its folder (../elsewhere/x.png), which the folder check
+// cannot see: an output given such a path replaced a query's image with the run's CSV, exit 0.
+void refuseOutputsOverFramesOf(const Scene& scene, const EvalArguments& args) {
+  std::set<std::filesystem::path> read;
+  for (const Frame& frame : scene.frames) {
+    read.insert(sameFolderKey(frame.image_path.string()));
+    if (frame.depth) read.insert(sameFolderKey(frame.depth->path.string()));
+  }
+  for (const auto& [flag, path] : outputsWritten(args))
+    if (read.count(sameFolderKey(path)))
+      throw InputError(flag + ": '" + path + "' is a file of the dataset " + scene.root.string() + "; write it elsewhere");
 }
 
 int runEval(const EvalArguments& args) {
@@ -176,6 +196,7 @@ int runEval(const EvalArguments& args) {
   std::vector<ReportDataset> report_datasets;
   for (const std::string& dataset : args.datasets) {
     Scene scene = loadDataset(dataset, args.format);
+    refuseOutputsOverFramesOf(scene, args);
     // Up front: classical would map an empty split and blame the features ("no mapping image has
     // usable features"), and map a full one before finding no query to evaluate.
     if (!methods.empty()) requireSplits(scene);
