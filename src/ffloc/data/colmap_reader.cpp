@@ -223,7 +223,12 @@ Scene readColmap(const fs::path& dir) {
   auto images = readImages(*model / "images.txt", cameras);
   std::sort(images.begin(), images.end(), [](const ColmapImage& a, const ColmapImage& b) { return a.name < b.name; });
 
-  const std::vector<fs::path> image_folders = {dir / "images", *model / "images", model->parent_path() / "images", *model, dir};
+  // The model folder without a trailing separator: "reconstruction/" (the dataset given as the
+  // model folder itself) had itself as parent, so <model>/../images was never searched.
+  fs::path model_folder = model->lexically_normal();
+  if (!model_folder.has_filename()) model_folder = model_folder.parent_path();
+  const std::vector<fs::path> image_folders = {dir / "images", model_folder / "images",
+                                               model_folder.parent_path() / "images", model_folder, dir};
   std::optional<fs::path> image_folder;
   for (const auto& folder : image_folders) {
     if (!images.empty() && fs::is_regular_file(folder / images.front().name)) {

@@ -130,6 +130,8 @@ TEST(SevenScenes, StairsSequenceLayoutAndSplit) {
 TEST(Colmap, StoredPointsReprojectBelowOnePixel) {
   FFLOC_REQUIRE_SHARED(dir, "data/colmap_maupertuis_kapture_sample");
   ASSERT_EQ(detectDatasetFormat(dir), "colmap");
+  // Given the model folder itself, its ../images were not searched (an outside probe).
+  EXPECT_EQ(loadDataset(dir / "reconstruction").frames.size(), 4u);
   const Scene scene = loadDataset(dir);
   ASSERT_EQ(scene.frames.size(), 4u);
   EXPECT_FALSE(scene.metric);
