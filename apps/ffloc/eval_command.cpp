@@ -208,7 +208,15 @@ int runEval(const EvalArguments& args) {
           throwInputError(frame.image_path.string(), 0, "--poses: frame '" + frame.name + "': " + problem);
       }
     }
-    if (!args.protocol.empty()) thinMappingFrames(scene, benchmarkProtocol(args.protocol).mapping_stride);
+    if (!args.protocol.empty()) {
+      // Thinned by the frames' capture numbers: said, as other data (renumbered, or not 7-Scenes)
+      // lost most of its mapping frames without a word.
+      const size_t before = scene.mappingIndices().size();
+      thinMappingFrames(scene, benchmarkProtocol(args.protocol).mapping_stride);
+      if (scene.mappingIndices().size() != before)
+        std::cerr << scene.name << ": protocol " << args.protocol << " keeps " << scene.mappingIndices().size()
+                  << " of its " << before << " mapping frames\n";
+    }
     if (!scene.metric) non_metric.push_back(scene.name);
     if (!args.html_path.empty()) report_datasets.push_back(reportDataset(scene));
     auto record = [&](const std::vector<FrameResult>& frames, const std::string& method, const Correspondences* points) {
