@@ -209,6 +209,13 @@ TEST_F(Cli, EvalRefusesAManifestWhoseQueryImageIsMissingOrNotAnImage) {
   EXPECT_EQ(over.exit_code, 2) << over.output;
   EXPECT_TRUE(contains(over.output, "--csv: '" + image + "' is a file of the dataset")) << over.output;
   EXPECT_EQ(fs::file_size(image), size);
+  // The CSV --json puts beside itself, where a folder stands: found after the run before.
+  fs::create_directories(dir_ / "out" / "r.frames.csv");
+  const CliRun beside = runCli({"eval", "--dataset", outside.string(), "--methods", "oracle-depth", "--json",
+                                (dir_ / "out" / "r.json").string()});
+  EXPECT_EQ(beside.exit_code, 2) << beside.output;
+  EXPECT_TRUE(contains(beside.output, "--json (its CSV): '")) << beside.output;
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "r.json"));
 }
 
 // Found after the whole computation before: an internal error, or a replacement character.

@@ -135,7 +135,7 @@ int runEval(const EvalArguments& args) {
     throw InputError("--noise-px: must be a finite number of pixels, 0 or more");
   if (!(args.point_noise >= 0 && std::isfinite(args.point_noise)))
     throw InputError("--point-noise: must be a finite distance, 0 or more");
-  for (const auto& [flag, path] : outputsAsked(args)) checkOutputPath(flag, path);
+  for (const auto& [flag, path] : outputsWritten(args)) checkOutputPath(flag, path);  // named by --json too
   if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
   for (size_t i = 0; i < args.datasets.size(); ++i)
     for (size_t j = 0; j < i; ++j)
