@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/eval/method_evaluation.h"
@@ -255,6 +256,16 @@ Scene sceneFrom(const py::handle& value, const std::string& format) {
   return loadDataset(path, format);
 }
 
+// Ctrl-C during a long call with the interpreter's lock released was heard only when the call
+// returned (a build_map ran on and replaced its map): Python's handler runs at each progress
+// step, and the KeyboardInterrupt it raises stops the work there (StopCheck).
+StopCheck stopOnInterrupt() {
+  return StopCheck([] {
+    py::gil_scoped_acquire locked;
+    return PyErr_CheckSignals() != 0;
+  });
+}
+
 // A map file opened for queries, with the model it needs.
 struct Map {
   std::shared_ptr<const MapLocalizer> opened;
@@ -417,6 +428,9 @@ PYBIND11_MODULE(_ffloc, m) {
       if (const size_t at = message.find(option); at != std::string::npos)
         message.replace(at, option.size(), "build_map(vlad=True)");
       error(message.c_str());
+    } catch (const Stopped& e) {
+      // Python's handler already raised the KeyboardInterrupt that stopped the work.
+      if (!PyErr_Occurred()) PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
     }
   });
 
@@ -540,6 +554,7 @@ PYBIND11_MODULE(_ffloc, m) {
         MapBuildReport report;
         {
           py::gil_scoped_release unlocked;
+          const StopCheck interruptible = stopOnInterrupt();
           useThreads(threads, false);
           report = buildMap(scene, out, options, modelLoader(model_spec, precision, threads));
         }
@@ -658,6 +673,7 @@ PYBIND11_MODULE(_ffloc, m) {
         std::vector<MethodSummary> summaries;
         {
           py::gil_scoped_release unlocked;
+          const StopCheck interruptible = stopOnInterrupt();
           useThreads(threads, false);
           for (const std::string& method : methods) summaries.push_back(summarize(evaluateMethod(scene, method, options)));
         }

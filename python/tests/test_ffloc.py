@@ -2,6 +2,7 @@
 import json
 import os
 import pathlib
+import signal
 import threading
 import time
 
@@ -297,6 +298,32 @@ def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
         ffloc.Localizer(opened, model="/nonexistent.safetensors")
     with pytest.raises(ffloc.Error, match="dtype: a Map is opened with its model"):
         ffloc.Localizer(opened, dtype="bf16")
+
+
+def test_ctrl_c_stops_a_build_before_it_replaces_the_map(cli, tmp_path):
+    # Heard only when the call returned before, its new map written over the old one.
+    cli("synth", "--out", tmp_path / "synth", "--seed", 11, "--kind", "indoor", "--quiet")
+    scene = str(tmp_path / "synth" / "scene_000_indoor")
+    out = tmp_path / "m.ffmap"
+    started = time.monotonic()
+    ffloc.build_map(scene, out=str(out), threads=1)
+    whole = time.monotonic() - started
+    before = out.read_bytes()
+
+    def interrupt(*_):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, whole / 4)
+        started = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            ffloc.build_map(scene, out=str(out), threads=1, max_features=3000)
+        assert time.monotonic() - started < whole * 0.75
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+    assert out.read_bytes() == before
 
 
 def test_settings_the_maps_method_ignores_and_empty_paths_are_refused(cli_map, scene_dir):

@@ -1,7 +1,9 @@
 #include "ffloc/core/progress.h"
 
-#include <cstdio>
 #include <unistd.h>
+
+#include <cstdio>
+#include <utility>
 
 #include "ffloc/core/clock.h"
 
@@ -17,7 +19,19 @@ double ProgressBar::elapsedSeconds() const {
   return secondsSince(start_);
 }
 
+namespace {
+thread_local std::function<bool()> stop_requested_here;
+}  // namespace
+
+StopCheck::StopCheck(std::function<bool()> stop_requested) : previous_(std::move(stop_requested_here)) {
+  stop_requested_here = std::move(stop_requested);
+}
+
+StopCheck::~StopCheck() { stop_requested_here = std::move(previous_); }
+
 void ProgressBar::update(std::size_t done) {
+  if (stop_requested_here && stop_requested_here())
+    throw Stopped(label_ + ": stopped at " + std::to_string(done) + " of " + std::to_string(total_));
   if (quiet_) return;
   const auto now = std::chrono::steady_clock::now();
   if (terminal_) {

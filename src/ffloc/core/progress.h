@@ -2,9 +2,31 @@
 
 #include <chrono>
 #include <cstddef>
+#include <functional>
+#include <stdexcept>
 #include <string>
 
 namespace ffloc {
+
+// Long work asked to stop (StopCheck) at one of its progress steps, before it wrote anything.
+class Stopped : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// While one lives, every ProgressBar::update on its thread asks `stop_requested` and throws
+// Stopped when it says so: the Python bindings ask Python whether Ctrl-C was pressed, which a
+// build_map with the interpreter's lock released heard only when it returned, its map written.
+class StopCheck {
+ public:
+  explicit StopCheck(std::function<bool()> stop_requested);
+  ~StopCheck();
+  StopCheck(const StopCheck&) = delete;
+  StopCheck& operator=(const StopCheck&) = delete;
+
+ private:
+  std::function<bool()> previous_;
+};
 
 // A one-line progress bar on stderr for long loops; redraws at most ~10 times a second and
 // prints nothing when quiet. finish() prints the total time. Where stderr is not a terminal (a
@@ -16,6 +38,7 @@ class ProgressBar {
 
   ProgressBar(std::string label, std::size_t total, bool quiet = false,
               std::chrono::steady_clock::duration log_interval = kLogInterval);
+  // Throws Stopped when a StopCheck on this thread asks (quiet or not).
   void update(std::size_t done);
   void finish();
   double elapsedSeconds() const;
