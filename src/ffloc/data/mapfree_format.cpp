@@ -112,6 +112,14 @@ std::vector<std::string> writeMapFree(const Scene& scene, const fs::path& out) {
   std::string intrinsics, poses;
   std::vector<std::string> names;
   int counters[2] = {0, 0};
+  // The benchmark's world is its reference image, seq0/frame_00000 (the first mapping frame):
+  // written in the source's world, its poses were misread by map-free's own tools.
+  Pose to_reference = Pose::identity();
+  for (const Frame& frame : scene.frames)
+    if (!isQuerySide(frame)) {
+      to_reference = frame.camera_to_world.inverse();
+      break;
+    }
   for (const Frame& frame : scene.frames) {
     const int sequence = isQuerySide(frame) ? 1 : 0;
     char stem[32];
@@ -123,7 +131,7 @@ std::vector<std::string> writeMapFree(const Scene& scene, const fs::path& out) {
     const Intrinsics& K = frame.intrinsics;
     intrinsics += image + " " + formatNumber(K.fx) + " " + formatNumber(K.fy) + " " + formatNumber(K.cx) + " " +
                   formatNumber(K.cy) + " " + std::to_string(K.width) + " " + std::to_string(K.height) + "\n";
-    poses += image + " " + worldToCameraQuaternionText(frame.camera_to_world, " ") + "\n";
+    poses += image + " " + worldToCameraQuaternionText(to_reference * frame.camera_to_world, " ") + "\n";
     names.push_back(image);
   }
   writeTextCreatingFolders(out / kIntrinsicsFile, intrinsics);
