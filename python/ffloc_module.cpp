@@ -241,9 +241,10 @@ void refuseUnknown(const std::vector<std::string>& unused, const std::string& fu
 // A str or os.PathLike argument; InputError naming `argument` for anything else (None gave
 // Python's own TypeError, naming no argument).
 std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
-  if (!py::isinstance<py::str>(value) && !py::hasattr(value, "__fspath__"))
+  if (!py::isinstance<py::str>(value) && !py::isinstance<py::bytes>(value) && !py::hasattr(value, "__fspath__"))
     throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
-  const std::string path = py::str(py::module_::import("os").attr("fspath")(value)).cast<std::string>();
+  // fsdecode: str, bytes and os.PathLike of either, as os.fspath alone is not.
+  const std::string path = py::str(py::module_::import("os").attr("fsdecode")(value)).cast<std::string>();
   // build_map(out='') built the whole map, then failed to rename it into place.
   if (path.empty()) throw InputError(argument + ": the path is empty");
   return path;

@@ -7,6 +7,8 @@
 #include <sstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/file_paths.h"
+#include "ffloc/core/text_file_writer.h"
 #include "ffloc/io/input_file.h"
 #include "ffloc/data/format_io.h"
 
@@ -100,6 +102,12 @@ CLI::Validator secondsIn(double least, double most) {
 void checkOutputPath(const std::string& flag, const std::string& path) {
   if (path.empty()) return;
   const std::filesystem::path target(path);
+  // /dev/null, /dev/stdout, a pipe: written through, whatever their folder allows.
+  if (writesThrough(target)) {
+    if (!openDescriptorNamed(target) && access(path.c_str(), W_OK) != 0)
+      throw InputError(flag + ": '" + path + "' is not writable");
+    return;
+  }
   // The error_code overloads: a folder on the way that may not be searched, or a name too long,
   // is the user's input, not an internal error.
   std::error_code error;

@@ -9,6 +9,7 @@
 #include "commands.h"
 #include "ffloc/classical/classical_localizer.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/text_file_writer.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/splits.h"
@@ -88,7 +89,7 @@ std::vector<std::pair<std::string, std::string>> outputsAsked(const EvalArgument
 // The outputs asked for and the files --json puts beside it unless told otherwise.
 std::vector<std::pair<std::string, std::string>> outputsWritten(const EvalArguments& args) {
   std::vector<std::pair<std::string, std::string>> outputs = outputsAsked(args);
-  if (!args.json_path.empty()) {
+  if (!args.json_path.empty() && !writesThrough(args.json_path)) {  // /dev/stdout has nothing beside it
     const std::string stem = std::filesystem::path(args.json_path).replace_extension().string();
     if (args.csv_path.empty()) outputs.emplace_back("--json (its CSV)", stem + ".frames.csv");
     if (args.markdown_path.empty()) outputs.emplace_back("--json (its table)", stem + ".md");
@@ -276,9 +277,11 @@ int runEval(const EvalArguments& args) {
                              {"medians", protocol.medians}};
     }
     writeTextFile(args.json_path, summary.dump(2) + "\n");
-    const std::filesystem::path stem = std::filesystem::path(args.json_path).replace_extension();
-    if (csv_path.empty()) csv_path = stem.string() + ".frames.csv";
-    if (markdown_path.empty()) markdown_path = stem.string() + ".md";
+    if (!writesThrough(args.json_path)) {
+      const std::filesystem::path stem = std::filesystem::path(args.json_path).replace_extension();
+      if (csv_path.empty()) csv_path = stem.string() + ".frames.csv";
+      if (markdown_path.empty()) markdown_path = stem.string() + ".md";
+    }
     std::cerr << "wrote " << args.json_path << "\n";
   }
   if (!csv_path.empty()) {

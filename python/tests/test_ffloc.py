@@ -293,7 +293,8 @@ def test_arguments_of_the_wrong_type_raise_errors_naming_them():
 
 
 def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
-    opened = ffloc.Map.load(cli_map)  # os.PathLike taken, as every path argument
+    opened = ffloc.Map.load(cli_map)  # os.PathLike taken, as every path argument, and bytes
+    assert ffloc.Map.load(os.fsencode(str(cli_map))).method == opened.method == "classical"
     with pytest.raises(ffloc.Error, match="model: a Map is opened with its model; pass it to ffloc.Map.load"):
         ffloc.Localizer(opened, model="/nonexistent.safetensors")
     with pytest.raises(ffloc.Error, match="dtype: a Map is opened with its model"):

@@ -1,32 +1,66 @@
 #include "ffloc/core/text_file_writer.h"
 
-#include <fstream>
+#include <fcntl.h>
 #include <unistd.h>
 
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+
 #include "ffloc/core/error.h"
+#include "ffloc/core/file_paths.h"
 
 namespace ffloc {
+namespace {
+
+void writeAll(int descriptor, const std::string& text, const std::string& named) {
+  for (size_t written = 0; written < text.size();) {
+    const ssize_t wrote = ::write(descriptor, text.data() + written, text.size() - written);
+    if (wrote < 0 && errno == EINTR) continue;
+    if (wrote <= 0) throwInputError(named, 0, std::string("write failed: ") + std::strerror(errno));
+    written += static_cast<size_t>(wrote);
+  }
+}
+
+}  // namespace
+
+bool writesThrough(const std::filesystem::path& path) {
+  if (openDescriptorNamed(path)) return true;
+  std::error_code error;
+  const std::filesystem::file_status target = std::filesystem::status(path, error);  // links followed
+  return std::filesystem::exists(target) && !std::filesystem::is_regular_file(target) &&
+         !std::filesystem::is_directory(target);
+}
 
 void writeTextFile(const std::filesystem::path& named, const std::string& text) {
+  // This process's own descriptor (/dev/stdout): written where it stands, not reopened (which
+  // truncates) nor followed to the file it is redirected to (which a rename replaced).
+  if (const std::optional<int> descriptor = openDescriptorNamed(named)) {
+    writeAll(*descriptor, text, named.string());
+    return;
+  }
   std::error_code error;
   const std::filesystem::file_status target = std::filesystem::status(named, error);  // links followed
   if (std::filesystem::is_directory(target)) throwInputError(named.string(), 0, "is a folder, not a file to write");
-  if (std::filesystem::exists(target) && !std::filesystem::is_regular_file(target)) {
-    // A device or a pipe (/dev/null, /dev/stdout, bash's >(cat)) is written through: replaced by a
-    // rename, /dev/null became a regular file of results.
-    std::ofstream out(named, std::ios::binary);
-    if (!out) throwInputError(named.string(), 0, "cannot open for writing");
-    out << text;
-    out.close();
-    if (out.fail()) throwInputError(named.string(), 0, "write failed");
+  if (writesThrough(named)) {
+    // A device or a pipe (/dev/null, bash's >(cat)) is written through: replaced by a rename,
+    // /dev/null became a regular file of results. A pipe no process reads is said so, not waited on.
+    const int descriptor = ::open(named.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);
+    if (descriptor < 0)
+      throwInputError(named.string(), 0,
+                      errno == ENXIO ? "a pipe no process reads" : std::string("cannot open: ") + std::strerror(errno));
+    ::fcntl(descriptor, F_SETFL, ::fcntl(descriptor, F_GETFL) & ~O_NONBLOCK);
+    try {
+      writeAll(descriptor, text, named.string());
+    } catch (...) {
+      ::close(descriptor);
+      throw;
+    }
+    ::close(descriptor);
     return;
   }
-  // A link's target is replaced, not the link.
-  std::filesystem::path path = named;
-  if (std::filesystem::is_symlink(std::filesystem::symlink_status(named, error))) {
-    path = std::filesystem::weakly_canonical(named, error);
-    if (error) throwInputError(named.string(), 0, "cannot follow the symbolic link: " + error.message());
-  }
+  // A link's target is replaced, not the link, even where the target does not exist yet.
+  const std::filesystem::path path = followSymlinks(named);
   const std::filesystem::path folder = path.has_parent_path() ? path.parent_path() : ".";
   if (!std::filesystem::is_directory(folder)) throwInputError(path.string(), 0, "output folder does not exist");
   const std::filesystem::path temporary =

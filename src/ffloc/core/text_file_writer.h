@@ -11,4 +11,8 @@ namespace ffloc {
 // Throws InputError naming the file when its folder does not exist or the write fails.
 void writeTextFile(const std::filesystem::path& path, const std::string& text);
 
+// Whether writeTextFile writes `path` through rather than replacing a file: a descriptor of this
+// process (/dev/stdout), a device or a pipe. Such an output has no folder to write beside it.
+bool writesThrough(const std::filesystem::path& path);
+
 }  // namespace ffloc

@@ -55,6 +55,28 @@ TEST(TextFileWriter, WritesThroughPipesAndLinksInsteadOfReplacingThem) {
 
   fs::create_directory(dir / "folder");
   EXPECT_THROW(writeTextFile(dir / "folder", "x"), InputError);
+
+  // A dangling link: its target is created, the link kept.
+  fs::create_symlink("later.csv", dir / "pending.csv");
+  writeTextFile(dir / "pending.csv", "first\n");
+  EXPECT_TRUE(fs::is_symlink(dir / "pending.csv"));
+  EXPECT_EQ(contents(dir / "later.csv"), "first\n");
+
+  // A pipe no process reads is said so, not waited on for ever.
+  EXPECT_THROW(writeTextFile(fifo, "nobody\n"), InputError);
+}
+
+// `--json /dev/stdout >> runs.log`: followed to runs.log and replaced by a rename, the log's
+// earlier lines were lost (a review). This process's descriptors are written where they stand.
+TEST(TextFileWriter, AProcessDescriptorIsWrittenWhereItStands) {
+  const fs::path dir = testing::makeTempDir("ffloc-text-writer-fd");
+  const fs::path log = dir / "runs.log";
+  writeTextFile(log, "earlier\n");
+  const int descriptor = ::open(log.c_str(), O_WRONLY | O_APPEND);
+  ASSERT_GE(descriptor, 0);
+  writeTextFile("/proc/self/fd/" + std::to_string(descriptor), "appended\n");
+  ::close(descriptor);
+  EXPECT_EQ(contents(log), "earlier\nappended\n");
 }
 
 }  // namespace

@@ -48,8 +48,9 @@ void writeIntoNewFolder(const fs::path& out_dir, const std::function<void(const 
       write(out);
     } catch (const fs::filesystem_error& error) {
       // A folder that cannot be written (immutable, read-only mount) ended as an internal error.
-      throwInputError(error.path1().empty() ? out.string() : error.path1().string(), 0,
-                      std::string("cannot write: ") + error.code().message());
+      // A copy's error holds its source first and its destination second: the latter is written.
+      const fs::path& written = !error.path2().empty() ? error.path2() : !error.path1().empty() ? error.path1() : out;
+      throwInputError(written.string(), 0, std::string("cannot write: ") + error.code().message());
     }
   } catch (...) {
     std::error_code ignored;

@@ -83,6 +83,8 @@ TEST_P(DatasetConversion, WriteThenReadKeepsFramesSplitsIntrinsicsPosesAndLocali
     EXPECT_EQ(back.intrinsics.distortion, original.intrinsics.distortion);
     EXPECT_LT((back.camera_to_world.matrix() - (to_world * original.camera_to_world).matrix()).cwiseAbs().maxCoeff(),
               1e-9);
+    if (c.world_is_the_first_mapping_frame && names[i] == "seq0/frame_00000" + fs::path(names[i]).extension().string())
+      EXPECT_LT((back.camera_to_world.matrix() - Pose::identity().matrix()).cwiseAbs().maxCoeff(), 1e-12);
     EXPECT_TRUE(fs::is_regular_file(back.image_path));
     EXPECT_EQ(back.depth.has_value(), c.has_depth);
     // A format without depth is scored with the source's depth maps, which share its pixel grid.

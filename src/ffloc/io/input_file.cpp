@@ -26,16 +26,4 @@ bool liesWithin(const std::filesystem::path& path, const std::filesystem::path& 
   return std::mismatch(outer.begin(), outer.end(), inner.begin(), inner.end()).first == outer.end();
 }
 
-std::filesystem::path followSymlinks(const std::filesystem::path& path) {
-  std::filesystem::path target = path;
-  std::error_code error;
-  for (int hops = 0; std::filesystem::is_symlink(target, error); ++hops) {
-    if (hops == 40) throwInputError(path.string(), 0, "a loop of symbolic links");
-    const std::filesystem::path link = std::filesystem::read_symlink(target, error);
-    if (error) throwInputError(target.string(), 0, "cannot read the symbolic link: " + error.message());
-    target = link.is_absolute() ? link : target.parent_path() / link;
-  }
-  return target;
-}
-
 }  // namespace ffloc

@@ -16,10 +16,4 @@ void requireRegularFile(const std::filesystem::path& path, const std::string& wh
 // outputs written into a dataset's folder became part of it, or replaced its files.
 bool liesWithin(const std::filesystem::path& path, const std::filesystem::path& folder);
 
-// The file `path` names once its symbolic links are followed: itself when it is no link, and
-// what a link points to even when that does not exist yet. For writers that replace a file by
-// renaming a new one over it, which would replace the link and leave its target as it was.
-// InputError naming the path for a loop of links.
-std::filesystem::path followSymlinks(const std::filesystem::path& path);
-
 }  // namespace ffloc

@@ -5,7 +5,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/writer_lock.h"
 #include "ffloc/core/utf8.h"
-#include "ffloc/io/input_file.h"
+#include "ffloc/core/file_paths.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
 
