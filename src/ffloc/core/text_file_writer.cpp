@@ -22,14 +22,17 @@ void writeAll(int descriptor, const std::string& text, const std::string& named)
   }
 }
 
+// A device or a pipe, links followed: written through, as no rename may replace it.
+bool isDeviceOrPipe(const std::filesystem::file_status& target) {
+  return std::filesystem::exists(target) && !std::filesystem::is_regular_file(target) &&
+         !std::filesystem::is_directory(target);
+}
+
 }  // namespace
 
 bool writesThrough(const std::filesystem::path& path) {
-  if (openDescriptorNamed(path)) return true;
   std::error_code error;
-  const std::filesystem::file_status target = std::filesystem::status(path, error);  // links followed
-  return std::filesystem::exists(target) && !std::filesystem::is_regular_file(target) &&
-         !std::filesystem::is_directory(target);
+  return openDescriptorNamed(path) || isDeviceOrPipe(std::filesystem::status(path, error));
 }
 
 void writeTextFile(const std::filesystem::path& named, const std::string& text) {
@@ -42,7 +45,7 @@ void writeTextFile(const std::filesystem::path& named, const std::string& text) 
   std::error_code error;
   const std::filesystem::file_status target = std::filesystem::status(named, error);  // links followed
   if (std::filesystem::is_directory(target)) throwInputError(named.string(), 0, "is a folder, not a file to write");
-  if (writesThrough(named)) {
+  if (isDeviceOrPipe(target)) {
     // A device or a pipe (/dev/null, bash's >(cat)) is written through: replaced by a rename,
     // /dev/null became a regular file of results. A pipe no process reads is said so, not waited on.
     const int descriptor = ::open(named.c_str(), O_WRONLY | O_NONBLOCK | O_CLOEXEC);

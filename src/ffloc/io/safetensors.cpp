@@ -153,16 +153,14 @@ Json SafetensorsArchive::parseHeader(const char* text, size_t size) const {
                             : "header: tensor '" + top_key + "' has more than " + std::to_string(kMaxTensorEntryKeys) +
                                   " fields (dtype, shape and data_offsets)");
     }
-    if (event == Json::parse_event_t::key && depth == 1 && parsed.is_string()) top_key = parsed.get<std::string>();
     if (event == Json::parse_event_t::array_start) open.push_back({0, kMaxHeaderListLength, true});
     if (event == Json::parse_event_t::object_start)
       open.push_back({0, open.empty() || top_key == "__metadata__" ? 0 : kMaxTensorEntryKeys, false});
     if ((event == Json::parse_event_t::array_end || event == Json::parse_event_t::object_end) && !open.empty())
       open.pop_back();
     if (event == Json::parse_event_t::key && depth == 1 && parsed.is_string()) {
-      if (!seen.insert(parsed.get<std::string>()).second && duplicate.empty()) {
-        duplicate = parsed.get<std::string>();
-      }
+      top_key = parsed.get<std::string>();
+      if (!seen.insert(top_key).second && duplicate.empty()) duplicate = top_key;
     }
     return true;
   };
