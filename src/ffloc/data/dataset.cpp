@@ -72,12 +72,12 @@ void requirePlausibleFrames(const Scene& scene) {
     }
     const cv::Size claimed(frame.intrinsics.width, frame.intrinsics.height);
     const bool first_of_its_size = sizes_seen.insert({claimed.width, claimed.height}).second;
-    const std::optional<cv::Size> header = first_of_its_size ? std::nullopt : fileFrameSize(frame.image_path);
+    const std::optional<ImageHeader> header = first_of_its_size ? std::nullopt : fileImageHeader(frame.image_path);
     try {
       if (!first_of_its_size && !header) {
         // Not a PNG or JPEG: its signature is checked, not decoded for every frame (TIFF, BMP).
         requireDecodableImageFile(frame.image_path, "cannot decode image");
-      } else if (first_of_its_size || fileImageSize(frame.image_path) != std::optional<cv::Size>(claimed)) {
+      } else if (first_of_its_size || header->with_exif || header->size != claimed) {
         // As decoded: a JPEG of the claimed size stored but turned by its EXIF orientation passed.
         const cv::Size image = readImageSize(frame.image_path);
         if (image != claimed)

@@ -21,22 +21,15 @@ uint32_t bigEndian(const unsigned char* bytes, int count) {
   return value;
 }
 
-// The pixel grid an image file declares, and whether it carries EXIF data that the decoder
-// reads (cv::imread applies its orientation, which may swap width and height).
-struct StoredFrame {
-  cv::Size size;
-  bool with_exif = false;
-};
-
 // A PNG's IHDR, and an eXIf chunk anywhere before IEND (OpenCV reads one before the image data
 // with the header and one after it at the end, and applies either's orientation).
-std::optional<StoredFrame> pngFrame(std::istream& in) {
+std::optional<ImageHeader> pngFrame(std::istream& in) {
   std::array<unsigned char, 24> header{};
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(header.data()), header.size())) return std::nullopt;
   if (!startsLikePng(std::string_view(reinterpret_cast<const char*>(header.data()), header.size()))) return std::nullopt;
   if (std::string(header.begin() + 12, header.begin() + 16) != "IHDR") return std::nullopt;
-  StoredFrame frame;
+  ImageHeader frame;
   frame.size = cv::Size(static_cast<int>(bigEndian(&header[16], 4)), static_cast<int>(bigEndian(&header[20], 4)));
   // Chunks: length, type, data, CRC. IHDR's data is 13 bytes.
   in.seekg(8 + 8 + 13 + 4);
@@ -60,13 +53,13 @@ std::optional<StoredFrame> pngFrame(std::istream& in) {
 // warns of "extraneous bytes before marker" and decodes on). A stricter walk gave up there, and
 // the decoder then found and allocated a frame this walk had not seen (found by the
 // localize_request fuzzer: 12040x14895 pixels behind a damaged quantisation table).
-std::optional<StoredFrame> jpegFrame(std::istream& in) {
+std::optional<ImageHeader> jpegFrame(std::istream& in) {
   in.seekg(0);
   if (in.get() != 0xFF || in.get() != 0xD8) return std::nullopt;
-  StoredFrame frame;
+  ImageHeader frame;
   bool framed = false;
   // Past the frame, a walk that ends early (a file cut short) still knows the frame's size.
-  const auto walkEnded = [&]() -> std::optional<StoredFrame> {
+  const auto walkEnded = [&]() -> std::optional<ImageHeader> {
     if (framed) return frame;
     return std::nullopt;
   };
@@ -110,17 +103,23 @@ std::optional<StoredFrame> jpegFrame(std::istream& in) {
   }
 }
 
-// The size a PNG or JPEG header declares. With `as_decoded`, an image with EXIF data gives
-// nullopt, since its orientation may swap the sides of the decoded image.
-std::optional<cv::Size> headerSize(std::istream& in, bool as_decoded) {
-  std::optional<StoredFrame> frame = pngFrame(in);
+// What a PNG or JPEG header declares, nullopt for a size it does not give.
+std::optional<ImageHeader> imageHeader(std::istream& in) {
+  std::optional<ImageHeader> frame = pngFrame(in);
   if (!frame) {
     in.clear();
     frame = jpegFrame(in);
   }
-  if (!frame || (as_decoded && frame->with_exif)) return std::nullopt;
-  if (frame->size.width > 0 && frame->size.height > 0) return frame->size;
+  if (frame && frame->size.width > 0 && frame->size.height > 0) return frame;
   return std::nullopt;
+}
+
+// The size a PNG or JPEG header declares. With `as_decoded`, an image with EXIF data gives
+// nullopt, since its orientation may swap the sides of the decoded image.
+std::optional<cv::Size> headerSize(std::istream& in, bool as_decoded) {
+  const std::optional<ImageHeader> frame = imageHeader(in);
+  if (!frame || (as_decoded && frame->with_exif)) return std::nullopt;
+  return frame->size;
 }
 
 }  // namespace
@@ -135,16 +134,16 @@ std::optional<cv::Size> encodedFrameSize(const std::string& bytes) {
   return headerSize(in, false);
 }
 
-std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path) {
+std::optional<ImageHeader> fileImageHeader(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return std::nullopt;
-  return headerSize(in, false);
+  return imageHeader(in);
 }
 
-std::optional<cv::Size> fileImageSize(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return std::nullopt;
-  return headerSize(in, true);
+std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path) {
+  const std::optional<ImageHeader> header = fileImageHeader(path);
+  if (!header) return std::nullopt;
+  return header->size;
 }
 
 cv::Size readImageSize(const std::filesystem::path& path) {

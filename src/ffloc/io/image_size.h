@@ -23,12 +23,16 @@ std::optional<cv::Size> encodedImageSize(const std::string& bytes);
 // images before decoding; nullopt for other formats and for bytes whose header does not tell.
 std::optional<cv::Size> encodedFrameSize(const std::string& bytes);
 
-// encodedFrameSize for a file: the pixel grid its PNG or JPEG header declares, nullopt when the
-// header does not tell. For explaining why a decoder refused a file.
-std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path);
+// What a file's PNG or JPEG header declares: the pixel grid it stores, and whether it carries
+// EXIF data, whose orientation the decoder applies (so that the decoded image may be turned).
+// nullopt for other formats and for headers that do not give the size.
+struct ImageHeader {
+  cv::Size size;
+  bool with_exif = false;
+};
+std::optional<ImageHeader> fileImageHeader(const std::filesystem::path& path);
 
-// encodedImageSize for a file: its size as decoded, when its PNG or JPEG header settles that
-// (nullopt for other formats and for files with EXIF data).
-std::optional<cv::Size> fileImageSize(const std::filesystem::path& path);
+// fileImageHeader's stored size alone: for explaining why a decoder refused a file.
+std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path);
 
 }  // namespace ffloc
