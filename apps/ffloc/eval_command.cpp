@@ -86,14 +86,27 @@ std::vector<std::pair<std::string, std::string>> outputsAsked(const EvalArgument
   return outputs;
 }
 
+// Where the per-frame CSV and the markdown table go: as named, else beside --json (nothing is
+// beside /dev/stdout); empty for none.
+struct TableOutputs {
+  std::string csv, markdown;
+};
+TableOutputs tableOutputs(const EvalArguments& args) {
+  TableOutputs outputs{args.csv_path, args.markdown_path};
+  if (!args.json_path.empty() && !writesThrough(args.json_path)) {
+    const std::string stem = std::filesystem::path(args.json_path).replace_extension().string();
+    if (outputs.csv.empty()) outputs.csv = stem + ".frames.csv";
+    if (outputs.markdown.empty()) outputs.markdown = stem + ".md";
+  }
+  return outputs;
+}
+
 // The outputs asked for and the files --json puts beside it unless told otherwise.
 std::vector<std::pair<std::string, std::string>> outputsWritten(const EvalArguments& args) {
   std::vector<std::pair<std::string, std::string>> outputs = outputsAsked(args);
-  if (!args.json_path.empty() && !writesThrough(args.json_path)) {  // /dev/stdout has nothing beside it
-    const std::string stem = std::filesystem::path(args.json_path).replace_extension().string();
-    if (args.csv_path.empty()) outputs.emplace_back("--json (its CSV)", stem + ".frames.csv");
-    if (args.markdown_path.empty()) outputs.emplace_back("--json (its table)", stem + ".md");
-  }
+  const TableOutputs tables = tableOutputs(args);
+  if (args.csv_path.empty() && !tables.csv.empty()) outputs.emplace_back("--json (its CSV)", tables.csv);
+  if (args.markdown_path.empty() && !tables.markdown.empty()) outputs.emplace_back("--json (its table)", tables.markdown);
   return outputs;
 }
 
@@ -263,7 +276,7 @@ int runEval(const EvalArguments& args) {
   std::cout << table;
   if (!args.protocol.empty())
     std::cerr << describeProtocol(benchmarkProtocol(args.protocol), localize.top_k, localize.num_features);
-  std::string csv_path = args.csv_path, markdown_path = args.markdown_path;
+  const auto [csv_path, markdown_path] = tableOutputs(args);
   if (!args.json_path.empty()) {
     nlohmann::json summary = summaryJson(summaries);
     if (!args.protocol.empty()) {
@@ -277,11 +290,6 @@ int runEval(const EvalArguments& args) {
                              {"medians", protocol.medians}};
     }
     writeTextFile(args.json_path, summary.dump(2) + "\n");
-    if (!writesThrough(args.json_path)) {
-      const std::filesystem::path stem = std::filesystem::path(args.json_path).replace_extension();
-      if (csv_path.empty()) csv_path = stem.string() + ".frames.csv";
-      if (markdown_path.empty()) markdown_path = stem.string() + ".md";
-    }
     std::cerr << "wrote " << args.json_path << "\n";
   }
   if (!csv_path.empty()) {

@@ -80,6 +80,8 @@ void checkMapAgainstDataset(const RankedMap& map, const std::string& map_path, c
   }
 }
 
+std::vector<float> floats(const Eigen::VectorXf& vector) { return {vector.data(), vector.data() + vector.size()}; }
+
 // A classical map ranks its images by their VLAD descriptors, as ClassicalLocalizer does.
 RankedMap classicalRankedMap(const RetrievalArguments& args) {
   for (const std::string& flag : args.fastforward_flags_given)
@@ -92,13 +94,10 @@ RankedMap classicalRankedMap(const RetrievalArguments& args) {
   for (const ClassicalMapImage& image : map->images) {
     ranked.names.push_back(image.name);
     ranked.poses.push_back(image.camera_to_world);
-    ranked.descriptors.emplace_back(image.global_descriptor.data(),
-                                    image.global_descriptor.data() + image.global_descriptor.size());
+    ranked.descriptors.push_back(floats(image.global_descriptor));
   }
   ranked.describe = [map](const cv::Mat& rgb, const Frame& frame) {
-    const Eigen::VectorXf vlad =
-        map->vocabulary.describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name, map->sift).descriptors);
-    return std::vector<float>(vlad.data(), vlad.data() + vlad.size());
+    return floats(map->vocabulary.describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name, map->sift).descriptors));
   };
   return ranked;
 }
@@ -130,8 +129,7 @@ RankedMap fastForwardRankedMap(const RetrievalArguments& args) {
     ranked.names.push_back(image.name);
     ranked.poses.push_back(image.camera_to_world);
     if (token_vlad) {
-      const Eigen::VectorXf& vlad = token_vlad->imageDescriptors()[i];
-      ranked.descriptors.emplace_back(vlad.data(), vlad.data() + vlad.size());
+      ranked.descriptors.push_back(floats(token_vlad->imageDescriptors()[i]));
     } else {
       ranked.descriptors.push_back(retrieval == FastForwardRetrieval::kVlad ? image.vlad_descriptor : image.descriptor);
     }
@@ -143,16 +141,11 @@ RankedMap fastForwardRankedMap(const RetrievalArguments& args) {
   // The map does not record its preprocessing and pooling settings; `ffloc map` uses the defaults.
   ranked.describe = [model, token_vlad, vocabulary, retrieval](const cv::Mat& rgb, const Frame& frame) {
     const MappingOptions mapping_options;
-    if (retrieval == FastForwardRetrieval::kVlad) {
-      const Eigen::VectorXf vlad = vocabulary->describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name).descriptors);
-      return std::vector<float>(vlad.data(), vlad.data() + vlad.size());
-    }
-    if (token_vlad) {
-      const Dust3rEncoding encoding =
-          queryEncoding(*model->model, rgb, frame.intrinsics, frame.name, mapping_options.long_side);
-      const Eigen::VectorXf vlad = token_vlad->describe(encoding.tokens);
-      return std::vector<float>(vlad.data(), vlad.data() + vlad.size());
-    }
+    if (retrieval == FastForwardRetrieval::kVlad)
+      return floats(vocabulary->describe(extractSiftFeatures(rgb, frame.intrinsics, frame.name).descriptors));
+    if (token_vlad)
+      return floats(token_vlad->describe(
+          queryEncoding(*model->model, rgb, frame.intrinsics, frame.name, mapping_options.long_side).tokens));
     return queryDescriptor(*model->model, rgb, frame.intrinsics, frame.name, mapping_options.long_side,
                            mapping_options.descriptor);
   };

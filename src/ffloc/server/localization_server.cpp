@@ -381,9 +381,9 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
 
   // Open to every client, for load balancers: says nothing a key would protect beyond the count.
   get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
-    const std::vector<std::string> withdrawn = maps_.withdrawnNames();
-    nlohmann::json body = {{"status", withdrawn.empty() ? "ok" : "degraded"}, {"maps", maps_.names().size()}};
-    if (!withdrawn.empty()) body["withdrawn"] = withdrawn.size();
+    const size_t withdrawn = maps_.withdrawnCount();
+    nlohmann::json body = {{"status", withdrawn == 0 ? "ok" : "degraded"}, {"maps", maps_.names().size()}};
+    if (withdrawn > 0) body["withdrawn"] = withdrawn;
     response.set_content(jsonText(body), kJson);
     log(request, "200");
   });

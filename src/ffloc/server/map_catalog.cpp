@@ -36,7 +36,7 @@ bool stampOf(const std::filesystem::path& path, FileStamp& stamp) {
 
 struct MapCatalog::Slot {
   Source source;
-  mutable std::mutex mutex;  // guards current, stamp, last_check
+  mutable std::mutex mutex;  // guards current, withdrawn, stamp, served_stamp, last_check
   std::shared_ptr<const ServedMap> current;
   std::string withdrawn;  // why `current` is no longer served; empty while it is
   FileStamp stamp;         // of the file last looked at
@@ -132,13 +132,13 @@ std::shared_ptr<const ServedMap> MapCatalog::served(const Slot& slot) {
   return slot.current;
 }
 
-std::vector<std::string> MapCatalog::withdrawnNames() const {
-  std::vector<std::string> names;
+size_t MapCatalog::withdrawnCount() const {
+  size_t withdrawn = 0;
   for (const auto& slot : slots_) {
     const std::lock_guard<std::mutex> lock(slot->mutex);
-    if (!slot->withdrawn.empty()) names.push_back(slot->source.name);
+    if (!slot->withdrawn.empty()) ++withdrawn;
   }
-  return names;
+  return withdrawn;
 }
 
 MapCatalog::Source MapCatalog::parseSource(const std::string& text) {

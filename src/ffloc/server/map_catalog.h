@@ -51,8 +51,8 @@ class MapCatalog {
   // The current version of the named map (null for a name the catalog does not hold).
   // MapWithdrawn, saying why, for a withdrawn map.
   std::shared_ptr<const ServedMap> get(const std::string& name) const;
-  // The maps withdrawn now, in the order given.
-  std::vector<std::string> withdrawnNames() const;
+  // How many maps are withdrawn now.
+  size_t withdrawnCount() const;
   // Names in the order given.
   const std::vector<std::string>& names() const { return names_; }
   // Called with a line for each reload and each failed one (from a request's thread).
