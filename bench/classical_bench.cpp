@@ -1,6 +1,6 @@
 // The classical method's query path: exact descriptor matching alone (random RootSIFT-like
-// descriptors of the redkitchen sizes), and whole queries against a map of the redkitchen
-// mapping split when ../shared is there.
+// descriptors of the redkitchen sizes, each product kernel), and, when ../shared is there, whole
+// queries against a map of the redkitchen mapping split and the queries' SIFT alone.
 #include <benchmark/benchmark.h>
 
 #include <cstdlib>
@@ -11,6 +11,8 @@
 #include "ffloc/classical/classical_localizer.h"
 #include "ffloc/classical/classical_mapper.h"
 #include "ffloc/classical/descriptor_matching.h"
+#include "ffloc/classical/sift_features.h"
+#include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/io/image.h"
 
@@ -22,11 +24,11 @@ cv::Mat randomDescriptors(int rows, uint64_t seed) {
   cv::RNG rng(seed);
   rng.fill(d, cv::RNG::UNIFORM, 0.0, 1.0);
   for (int r = 0; r < rows; ++r) cv::normalize(d.row(r), d.row(r));
-  return d;
+  return quantizeDescriptors(d);
 }
 
 // A query of 2000 descriptors against K images of 1400 (redkitchen: 2058 query keypoints, about
-// 1400 with a point per mapping image).
+// 1400 with a point per mapping image), each product kernel.
 void BM_ExactMatching(benchmark::State& state) {
   const int images = static_cast<int>(state.range(0));
   const cv::Mat query = randomDescriptors(2000, 1);
@@ -34,10 +36,15 @@ void BM_ExactMatching(benchmark::State& state) {
   for (int i = 0; i < images; ++i) targets.push_back(randomDescriptors(1400, 10 + i));
   std::vector<const cv::Mat*> pointers;
   for (const cv::Mat& t : targets) pointers.push_back(&t);
-  for (auto _ : state) benchmark::DoNotOptimize(matchExactly(query, pointers, 0.8f));
+  const ProductKernel kernel = state.range(1) ? ProductKernel::kFastest : ProductKernel::kBlas;
+  if (kernel == ProductKernel::kFastest && !hasVnniProducts()) {
+    state.SkipWithError("this CPU has no AVX-512 VNNI");
+    return;
+  }
+  for (auto _ : state) benchmark::DoNotOptimize(matchExactly(query, pointers, 0.8f, kernel));
   state.counters["GFLOP/s"] = benchmark::Counter(2.0 * 2000 * 1400 * 128 * images * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
 }
-BENCHMARK(BM_ExactMatching)->Arg(5)->Arg(10)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_ExactMatching)->ArgNames({"images", "vnni"})->ArgsProduct({{5, 10}, {0, 1}})->Unit(benchmark::kMillisecond);
 
 std::filesystem::path sharedDir() {
   const char* env = std::getenv("FFLOC_SHARED_DIR");
@@ -70,6 +77,29 @@ void BM_ClassicalQueryRedkitchen(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ClassicalQueryRedkitchen)->Arg(5)->Arg(10)->Unit(benchmark::kMillisecond)->Iterations(40);
+
+// The query's SIFT alone, on 1 and 2 threads: most of a classical query.
+void BM_QuerySiftRedkitchen(benchmark::State& state) {
+  const std::filesystem::path dir = sharedDir() / "data/7scenes_redkitchen";
+  if (!std::filesystem::exists(dir)) {
+    state.SkipWithError("../shared/data/7scenes_redkitchen not found");
+    return;
+  }
+  const Scene scene = loadDataset(dir);
+  setLibraryThreadCount(static_cast<int>(state.range(0)));
+  const std::vector<size_t> queries = scene.queryIndices();
+  std::vector<cv::Mat> images;
+  for (size_t q : queries) images.push_back(readImageRgb(scene.frames[q].image_path));
+  size_t next = 0, keypoints = 0;
+  for (auto _ : state) {
+    const size_t q = next++ % images.size();
+    const SiftFeatures features = extractSiftFeatures(images[q], scene.frames[queries[q]].intrinsics, "query");
+    keypoints += features.pixels.size();
+  }
+  state.counters["keypoints"] = static_cast<double>(keypoints) / static_cast<double>(next);
+  setLibraryThreadCount(0);
+}
+BENCHMARK(BM_QuerySiftRedkitchen)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Iterations(100);
 
 }  // namespace
 }  // namespace ffloc

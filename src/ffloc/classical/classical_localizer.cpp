@@ -31,12 +31,11 @@ ClassicalLocalizer::ClassicalLocalizer(ClassicalMap map) : map_(std::move(map)) 
     // correspondence worth having (on redkitchen, leaving out the unconfirmed depth points
     // changes no accuracy column by more than one query and saves 8 % of the query time), and
     // the search is 20 % (redkitchen) to 45 % (Strecha) smaller.
-    const cv::Mat all = dequantizeDescriptors(image.descriptors);
     cv::Mat with_points;
     std::vector<uint32_t> keypoints;
     for (size_t k = 0; k < image.keypoints.size(); ++k) {
       if (image.point_views[k] < kMinPointViews) continue;
-      with_points.push_back(all.row(static_cast<int>(k)));
+      with_points.push_back(image.descriptors.row(static_cast<int>(k)));
       keypoints.push_back(static_cast<uint32_t>(k));
     }
     descriptors_.push_back(with_points);
@@ -92,7 +91,8 @@ void ClassicalLocalizer::matchImages(const SiftFeatures& query, const std::vecto
                                      LocalizationResult& result) const {
   std::vector<const cv::Mat*> selected;
   for (size_t index : images) selected.push_back(&descriptors_[index]);
-  const std::vector<std::vector<std::pair<int, int>>> matches = matchExactly(query.descriptors, selected, map_.ratio);
+  const std::vector<std::vector<std::pair<int, int>>> matches =
+      matchExactly(quantizeDescriptors(query.descriptors), selected, map_.ratio);
   for (size_t r = 0; r < images.size(); ++r) {
     const ClassicalMapImage& image = map_.images[images[r]];
     for (const auto& [q, row] : matches[r]) {

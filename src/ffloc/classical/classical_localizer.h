@@ -32,7 +32,7 @@ class ClassicalLocalizer : public Localizer {
   ClassicalMap map_;
   std::vector<MapCamera> cameras_;
   std::vector<Eigen::VectorXf> globals_;
-  std::vector<cv::Mat> descriptors_;  // CV_32F, decoded once: the keypoints that have a point
+  std::vector<cv::Mat> descriptors_;  // CV_8U as stored: the keypoints that have a point
   std::vector<std::vector<uint32_t>> searched_keypoints_;  // descriptors_ row -> keypoint
 
   // Matches `query` against `images` (ratio test) and appends the pairs and the images to

@@ -171,8 +171,8 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
     size_t done = 0;
     for (const auto& [i, others] : partners) {
       std::vector<const cv::Mat*> targets;
-      for (size_t j : others) targets.push_back(&descriptors[j]);
-      const auto matches = matchExactly(descriptors[i], targets, map.ratio);
+      for (size_t j : others) targets.push_back(&map.images[j].descriptors);
+      const auto matches = matchExactly(map.images[i].descriptors, targets, map.ratio);
       for (size_t o = 0; o < others.size(); ++o) {
         const size_t j = others[o];
         for (const auto& [ki, kj] : matches[o]) {

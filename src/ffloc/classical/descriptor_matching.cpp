@@ -2,11 +2,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/flann.hpp>
 
 #include <cblas.h>
+#if defined(__x86_64__)
+#include <immintrin.h>
+#endif
 
 #include "ffloc/core/error.h"
 
@@ -128,64 +132,175 @@ FFLOC_ALSO_FOR_AVX2 NearestTwo nearestTwo(const float* products, const float* ta
   return found;
 }
 
+constexpr int kDims = 128;
+constexpr int kChunks = kDims / 4;  // VNNI multiplies and sums 4 bytes at a time
+constexpr int kBlockTargets = 16;  // one 4-byte chunk of 16 targets fills a 512-bit vector
+constexpr int kKernelRows = 8;     // query rows per kernel pass: 8 x 2 blocks = 16 accumulators
+constexpr int kKernelBlocks = 2;
+
+// The targets as the VNNI kernel reads them: blocks of 16 rows, and in a block chunk c of every
+// row side by side, so one load brings the same 4 dimensions of 16 targets. The kernel takes the
+// query as signed bytes (q - 128), so each dot product is short of 128 times its target's sum:
+// its offset.
+struct PackedTargets {
+  int blocks = 0;  // a multiple of kKernelBlocks; rows past the last target are zero
+  std::vector<uint8_t> bytes;
+  std::vector<int32_t> offsets;
+};
+
+PackedTargets packTargets(const cv::Mat& targets) {
+  PackedTargets packed;
+  const int blocks = (targets.rows + kBlockTargets - 1) / kBlockTargets;
+  packed.blocks = (blocks + kKernelBlocks - 1) / kKernelBlocks * kKernelBlocks;
+  packed.bytes.assign(static_cast<size_t>(packed.blocks) * kChunks * 64, 0);
+  packed.offsets.assign(static_cast<size_t>(packed.blocks) * kBlockTargets, 0);
+  for (int t = 0; t < targets.rows; ++t) {
+    const uint8_t* row = targets.ptr<uint8_t>(t);
+    uint8_t* block = packed.bytes.data() + static_cast<size_t>(t / kBlockTargets) * kChunks * 64;
+    for (int c = 0; c < kChunks; ++c) std::memcpy(block + c * 64 + (t % kBlockTargets) * 4, row + c * 4, 4);
+    int32_t sum = 0;
+    for (int d = 0; d < kDims; ++d) sum += row[d];
+    packed.offsets[t] = 128 * sum;
+  }
+  return packed;
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define FFLOC_HAS_VNNI_KERNEL 1
+// Dot products of kKernelRows signed query rows with every packed target, as floats (exact:
+// at most 128 x 255^2 < 2^24), row r at out + r * stride.
+__attribute__((target("avx512f,avx512bw,avx512vnni"))) void vnniProducts(const int8_t* query, const PackedTargets& packed,
+                                                                          float* out, size_t stride) {
+  for (int b = 0; b < packed.blocks; b += kKernelBlocks) {
+    __m512i offsets[kKernelBlocks], accumulators[kKernelRows][kKernelBlocks];
+    const uint8_t* blocks[kKernelBlocks];
+    for (int k = 0; k < kKernelBlocks; ++k) {
+      blocks[k] = packed.bytes.data() + static_cast<size_t>(b + k) * kChunks * 64;
+      offsets[k] = _mm512_loadu_si512(packed.offsets.data() + (b + k) * kBlockTargets);
+      for (int r = 0; r < kKernelRows; ++r) accumulators[r][k] = _mm512_setzero_si512();
+    }
+    for (int c = 0; c < kChunks; ++c) {
+      __m512i targets[kKernelBlocks];
+      for (int k = 0; k < kKernelBlocks; ++k) targets[k] = _mm512_loadu_si512(blocks[k] + c * 64);
+      for (int r = 0; r < kKernelRows; ++r) {
+        int32_t chunk;
+        std::memcpy(&chunk, query + r * kDims + c * 4, 4);
+        const __m512i repeated = _mm512_set1_epi32(chunk);
+        for (int k = 0; k < kKernelBlocks; ++k)
+          accumulators[r][k] = _mm512_dpbusd_epi32(accumulators[r][k], targets[k], repeated);
+      }
+    }
+    for (int r = 0; r < kKernelRows; ++r)
+      for (int k = 0; k < kKernelBlocks; ++k)
+        _mm512_storeu_ps(out + r * stride + (b + k) * kBlockTargets,
+                         // maskz: the plain conversion trips GCC 12's false "may be used uninitialized"
+                         _mm512_maskz_cvtepi32_ps(0xFFFF, _mm512_add_epi32(accumulators[r][k], offsets[k])));
+  }
+}
+#endif
+
+float squaredNorm(const uint8_t* row) {
+  int32_t sum = 0;
+  for (int d = 0; d < kDims; ++d) sum += row[d] * row[d];
+  return static_cast<float>(sum);
+}
+
 }  // namespace
 
+bool hasVnniProducts() {
+#ifdef FFLOC_HAS_VNNI_KERNEL
+  static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+                          __builtin_cpu_supports("avx512vnni");
+  return has;
+#else
+  return false;
+#endif
+}
+
 std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query, const std::vector<const cv::Mat*>& images,
-                                                           float ratio) {
+                                                           float ratio, ProductKernel kernel) {
   std::vector<std::vector<std::pair<int, int>>> matches(images.size());
-  const int dims = query.cols;
   int total = 0;
   std::vector<int> first_row(images.size() + 1, 0);
   for (size_t i = 0; i < images.size(); ++i) {
-    if (images[i]->rows > 0 && (images[i]->cols != dims || images[i]->type() != CV_32F))
-      throw InputError("descriptors: images to match must be CV_32F with the query's width");
+    if (images[i]->rows > 0 && (images[i]->cols != kDims || images[i]->type() != CV_8U))
+      throw InputError("descriptors: images to match must be quantized (CV_8U) rows of 128");
     first_row[i] = total;
     total += images[i]->rows;
     first_row[i + 1] = total;
   }
   if (query.rows == 0 || total == 0) return matches;
-  if (query.type() != CV_32F) throw InputError("descriptors: the query must be CV_32F");
-  cv::Mat targets(total, dims, CV_32F);
+  if (query.cols != kDims || query.type() != CV_8U)
+    throw InputError("descriptors: the query must be quantized (CV_8U) rows of 128");
+  cv::Mat targets(total, kDims, CV_8U);
   for (size_t i = 0; i < images.size(); ++i)
     if (images[i]->rows > 0) images[i]->copyTo(targets.rowRange(first_row[i], first_row[i + 1]));
   const cv::Mat contiguous_query = query.isContinuous() ? query : query.clone();
   std::vector<float> target_norms(total), query_norms(query.rows);
-  for (int t = 0; t < total; ++t) target_norms[t] = static_cast<float>(cv::norm(targets.row(t), cv::NORM_L2SQR));
-  for (int q = 0; q < query.rows; ++q) query_norms[q] = static_cast<float>(cv::norm(contiguous_query.row(q), cv::NORM_L2SQR));
+  for (int t = 0; t < total; ++t) target_norms[t] = squaredNorm(targets.ptr<uint8_t>(t));
+  for (int q = 0; q < query.rows; ++q) query_norms[q] = squaredNorm(contiguous_query.ptr<uint8_t>(q));
 
+  // Per query row and image: the nearest target row (-1: the ratio test failed) and its distance.
   const float max_squared_ratio = ratio * ratio;
+  const size_t image_count = images.size();
+  std::vector<int> nearest(static_cast<size_t>(query.rows) * image_count, -1);
+  std::vector<float> nearest_distance(nearest.size(), 0.0f);
+  const auto scan = [&](int q, const float* products) {
+    for (size_t i = 0; i < image_count; ++i) {
+      if (images[i]->rows < 2) continue;  // the ratio test needs two neighbours
+      const NearestTwo found =
+          nearestTwo(products + first_row[i], target_norms.data() + first_row[i], query_norms[q], images[i]->rows);
+      if (found.index < 0 || !(found.nearest < max_squared_ratio * found.second)) continue;
+      nearest[static_cast<size_t>(q) * image_count + i] = found.index;
+      nearest_distance[static_cast<size_t>(q) * image_count + i] = found.nearest;
+    }
+  };
+
+#ifdef FFLOC_HAS_VNNI_KERNEL
+  if (kernel == ProductKernel::kFastest && hasVnniProducts()) {
+    const PackedTargets packed = packTargets(targets);
+    const size_t stride = static_cast<size_t>(packed.blocks) * kBlockTargets;
+    const int groups = (query.rows + kKernelRows - 1) / kKernelRows;
+    // Each pass's products stay in the core's cache until the scan has read them.
+    cv::parallel_for_(cv::Range(0, groups), [&](const cv::Range& range) {
+      std::vector<int8_t> signed_rows(kKernelRows * kDims);
+      std::vector<float> products(kKernelRows * stride);
+      for (int g = range.start; g < range.end; ++g) {
+        const int begin = g * kKernelRows, rows = std::min(kKernelRows, query.rows - begin);
+        std::fill(signed_rows.begin(), signed_rows.end(), int8_t{0});
+        for (int r = 0; r < rows; ++r) {
+          const uint8_t* row = contiguous_query.ptr<uint8_t>(begin + r);
+          for (int d = 0; d < kDims; ++d) signed_rows[r * kDims + d] = static_cast<int8_t>(row[d] - 128);
+        }
+        vnniProducts(signed_rows.data(), packed, products.data(), stride);
+        for (int r = 0; r < rows; ++r) scan(begin + r, products.data() + r * stride);
+      }
+    });
+  } else
+#endif
+  {
+    cv::Mat float_query, float_targets;
+    contiguous_query.convertTo(float_query, CV_32F);
+    targets.convertTo(float_targets, CV_32F);
+    constexpr int kBlock = 256;  // query rows per product: 256 x (all targets) floats stay small
+    std::vector<float> products(static_cast<size_t>(kBlock) * total);
+    for (int begin = 0; begin < query.rows; begin += kBlock) {
+      const int rows = std::min(kBlock, query.rows - begin);
+      cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, rows, total, kDims, 1.0f, float_query.ptr<float>(begin), kDims,
+                  float_targets.ptr<float>(), kDims, 0.0f, products.data(), total);
+      // The scan is as long as the product is cheap: spread it over the cores too.
+      cv::parallel_for_(cv::Range(0, rows), [&](const cv::Range& range) {
+        for (int r = range.start; r < range.end; ++r) scan(begin + r, products.data() + static_cast<size_t>(r) * total);
+      });
+    }
+  }
+
   // best[i][t]: the query row that matched target row t of image i, closest first.
   std::vector<std::vector<int>> best_query(images.size());
   std::vector<std::vector<float>> best_distance(images.size());
   for (size_t i = 0; i < images.size(); ++i) {
     best_query[i].assign(images[i]->rows, -1);
     best_distance[i].assign(images[i]->rows, std::numeric_limits<float>::infinity());
-  }
-  // Per query row and image: the nearest target row (-1: the ratio test failed) and its distance.
-  const size_t image_count = images.size();
-  std::vector<int> nearest(static_cast<size_t>(query.rows) * image_count, -1);
-  std::vector<float> nearest_distance(nearest.size(), 0.0f);
-  constexpr int kBlock = 256;  // query rows per product: 256 x (all targets) floats stay small
-  std::vector<float> products(static_cast<size_t>(kBlock) * total);
-  for (int begin = 0; begin < query.rows; begin += kBlock) {
-    const int rows = std::min(kBlock, query.rows - begin);
-    cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasTrans, rows, total, dims, 1.0f, contiguous_query.ptr<float>(begin), dims,
-                targets.ptr<float>(), dims, 0.0f, products.data(), total);
-    // The scan is as long as the product is cheap: spread it over the cores too.
-    cv::parallel_for_(cv::Range(0, rows), [&](const cv::Range& range) {
-      for (int r = range.start; r < range.end; ++r) {
-        const int q = begin + r;
-        const float* row = products.data() + static_cast<size_t>(r) * total;
-        for (size_t i = 0; i < image_count; ++i) {
-          if (images[i]->rows < 2) continue;  // the ratio test needs two neighbours
-          const NearestTwo found = nearestTwo(row + first_row[i], target_norms.data() + first_row[i], query_norms[q],
-                                              images[i]->rows);
-          if (found.index < 0 || !(found.nearest < max_squared_ratio * found.second)) continue;
-          nearest[static_cast<size_t>(q) * image_count + i] = found.index;
-          nearest_distance[static_cast<size_t>(q) * image_count + i] = found.nearest;
-        }
-      }
-    });
   }
   for (int q = 0; q < query.rows; ++q)
     for (size_t i = 0; i < image_count; ++i) {

@@ -37,12 +37,22 @@ class DescriptorIndex {
   int rows_ = 0;
 };
 
-// Exact ratio-test matching of `query` (CV_32F rows) against several images' descriptors at
-// once: one single-precision matrix product (BLAS) per block of query rows against all images,
-// then, per image, the two nearest of every query row and the same one-to-one rule as
+// How matchExactly computes its dot products. Both give the same exact integers, so the same
+// matches on every CPU.
+enum class ProductKernel {
+  kFastest,  // AVX-512 VNNI where the CPU has it (one instruction: 64 byte products), else BLAS
+  kBlas,     // single-precision BLAS on the bytes as floats (exact: every sum stays below 2^24)
+};
+
+// Exact ratio-test matching of `query` against several images' descriptors at once, all
+// quantized RootSIFT (CV_8U rows of 128, quantizeDescriptors): the squared distances are exact
+// integers, then, per image, the two nearest of every query row and the same one-to-one rule as
 // DescriptorIndex::match. Exact search finds the true second neighbour, which the kd-forest
 // misses often enough to let ambiguous matches through (docs/classical.md).
 std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query, const std::vector<const cv::Mat*>& images,
-                                                           float ratio);
+                                                           float ratio, ProductKernel kernel = ProductKernel::kFastest);
+
+// Whether ProductKernel::kFastest runs the VNNI kernel on this CPU.
+bool hasVnniProducts();
 
 }  // namespace ffloc
