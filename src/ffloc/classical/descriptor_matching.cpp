@@ -133,6 +133,10 @@ FFLOC_ALSO_FOR_AVX2 NearestTwo nearestTwo(const float* products, const float* ta
 }
 
 constexpr int kDims = 128;
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define FFLOC_HAS_VNNI_KERNEL 1
+
 constexpr int kChunks = kDims / 4;  // VNNI multiplies and sums 4 bytes at a time
 constexpr int kBlockTargets = 16;  // one 4-byte chunk of 16 targets fills a 512-bit vector
 constexpr int kKernelRows = 8;     // query rows per kernel pass: 8 x 2 blocks = 16 accumulators
@@ -165,8 +169,6 @@ PackedTargets packTargets(const cv::Mat& targets) {
   return packed;
 }
 
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define FFLOC_HAS_VNNI_KERNEL 1
 // Dot products of kKernelRows signed query rows with every packed target, as floats (exact:
 // at most 128 x 255^2 < 2^24), row r at out + r * stride.
 __attribute__((target("avx512f,avx512bw,avx512vnni"))) void vnniProducts(const int8_t* query, const PackedTargets& packed,
@@ -261,7 +263,8 @@ std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query,
     const PackedTargets packed = packTargets(targets);
     const size_t stride = static_cast<size_t>(packed.blocks) * kBlockTargets;
     const int groups = (query.rows + kKernelRows - 1) / kKernelRows;
-    // Each pass's products stay in the core's cache until the scan has read them.
+    // A group's products (8 rows of all targets: 448 KB on redkitchen) stay in the core's L2
+    // until the scan has read them. One stripe a thread: one buffer each.
     cv::parallel_for_(cv::Range(0, groups), [&](const cv::Range& range) {
       std::vector<int8_t> signed_rows(kKernelRows * kDims);
       std::vector<float> products(kKernelRows * stride);
@@ -275,8 +278,10 @@ std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query,
         vnniProducts(signed_rows.data(), packed, products.data(), stride);
         for (int r = 0; r < rows; ++r) scan(begin + r, products.data() + r * stride);
       }
-    });
+    }, cv::getNumThreads());
   } else
+#else
+  (void)kernel;  // one kernel only
 #endif
   {
     cv::Mat float_query, float_targets;

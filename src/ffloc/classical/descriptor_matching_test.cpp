@@ -71,12 +71,12 @@ std::vector<Matches> referenceMatches(const cv::Mat& query, const std::vector<cv
   return matches;
 }
 
-// Image sizes around the scan's 16 lanes and the VNNI kernel's blocks of 16 and 32 targets (0, 1
-// and 2 rows; one lane pass and a tail; many passes), 300 query rows (the kernel's groups of 8
-// and a tail of 4), queries that are noisy copies of targets so that many pass the ratio test,
-// and pairs of near-twin targets in the same lane and in different lanes, whose ratio test fails.
-// Every product kernel this CPU has must give exactly the rule's matches.
-TEST(DescriptorMatching, ExactMatchingAgreesWithTheRuleWrittenOut) {
+// Image sizes around the scan's 16 lanes (0, 1 and 2 rows; one lane pass and a tail; many
+// passes), 300 query rows (the VNNI kernel's groups of 8 and a tail of 4), queries that are noisy
+// copies of targets so that many pass the ratio test, and pairs of near-twin targets in the same
+// lane and in different lanes, whose ratio test fails. The kernel must give exactly the rule's
+// matches.
+void expectTheRulesMatches(ProductKernel kernel) {
   std::mt19937 random(7);
   const std::vector<int> sizes = {0, 1, 2, 15, 16, 17, 33, 100, 700};
   std::vector<cv::Mat> unit_images;
@@ -104,26 +104,62 @@ TEST(DescriptorMatching, ExactMatchingAgreesWithTheRuleWrittenOut) {
   std::vector<const cv::Mat*> pointers;
   for (const cv::Mat& image : images) pointers.push_back(&image);
   const std::vector<Matches> expected = referenceMatches(query, images, 0.8f);
-  std::vector<ProductKernel> kernels = {ProductKernel::kBlas};
-  if (hasVnniProducts()) kernels.push_back(ProductKernel::kFastest);
-  for (ProductKernel kernel : kernels) {
-    SCOPED_TRACE(kernel == ProductKernel::kBlas ? "BLAS" : "VNNI");
-    const std::vector<Matches> exact = matchExactly(query, pointers, 0.8f, kernel);
-    ASSERT_EQ(exact.size(), images.size());
-    size_t total = 0;
+  const std::vector<Matches> exact = matchExactly(query, pointers, 0.8f, kernel);
+  ASSERT_EQ(exact.size(), images.size());
+  size_t total = 0;
+  for (size_t i = 0; i < images.size(); ++i) {
+    const std::set<std::pair<int, int>> found(exact[i].begin(), exact[i].end());
+    const std::set<std::pair<int, int>> wanted(expected[i].begin(), expected[i].end());
+    EXPECT_EQ(found, wanted) << "image " << i << " of " << images[i].rows << " rows";
+    total += exact[i].size();
+  }
+  EXPECT_GT(total, 80u);  // the noisy copies matched (99; collisions in the small images cost the rest)
+  for (const auto& [q, t] : exact.back()) {
+    EXPECT_NE(q, 200) << "matched target " << t << " despite its twins";
+    EXPECT_NE(q, 201) << "matched target " << t << " though 5 and 22 are alike";
+  }
+}
+
+// One query at the ratio test's edge (0.8: a match needs d1 < 0.64 d2): against {A, B} its
+// squared distances are 6399 and 10000 and it matches A, against {A', B} 6401 and 10000 and it
+// does not. Its bytes are 150 and the targets' above 127, their sums unequal, so a distance off
+// by any amount (an offset wrong, a byte read as signed) turns one of the two decisions. Both
+// images alone (2 targets, under one block of 16), together, and with 28 more (32 in all: whole
+// blocks, no padding).
+void expectTheEdgeDecided(ProductKernel kernel) {
+  cv::Mat query(1, 128, CV_8U, cv::Scalar(0));
+  for (int c = 0; c < 5; ++c) query.at<uint8_t>(0, c) = 150;
+  const auto near_query = [&](const std::vector<int>& steps) {
+    cv::Mat target = query.clone();
+    for (size_t c = 0; c < steps.size(); ++c) target.at<uint8_t>(0, static_cast<int>(c)) += steps[c];
+    return target;
+  };
+  cv::Mat matched, unmatched;
+  cv::vconcat(near_query({79, 12, 3, 2, 1}), near_query({100}), matched);
+  cv::vconcat(near_query({80, 1}), near_query({100}), unmatched);
+  const cv::Mat far(28, 128, CV_8U, cv::Scalar(0));
+  const std::vector<std::vector<const cv::Mat*>> calls = {{&matched}, {&unmatched}, {&matched, &unmatched},
+                                                          {&matched, &unmatched, &far}};
+  for (const std::vector<const cv::Mat*>& images : calls) {
+    SCOPED_TRACE(std::to_string(images.size()) + " images");
+    const std::vector<Matches> found = matchExactly(query, images, 0.8f, kernel);
+    ASSERT_EQ(found.size(), images.size());
     for (size_t i = 0; i < images.size(); ++i) {
-      const std::set<std::pair<int, int>> found(exact[i].begin(), exact[i].end());
-      const std::set<std::pair<int, int>> wanted(expected[i].begin(), expected[i].end());
-      EXPECT_EQ(found, wanted) << "image " << i << " of " << images[i].rows << " rows";
-      total += exact[i].size();
-    }
-    EXPECT_GT(total, 80u);  // the noisy copies matched (99; collisions in the small images cost the rest)
-    for (const auto& [q, t] : exact.back()) {
-      EXPECT_NE(q, 200) << "matched target " << t << " despite its twins";
-      EXPECT_NE(q, 201) << "matched target " << t << " though 5 and 22 are alike";
+      const Matches wanted = images[i] == &matched ? Matches{{0, 0}} : Matches{};
+      EXPECT_EQ(found[i], wanted) << "image " << i;
     }
   }
-  if (!hasVnniProducts()) GTEST_SKIP() << "BLAS checked; this CPU has no AVX-512 VNNI, so its kernel was not run";
+}
+
+TEST(DescriptorMatching, BlasProductsGiveTheRulesMatches) {
+  expectTheRulesMatches(ProductKernel::kBlas);
+  expectTheEdgeDecided(ProductKernel::kBlas);
+}
+
+TEST(DescriptorMatching, VnniProductsGiveTheRulesMatches) {
+  if (!hasVnniProducts()) GTEST_SKIP() << "this CPU has no AVX-512 VNNI (the BLAS test covers its matching)";
+  expectTheRulesMatches(ProductKernel::kFastest);
+  expectTheEdgeDecided(ProductKernel::kFastest);
 }
 
 TEST(DescriptorMatching, RefusesUnquantizedDescriptors) {
