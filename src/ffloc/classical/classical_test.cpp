@@ -292,7 +292,7 @@ TEST_F(ClassicalTest, LocalizesQueriesThroughTheInterface) {
 TEST_F(ClassicalTest, AWrongFocalLengthIsNeverLocalized) {
   const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
   int flagged = 0;
-  for (const double scale : {0.6, 1.7}) {
+  for (const double scale : {0.6, 0.75, 1.33, 1.7}) {
     for (size_t q : scene_->queryIndices()) {
       const Frame& frame = scene_->frames[q];
       Intrinsics wrong = frame.intrinsics;

@@ -122,10 +122,11 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
         evidence.predicted_rotation_sigma_deg = std::numeric_limits<double>::infinity();
   }
 
-  const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera);
+  const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera, pnp.inlier_threshold_px);
   evidence.focal_scale = focal.valid ? focal.scale : 1;
   evidence.focal_scale_log_sigma = focal.valid ? focal.log_scale_sigma : std::numeric_limits<double>::infinity();
-  const PrincipalPointFit principal_point = fitPrincipalPoint(pixels, points, inliers, camera, world_to_camera);
+  const PrincipalPointFit principal_point =
+      fitPrincipalPoint(pixels, points, inliers, camera, world_to_camera, pnp.inlier_threshold_px);
   evidence.principal_point_shift =
       principal_point.valid ? principal_point.shift_px.norm() / camera.fx : std::numeric_limits<double>::infinity();
   evidence.principal_point_shift_significance = principal_point.valid ? principal_point.significance : 0;

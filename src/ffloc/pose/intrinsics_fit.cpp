@@ -42,15 +42,18 @@ template <int M>
 struct IntrinsicsEstimate {
   Eigen::Matrix<double, M, 1> value;
   Eigen::Matrix<double, M, M> covariance;
+  Pose world_to_camera;  // the pose fitted with them
 };
 
 // Levenberg-Marquardt on the pose (its left perturbation, as in projectionJacobian) and the
-// parameters; their estimate with its predicted covariance (the pixel noise from the residuals),
-// none when the fit is singular or fewer than 5 pairs are in front of the camera.
+// parameters, started at `world_to_camera` and `start`; their estimate with its predicted
+// covariance (the pixel noise from the residuals), none when the fit is singular or fewer than 5
+// pairs are in front of the camera.
 template <typename Parameters>
 std::optional<IntrinsicsEstimate<Parameters::kCount>> fitIntrinsics(
     const Parameters& parameters, const std::vector<Eigen::Vector2d>& pixels,
-    const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices, const Pose& world_to_camera) {
+    const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices, const Pose& world_to_camera,
+    const Eigen::Matrix<double, Parameters::kCount, 1>& start = Eigen::Matrix<double, Parameters::kCount, 1>::Zero()) {
   constexpr int M = Parameters::kCount;
   constexpr int D = 6 + M;
   using Vector = Eigen::Matrix<double, D, 1>;
@@ -86,7 +89,7 @@ std::optional<IntrinsicsEstimate<Parameters::kCount>> fitIntrinsics(
   };
 
   Pose pose = world_to_camera;
-  Intrinsic x = Intrinsic::Zero();
+  Intrinsic x = start;
   auto [current_cost, in_front] = cost(pose, x);
   // Five pairs leave at least two degrees of freedom for the noise estimate.
   if (in_front < 5) return std::nullopt;
@@ -128,18 +131,47 @@ std::optional<IntrinsicsEstimate<Parameters::kCount>> fitIntrinsics(
     return std::nullopt;
   const double pixel_variance = current_cost / (2 * in_front - D);
   const Matrix covariance = pixel_variance * scale.asDiagonal() * factor.solve(Matrix::Identity()) * scale.asDiagonal();
-  IntrinsicsEstimate<M> estimate{x, covariance.template bottomRightCorner<M, M>()};
+  IntrinsicsEstimate<M> estimate{x, covariance.template bottomRightCorner<M, M>(), pose};
   if (!estimate.value.allFinite() || !estimate.covariance.allFinite() || !(estimate.covariance.diagonal().minCoeff() >= 0))
     return std::nullopt;
   return estimate;
 }
 
+// The fit over `indices`, then again over the pairs within `inlier_threshold_px` under the
+// fitted intrinsics and pose, until they stop changing (at most kIntrinsicsRefitRounds fits);
+// one fit when the threshold is 0.
+template <typename Parameters>
+std::optional<IntrinsicsEstimate<Parameters::kCount>> fitOnExplainedPairs(
+    const Parameters& parameters, const std::vector<Eigen::Vector2d>& pixels,
+    const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices, const Pose& world_to_camera,
+    double inlier_threshold_px) {
+  std::optional<IntrinsicsEstimate<Parameters::kCount>> latest;
+  std::vector<int> fitted = indices;
+  Pose pose = world_to_camera;
+  Eigen::Matrix<double, Parameters::kCount, 1> start = Eigen::Matrix<double, Parameters::kCount, 1>::Zero();
+  for (int round = 0; round < kIntrinsicsRefitRounds; ++round) {
+    const auto estimate = fitIntrinsics(parameters, pixels, points, fitted, pose, start);
+    if (!estimate) break;
+    latest = estimate;
+    if (!(inlier_threshold_px > 0)) break;
+    std::vector<int> explained =
+        findInliers(pixels, points, parameters.camera(estimate->value), estimate->world_to_camera, inlier_threshold_px);
+    if (explained == fitted) break;
+    fitted = std::move(explained);
+    pose = estimate->world_to_camera;
+    start = estimate->value;
+  }
+  return latest;
+}
+
 }  // namespace
 
 FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
-                       const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera) {
+                       const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
+                       double inlier_threshold_px) {
   FocalFit fit;
-  const auto estimate = fitIntrinsics(FocalScaleParameters{camera}, pixels, points, indices, world_to_camera);
+  const auto estimate =
+      fitOnExplainedPairs(FocalScaleParameters{camera}, pixels, points, indices, world_to_camera, inlier_threshold_px);
   if (!estimate) return fit;
   fit.valid = true;
   fit.scale = std::exp(estimate->value(0));
@@ -149,9 +181,10 @@ FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::ve
 
 PrincipalPointFit fitPrincipalPoint(const std::vector<Eigen::Vector2d>& pixels,
                                     const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices,
-                                    const Intrinsics& camera, const Pose& world_to_camera) {
+                                    const Intrinsics& camera, const Pose& world_to_camera, double inlier_threshold_px) {
   PrincipalPointFit fit;
-  const auto estimate = fitIntrinsics(PrincipalPointParameters{camera}, pixels, points, indices, world_to_camera);
+  const auto estimate = fitOnExplainedPairs(PrincipalPointParameters{camera}, pixels, points, indices, world_to_camera,
+                                            inlier_threshold_px);
   if (!estimate) return fit;
   const Eigen::LDLT<Eigen::Matrix2d> covariance(estimate->covariance);
   if (covariance.info() != Eigen::Success || !covariance.isPositive()) return fit;

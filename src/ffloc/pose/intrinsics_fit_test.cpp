@@ -1,5 +1,8 @@
 #include "ffloc/pose/intrinsics_fit.h"
 
+#include "ffloc/pose/refine_pose.h"
+#include "ffloc/pose/reprojection.h"
+
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -24,12 +27,12 @@ struct Pairs {
   std::vector<int> indices;
 };
 
-// Pixels seen by a camera with the intrinsics `truth`, with 0.5 px noise, of points `near` to
-// `far` deep.
-Pairs observe(const Intrinsics& truth, double near, double far, uint64_t seed) {
+// Pixels seen by a camera with the intrinsics `truth`, with `noise_px` of noise, of points `near`
+// to `far` deep.
+Pairs observe(const Intrinsics& truth, double near, double far, uint64_t seed, double noise_px = 0.5) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u(0, 640), v(0, 480), depth(near, far);
-  std::normal_distribution<double> noise(0, 0.5);
+  std::normal_distribution<double> noise(0, noise_px);
   const Pose camera_to_world = worldToCamera().inverse();
   Pairs pairs;
   for (int i = 0; i < 300; ++i) {
@@ -42,11 +45,11 @@ Pairs observe(const Intrinsics& truth, double near, double far, uint64_t seed) {
   return pairs;
 }
 
-Pairs observe(double true_scale, double near, double far, uint64_t seed) {
+Pairs observe(double true_scale, double near, double far, uint64_t seed, double noise_px = 0.5) {
   Intrinsics truth = givenCamera();
   truth.fx *= true_scale;
   truth.fy *= true_scale;
-  return observe(truth, near, far, seed);
+  return observe(truth, near, far, seed, noise_px);
 }
 
 // Started at the pose and focal length given, the fit finds the focal length the pixels were
@@ -61,6 +64,28 @@ TEST(FocalFit, RecoversTheFocalLengthThePixelsWereSeenWith) {
     EXPECT_GT(fit.log_scale_sigma, 0);
     EXPECT_LT(fit.log_scale_sigma, 0.01);
   }
+}
+
+// A pose estimated with a focal length 1.33 times the true one (3 px of noise): its inliers (8 px,
+// 58 of 300) are the pairs that focal length explains, and a fit over them alone is drawn back
+// towards it (0.83). With the threshold, the pairs the fitted focal length and pose explain join
+// in, round by round, and the fit reaches the true focal length.
+TEST(FocalFit, RefitOnThePairsItExplainsEscapesTheInliersOfTheWrongFocalLength) {
+  const double true_scale = 0.75;
+  const Pairs pairs = observe(true_scale, 1, 6, 11, 3);
+  Pose pose = worldToCamera();
+  RefinePoseOptions cauchy;
+  cauchy.loss_scale_px = 4;
+  refinePose(pairs.pixels, pairs.points, pairs.indices, givenCamera(), cauchy, &pose);
+  const std::vector<int> inliers = findInliers(pairs.pixels, pairs.points, givenCamera(), pose, 8);
+  ASSERT_GT(inliers.size(), 20u);
+  ASSERT_LT(inliers.size(), pairs.pixels.size());
+  const FocalFit once = fitFocalScale(pairs.pixels, pairs.points, inliers, givenCamera(), pose);
+  const FocalFit refit = fitFocalScale(pairs.pixels, pairs.points, inliers, givenCamera(), pose, 8);
+  ASSERT_TRUE(once.valid);
+  ASSERT_TRUE(refit.valid);
+  EXPECT_NEAR(refit.scale, true_scale, 0.01 * true_scale);
+  EXPECT_GT(std::abs(once.scale - true_scale), 0.05 * true_scale);
 }
 
 // Points of a thin, far slab: a longer focal length and a camera moved back see nearly the same
@@ -98,6 +123,29 @@ TEST(PrincipalPointFit, RecoversThePrincipalPointThePixelsWereSeenWith) {
   ASSERT_TRUE(same.valid);
   EXPECT_LT(same.shift_px.norm(), 1.5);
   EXPECT_LT(same.significance, 4);
+}
+
+// The same for a principal point 60 px (0.12 focal lengths) from the one given, 3 px of noise:
+// the inliers of the pose estimated with the given one fit a shift drawn back towards it, the
+// refit the shift.
+TEST(PrincipalPointFit, RefitOnThePairsItExplainsEscapesTheInliersOfTheWrongPrincipalPoint) {
+  Intrinsics truth = givenCamera();
+  truth.cx += 60;
+  const Pairs pairs = observe(truth, 1, 6, 13, 3);
+  Pose pose = worldToCamera();
+  RefinePoseOptions cauchy;
+  cauchy.loss_scale_px = 4;
+  refinePose(pairs.pixels, pairs.points, pairs.indices, givenCamera(), cauchy, &pose);
+  const std::vector<int> inliers = findInliers(pairs.pixels, pairs.points, givenCamera(), pose, 8);
+  ASSERT_GT(inliers.size(), 20u);
+  ASSERT_LT(inliers.size(), pairs.pixels.size());
+  const PrincipalPointFit once = fitPrincipalPoint(pairs.pixels, pairs.points, inliers, givenCamera(), pose);
+  const PrincipalPointFit refit = fitPrincipalPoint(pairs.pixels, pairs.points, inliers, givenCamera(), pose, 8);
+  ASSERT_TRUE(once.valid);
+  ASSERT_TRUE(refit.valid);
+  EXPECT_LT(once.shift_px.x(), 50);  // 42 px, of 179 inliers
+  EXPECT_NEAR(refit.shift_px.x(), 60, 3);
+  EXPECT_NEAR(refit.shift_px.y(), 0, 3);
 }
 
 // A narrow view of a far, thin slab: moving the principal point and turning the camera move the
