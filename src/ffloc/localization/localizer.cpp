@@ -142,7 +142,8 @@ void Localizer::estimateAndJudge(LocalizationResult& result, std::optional<PnpRe
     result.timings.verification += secondsSince(start);
   }
   PoseEvidence evidence =
-      measureEvidence(result.correspondences, result.camera, result.pnp, options.pnp, second ? &*second : nullptr);
+      measureEvidence(result.correspondences, result.camera, result.pnp, options.pnp, second ? &*second : nullptr,
+                      intrinsicsFitPairs());
   evidence.independent_second_estimate = independent;
   scalePredictedUncertainty(evidence, uncertaintyScale());
   result.verdict = judgePose(evidence, result.pnp, metric(), options.verdict);

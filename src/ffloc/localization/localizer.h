@@ -139,6 +139,8 @@ class Localizer {
   // How much larger this method's errors run than its inliers predict: the evidence's predicted
   // uncertainties are the inliers' covariance times this (scalePredictedUncertainty).
   virtual double uncertaintyScale() const { return 1.0; }
+  // Which pairs the evidence's intrinsics fits use (measureEvidence).
+  virtual IntrinsicsFitPairs intrinsicsFitPairs() const { return IntrinsicsFitPairs::kExplained; }
   // At most `max_points` of the map's world points, taken evenly over the map (what the server's
   // viewer draws); none for a method whose map holds no points.
   virtual std::vector<Eigen::Vector3d> mapPoints(size_t /*max_points*/) const { return {}; }

@@ -74,7 +74,7 @@ void VerdictOptions::check() const {
 }
 
 PoseEvidence measureEvidence(const Correspondences& correspondences, const Intrinsics& camera, const PnpResult& pose,
-                             const PnpOptions& pnp, const PnpResult* second_estimate) {
+                             const PnpOptions& pnp, const PnpResult* second_estimate, IntrinsicsFitPairs fit_pairs) {
   PoseEvidence evidence;
   evidence.inliers = pose.inliers;
   evidence.used_correspondences = pose.used_correspondences;
@@ -122,11 +122,12 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
         evidence.predicted_rotation_sigma_deg = std::numeric_limits<double>::infinity();
   }
 
-  const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera, pnp.inlier_threshold_px);
+  const double refit_threshold_px = fit_pairs == IntrinsicsFitPairs::kExplained ? pnp.inlier_threshold_px : 0;
+  const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
   evidence.focal_scale = focal.valid ? focal.scale : 1;
   evidence.focal_scale_log_sigma = focal.valid ? focal.log_scale_sigma : std::numeric_limits<double>::infinity();
   const PrincipalPointFit principal_point =
-      fitPrincipalPoint(pixels, points, inliers, camera, world_to_camera, pnp.inlier_threshold_px);
+      fitPrincipalPoint(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
   evidence.principal_point_shift =
       principal_point.valid ? principal_point.shift_px.norm() / camera.fx : std::numeric_limits<double>::infinity();
   evidence.principal_point_shift_significance = principal_point.valid ? principal_point.significance : 0;

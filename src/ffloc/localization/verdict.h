@@ -113,10 +113,23 @@ struct PoseVerdict {
   std::string reason;  // the first test that failed; empty for kLocalized
 };
 
+// How the intrinsics fits of measureEvidence choose their pairs.
+enum class IntrinsicsFitPairs {
+  // The inliers, then the pairs the fitted intrinsics and pose explain (PnP's inlier threshold),
+  // again and again (pose/intrinsics_fit.h): for pairs whose errors are independent.
+  kExplained,
+  // The inliers only: for one network's dense predictions, whose errors run together across the
+  // image. Re-selected, they pull the fits to intrinsics no camera has: on the synthetic held-out
+  // sets six right FastForward poses would be marked uncertain, their principal points fitting
+  // 0.11-0.41 focal lengths off at 8-12 sigma.
+  kInliers,
+};
+
 // Evidence of `pose` (the PnP result on `correspondences`, pixels in `camera`'s grid) and of an
 // optional second estimate, then the rule.
 PoseEvidence measureEvidence(const Correspondences& correspondences, const Intrinsics& camera, const PnpResult& pose,
-                             const PnpOptions& pnp, const PnpResult* second_estimate);
+                             const PnpOptions& pnp, const PnpResult* second_estimate,
+                             IntrinsicsFitPairs fit_pairs = IntrinsicsFitPairs::kExplained);
 PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool metric, const VerdictOptions& options);
 // Multiplies the pose's predicted uncertainties (centre, centre over depth, rotation; those
 // measured, not the negative "no pose") by `scale`, not the focal fit's (verdict.cpp says why);

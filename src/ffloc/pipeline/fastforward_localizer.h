@@ -54,6 +54,7 @@ class FastForwardLocalizer : public Localizer {
   // model, whose actual centre errors run 2.1x the unscaled prediction at the median and 4.5x at
   // the 90th percentile; other models (the ViT, a retrained one) get the same scale unmeasured.
   double uncertaintyScale() const override { return 3.5; }
+  IntrinsicsFitPairs intrinsicsFitPairs() const override { return IntrinsicsFitPairs::kInliers; }
   const std::vector<MapCamera>& cameras() const override { return cameras_; }
   const MapFile& map() const { return map_; }
 
