@@ -255,5 +255,31 @@ TEST(Verdict, PredictedUncertaintyComesFromTheInliers) {
   EXPECT_LT(evidence.predicted_rotation_sigma_deg, 1);
 }
 
+// Pixels seen with 0.75 times the focal length given (3 px of noise, depths 1-6 m) and a pose
+// estimated with the one given: the fit over the inliers alone is drawn back towards the focal
+// length given; re-selecting the pairs the fit explains (the classical methods) finds the true one,
+// and FastForward's mode keeps the single fit.
+TEST(Verdict, IntrinsicsFitsReselectTheirPairsUnlessTold) {
+  const Intrinsics given = vgaCamera();
+  Intrinsics truth = given;
+  truth.fx *= 0.75;
+  truth.fy *= 0.75;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0, 640), v(0, 480), depth(1, 6);
+  std::normal_distribution<double> noise(0, 3);
+  Correspondences pairs;
+  for (int i = 0; i < 300; ++i) {
+    const Eigen::Vector2d pixel(u(rng), v(rng));
+    pairs.add(pixel + Eigen::Vector2d(noise(rng), noise(rng)), truth.backproject(pixel, depth(rng)), 3.0f);
+  }
+  const PnpResult pose = estimatePose(pairs, given, PnpOptions{});
+  ASSERT_TRUE(pose.ok());
+  const PoseEvidence reselected = measureEvidence(pairs, given, pose, PnpOptions{}, nullptr);
+  const PoseEvidence inliers_only =
+      measureEvidence(pairs, given, pose, PnpOptions{}, nullptr, IntrinsicsFitPairs::kInliers);
+  EXPECT_NEAR(reselected.focal_scale, 0.75, 0.01);
+  EXPECT_GT(inliers_only.focal_scale, 0.78);
+}
+
 }  // namespace
 }  // namespace ffloc
