@@ -52,6 +52,16 @@ Pairs observe(double true_scale, double near, double far, uint64_t seed, double 
   return observe(truth, near, far, seed, noise_px);
 }
 
+// The pose that best fits `pairs` under the intrinsics given (a Cauchy loss, from the true pose),
+// and its inliers (8 px): what PnP hands the verdict when the query's intrinsics are wrong.
+std::pair<Pose, std::vector<int>> poseWithTheGivenIntrinsics(const Pairs& pairs) {
+  Pose pose = worldToCamera();
+  RefinePoseOptions cauchy;
+  cauchy.loss_scale_px = 4;
+  refinePose(pairs.pixels, pairs.points, pairs.indices, givenCamera(), cauchy, &pose);
+  return {pose, findInliers(pairs.pixels, pairs.points, givenCamera(), pose, 8)};
+}
+
 // Started at the pose and focal length given, the fit finds the focal length the pixels were
 // seen with, and says how well the depth relief determines it.
 TEST(FocalFit, RecoversTheFocalLengthThePixelsWereSeenWith) {
@@ -73,11 +83,7 @@ TEST(FocalFit, RecoversTheFocalLengthThePixelsWereSeenWith) {
 TEST(FocalFit, RefitOnThePairsItExplainsEscapesTheInliersOfTheWrongFocalLength) {
   const double true_scale = 0.75;
   const Pairs pairs = observe(true_scale, 1, 6, 11, 3);
-  Pose pose = worldToCamera();
-  RefinePoseOptions cauchy;
-  cauchy.loss_scale_px = 4;
-  refinePose(pairs.pixels, pairs.points, pairs.indices, givenCamera(), cauchy, &pose);
-  const std::vector<int> inliers = findInliers(pairs.pixels, pairs.points, givenCamera(), pose, 8);
+  const auto [pose, inliers] = poseWithTheGivenIntrinsics(pairs);
   ASSERT_GT(inliers.size(), 20u);
   ASSERT_LT(inliers.size(), pairs.pixels.size());
   const FocalFit once = fitFocalScale(pairs.pixels, pairs.points, inliers, givenCamera(), pose);
@@ -132,11 +138,7 @@ TEST(PrincipalPointFit, RefitOnThePairsItExplainsEscapesTheInliersOfTheWrongPrin
   Intrinsics truth = givenCamera();
   truth.cx += 60;
   const Pairs pairs = observe(truth, 1, 6, 13, 3);
-  Pose pose = worldToCamera();
-  RefinePoseOptions cauchy;
-  cauchy.loss_scale_px = 4;
-  refinePose(pairs.pixels, pairs.points, pairs.indices, givenCamera(), cauchy, &pose);
-  const std::vector<int> inliers = findInliers(pairs.pixels, pairs.points, givenCamera(), pose, 8);
+  const auto [pose, inliers] = poseWithTheGivenIntrinsics(pairs);
   ASSERT_GT(inliers.size(), 20u);
   ASSERT_LT(inliers.size(), pairs.pixels.size());
   const PrincipalPointFit once = fitPrincipalPoint(pairs.pixels, pairs.points, inliers, givenCamera(), pose);
