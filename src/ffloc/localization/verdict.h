@@ -31,12 +31,13 @@ struct PoseEvidence {
   double predicted_centre_sigma = -1;
   double predicted_centre_sigma_relative = -1;
   double predicted_rotation_sigma_deg = -1;
-  // The focal length the inliers fit best, over the one given (fitFocalScale), and the predicted
-  // standard deviation of its logarithm. Negative without a pose, +inf sigma when the inliers
+  // The focal length the pairs fit best, over the one given (fitFocalScale, over the inliers or
+  // the pairs it explains: IntrinsicsFitPairs), and the predicted standard deviation of its
+  // logarithm. Negative without a pose, +inf sigma when the inliers
   // do not determine it.
   double focal_scale = -1;
   double focal_scale_log_sigma = -1;
-  // The principal point the inliers fit best (fitPrincipalPoint): its distance from the one
+  // The principal point the pairs fit best (fitPrincipalPoint, the same pairs): its distance from the one
   // given over the focal length fx (for small shifts, the angle it turns the view by, in
   // radians), and that shift in predicted standard deviations. Negative without a pose; a shift
   // of +inf at significance 0 when the inliers do not determine it (null in JSON).

@@ -12,7 +12,7 @@ namespace ffloc {
 // or principal point still finds thousands of inliers: the pose moves to make up for it and lands
 // metres off (docs/verdict.md). Fitting the suspect intrinsics beside the pose tells it apart where
 // the scene's depth relief determines them; where it does not (a far plane) the fit's predicted
-// uncertainty is large. Each fit is Levenberg-Marquardt over the pairs `indices` (the inliers),
+// uncertainty is large. Each fit is Levenberg-Marquardt over the pairs `indices` (the inliers, at first),
 // started at `world_to_camera` and the intrinsics given, and is invalid with fewer than 5 pairs in
 // front of the camera or a singular fit.
 //
