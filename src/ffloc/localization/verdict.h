@@ -33,14 +33,13 @@ struct PoseEvidence {
   double predicted_rotation_sigma_deg = -1;
   // The focal length the pairs fit best, over the one given (fitFocalScale, over the inliers or
   // the pairs it explains: IntrinsicsFitPairs), and the predicted standard deviation of its
-  // logarithm. Negative without a pose, +inf sigma when the inliers
-  // do not determine it.
+  // logarithm. Negative without a pose, +inf sigma when the pairs do not determine it.
   double focal_scale = -1;
   double focal_scale_log_sigma = -1;
-  // The principal point the pairs fit best (fitPrincipalPoint, the same pairs): its distance from the one
-  // given over the focal length fx (for small shifts, the angle it turns the view by, in
-  // radians), and that shift in predicted standard deviations. Negative without a pose; a shift
-  // of +inf at significance 0 when the inliers do not determine it (null in JSON).
+  // The principal point the pairs fit best (fitPrincipalPoint, the same pairs): its distance
+  // from the one given over the focal length fx (for small shifts, the angle it turns the view
+  // by, in radians), and that shift in predicted standard deviations. Negative without a pose; a
+  // shift of +inf at significance 0 when the pairs do not determine it (null in JSON).
   double principal_point_shift = -1;
   double principal_point_shift_significance = -1;
   // A second, independent estimate (another reference image, another half of the pairs): the
