@@ -53,7 +53,7 @@ template <typename Parameters>
 std::optional<IntrinsicsEstimate<Parameters::kCount>> fitIntrinsics(
     const Parameters& parameters, const std::vector<Eigen::Vector2d>& pixels,
     const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices, const Pose& world_to_camera,
-    const Eigen::Matrix<double, Parameters::kCount, 1>& start = Eigen::Matrix<double, Parameters::kCount, 1>::Zero()) {
+    const Eigen::Matrix<double, Parameters::kCount, 1>& start) {
   constexpr int M = Parameters::kCount;
   constexpr int D = 6 + M;
   using Vector = Eigen::Matrix<double, D, 1>;
