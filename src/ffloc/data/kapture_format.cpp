@@ -331,16 +331,13 @@ bool looksLikeKapture(const fs::path& dir) {
 }
 
 Scene readKapture(const fs::path& dir) {
-  Scene scene = emptyScene(dir, "kapture", true);
-  bool found = false;
-  for (const auto& [folder, split] : kKaptureFolders)
-    if (fs::is_regular_file(dir / folder / "sensors" / "sensors.txt")) {
-      readFolder((dir / folder).lexically_normal(), dir, split, scene);
-      found = true;
-    }
   // Named with --format kapture, any folder read as a dataset of no frames, exit 0.
-  if (!found)
+  if (!looksLikeKapture(dir))
     throwInputError(dir.string(), 0, "not a kapture dataset: no sensors/sensors.txt in it, nor in mapping/ or query/");
+  Scene scene = emptyScene(dir, "kapture", true);
+  for (const auto& [folder, split] : kKaptureFolders)
+    if (fs::is_regular_file(dir / folder / "sensors" / "sensors.txt"))
+      readFolder((dir / folder).lexically_normal(), dir, split, scene);
   return scene;
 }
 
