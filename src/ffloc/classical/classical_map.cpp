@@ -132,7 +132,8 @@ void writeClassicalMap(const ClassicalMap& map, const std::filesystem::path& pat
       {"origin", {origin.x(), origin.y(), origin.z()}},
       {"sift", {{"max_image_size", map.sift.max_image_size}, {"max_features", map.sift.max_features},
                 {"contrast_threshold", map.sift.contrast_threshold}, {"min_features", map.sift.min_features},
-                {"low_contrast_threshold", map.sift.low_contrast_threshold}}},
+                {"low_contrast_threshold", map.sift.low_contrast_threshold},
+                {"correct_upsampling_offset", map.sift.correct_upsampling_offset}}},
       {"ratio", map.ratio},
       {"images", images},
       {"checksums", checksums}};
@@ -178,6 +179,8 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   // alone; their queries must be described the same way.
   map.sift.min_features = sift.has("min_features") ? static_cast<int>(sift.integer("min_features", 0, SiftOptions::kMaxFeatures)) : 0;
   if (sift.has("low_contrast_threshold")) map.sift.low_contrast_threshold = sift.finiteNumber("low_contrast_threshold");
+  // Likewise the keypoints of maps written before OpenCV's offset was corrected.
+  map.sift.correct_upsampling_offset = sift.has("correct_upsampling_offset") && sift.boolean("correct_upsampling_offset");
   map.ratio = static_cast<float>(top.finiteNumber("ratio"));
   try {
     map.sift.check();

@@ -174,6 +174,7 @@ TEST_F(ClassicalTest, MapsWithoutTheFillUpKeepDescribingQueriesWithoutIt) {
   nlohmann::json body = nlohmann::json::parse(archive->metadata().at("ffloc_map_body"));
   body["sift"].erase("min_features");
   body["sift"].erase("low_contrast_threshold");
+  body["sift"].erase("correct_upsampling_offset");
   const std::string body_text = body.dump();
   nlohmann::json header = nlohmann::json::parse(archive->metadata().at(kMapMetadataKey));
   header["body_checksum"] = hex64(fnv1a64(body_text));
@@ -184,6 +185,81 @@ TEST_F(ClassicalTest, MapsWithoutTheFillUpKeepDescribingQueriesWithoutIt) {
   const ClassicalMap old = readClassicalMap(old_path);
   EXPECT_EQ(old.sift.min_features, 0);
   EXPECT_EQ(old.sift.contrast_threshold, SiftOptions{}.contrast_threshold);
+  EXPECT_FALSE(old.sift.correct_upsampling_offset);
+  EXPECT_TRUE(readClassicalMap(path).sift.correct_upsampling_offset);
+}
+
+// Bright Gaussian blobs on grey at sub-pixel centres (pixel centres at integers), `scale` times
+// the size of a 200 x 200 image.
+cv::Mat blobImage(const std::vector<Eigen::Vector2d>& centres, double scale) {
+  const int side = static_cast<int>(std::lround(200 * scale));
+  cv::Mat3b image(side, side);
+  const double sigma = 3.0 * scale;
+  for (int y = 0; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      double value = 40;
+      for (const Eigen::Vector2d& c : centres)
+        value += 180 * std::exp(-(Eigen::Vector2d(x, y) - c * scale).squaredNorm() / (2 * sigma * sigma));
+      image(y, x) = cv::Vec3b::all(cv::saturate_cast<uchar>(value));
+    }
+  return image;
+}
+
+// Each keypoint within `tolerance` (pixels of `scale` times a 200 px image) of its blob's centre,
+// on average; the mean offset returned.
+Eigen::Vector2d meanOffsetFromBlobs(const SiftFeatures& features, const std::vector<Eigen::Vector2d>& centres,
+                                    double scale) {
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  int count = 0;
+  for (const Eigen::Vector2d& pixel : features.distorted_pixels)
+    for (const Eigen::Vector2d& c : centres)
+      if ((pixel - c * scale).norm() < 2 * scale) {
+        sum += pixel - c * scale;
+        ++count;
+      }
+  EXPECT_GE(count, static_cast<int>(centres.size()));
+  return count > 0 ? Eigen::Vector2d(sum / count) : Eigen::Vector2d::Constant(1e9);
+}
+
+// OpenCV reports keypoints a quarter of a working pixel off the blobs they mark; corrected, they
+// are within a twentieth of a pixel, in the image as stored and in one shrunk for detection.
+TEST(SiftFeatures, KeypointsMarkTheCentresOfTheirBlobs) {
+  const std::vector<Eigen::Vector2d> centres = {{50.0, 50.0}, {120.3, 60.7}, {70.6, 140.2}, {150.0, 150.5}};
+  for (double scale : {1.0, 3.0}) {
+    SCOPED_TRACE("scale " + std::to_string(scale));
+    const cv::Mat image = blobImage(centres, scale);
+    const Intrinsics camera{200 * scale, 200 * scale, 100 * scale, 100 * scale, image.cols, image.rows, {}};
+    SiftOptions options;
+    options.max_image_size = 200;
+    const SiftFeatures corrected = extractSiftFeatures(image, camera, "blobs", options);
+    EXPECT_LT(meanOffsetFromBlobs(corrected, centres, scale).norm(), 0.05 * scale);
+    options.correct_upsampling_offset = false;
+    const Eigen::Vector2d offset = meanOffsetFromBlobs(extractSiftFeatures(image, camera, "blobs", options), centres, scale);
+    EXPECT_NEAR(offset.x(), 0.25 * scale, 0.05 * scale);
+    EXPECT_NEAR(offset.y(), 0.25 * scale, 0.05 * scale);
+  }
+}
+
+// A cap of N keeps N keypoints, where OpenCV keeps the orientations tied with the N-th too; the
+// fill-up's cap likewise.
+TEST(SiftFeatures, TheCapKeepsExactlyThatManyKeypoints) {
+  const cv::Mat image = blobImage({{50.0, 50.0}, {120.3, 60.7}, {70.6, 140.2}, {150.0, 150.5}}, 1.0);
+  const Intrinsics camera{200, 200, 100, 100, image.cols, image.rows, {}};
+  SiftOptions options;
+  options.min_features = 0;
+  const size_t all = extractSiftFeatures(image, camera, "blobs", options).pixels.size();
+  ASSERT_GT(all, 8u);  // each blob several times, one keypoint per orientation
+  for (int cap = 1; cap < static_cast<int>(all); ++cap) {
+    options.max_features = cap;
+    const SiftFeatures features = extractSiftFeatures(image, camera, "blobs", options);
+    EXPECT_EQ(features.pixels.size(), static_cast<size_t>(cap));
+    EXPECT_EQ(features.descriptors.rows, cap);
+  }
+  options.max_features = 4000;
+  options.min_features = 3;
+  options.contrast_threshold = 0.9;  // finds nothing, so the fill-up describes the image
+  options.low_contrast_threshold = 0.005;
+  EXPECT_EQ(extractSiftFeatures(image, camera, "blobs", options).pixels.size(), 3u);
 }
 
 // Depth-lifted points are the scene's surface: they reproject onto their keypoint in their own

@@ -10,6 +10,34 @@
 #include "ffloc/io/image.h"
 
 namespace ffloc {
+namespace {
+
+// OpenCV's first octave is the image doubled: its pixel j samples the original at j / 2 - 1/4,
+// while OpenCV reports a keypoint found at j at j / 2 (SiftOptions::correct_upsampling_offset).
+constexpr double kUpsamplingOffset = 0.25;
+
+// OpenCV's cap keeps every keypoint tied with the last one it keeps (the orientations of one
+// point share its response), so a cap of N could keep N + 1. The strongest `limit`, the first
+// of a tie first.
+void keepStrongest(std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors, int limit) {
+  if (static_cast<int>(keypoints.size()) <= limit) return;
+  std::vector<int> order(keypoints.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](int a, int b) { return keypoints[a].response > keypoints[b].response; });
+  order.resize(limit);
+  std::sort(order.begin(), order.end());  // in the order OpenCV gave them
+  std::vector<cv::KeyPoint> kept;
+  cv::Mat kept_descriptors(limit, descriptors.cols, descriptors.type());
+  for (int i = 0; i < limit; ++i) {
+    kept.push_back(keypoints[order[i]]);
+    descriptors.row(order[i]).copyTo(kept_descriptors.row(i));
+  }
+  keypoints = std::move(kept);
+  descriptors = kept_descriptors;
+}
+
+}  // namespace
 
 void SiftOptions::check() const {
   if (max_image_size < 16 || max_image_size > kMaxImageSize)
@@ -59,20 +87,25 @@ SiftFeatures extractSiftFeatures(const cv::Mat& rgb, const Intrinsics& intrinsic
   cv::SIFT::create(options.max_features, 3, options.contrast_threshold)
       ->detectAndCompute(gray, cv::noArray(), keypoints, features.descriptors);
   const int wanted = std::min(options.min_features, options.max_features);
+  int limit = options.max_features;
   if (static_cast<int>(keypoints.size()) < wanted) {
     keypoints.clear();
     cv::SIFT::create(wanted, 3, options.low_contrast_threshold)
         ->detectAndCompute(gray, cv::noArray(), keypoints, features.descriptors);
+    limit = wanted;
   }
+  keepStrongest(keypoints, features.descriptors, limit);
   if (features.descriptors.empty()) features.descriptors = cv::Mat(0, 128, CV_32F);
   if (features.descriptors.type() != CV_32F) features.descriptors.convertTo(features.descriptors, CV_32F);
   toRootSift(features.descriptors);
 
   // Working pixel -> original pixel, keeping pixel edges aligned (centres at integers).
   const double sx = static_cast<double>(gray.cols) / rgb.cols, sy = static_cast<double>(gray.rows) / rgb.rows;
+  const double offset = options.correct_upsampling_offset ? kUpsamplingOffset : 0.0;
   features.distorted_pixels.resize(keypoints.size());
   for (size_t i = 0; i < keypoints.size(); ++i)
-    features.distorted_pixels[i] = {(keypoints[i].pt.x + 0.5) / sx - 0.5, (keypoints[i].pt.y + 0.5) / sy - 0.5};
+    features.distorted_pixels[i] = {(keypoints[i].pt.x - offset + 0.5) / sx - 0.5,
+                                    (keypoints[i].pt.y - offset + 0.5) / sy - 0.5};
   features.pixels = undistortPixels(intrinsics, features.distorted_pixels);
   return features;
 }

@@ -21,7 +21,7 @@ struct SiftOptions {
   // images 1024 px and 4000 features localise as well as 1600 px and 8000 (1.9 mm against
   // 1.7 mm median) at a quarter of the matching time (docs/classical.md).
   int max_image_size = 1024;
-  int max_features = 4000;            // per image, strongest first
+  int max_features = 4000;            // per image, strongest first, never more
   double contrast_threshold = 0.02;   // SIFT's; lower than OpenCV's 0.04 to keep weak indoor texture
   // An image with fewer keypoints than this at contrast_threshold (a small image, weak texture)
   // is described again down to low_contrast_threshold, keeping the strongest min_features: on
@@ -31,6 +31,12 @@ struct SiftOptions {
   // (docs/classical.md). 0 turns it off (maps written before it existed).
   int min_features = 1000;
   double low_contrast_threshold = 0.005;
+  // OpenCV 4.6 detects on the image doubled by bilinear resampling and halves the positions back
+  // without the half pixel that resampling moved them: every keypoint comes out a quarter of a
+  // working pixel right of and below the blob it marks (0.75 px on a Strecha image). Corrected,
+  // unless a map was written before the correction existed: its queries keep the offset its
+  // images have.
+  bool correct_upsampling_offset = true;
 
   // InputError naming the field for a value out of range.
   void check() const;
