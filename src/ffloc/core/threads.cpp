@@ -28,7 +28,8 @@ int resolveThreadCount(int requested) {
 int setLibraryThreadCount(int requested) {
   const int threads = resolveThreadCount(requested);
   setBlasThreadCount(threads);
-  cv::setNumThreads(threads);
+  // TBB, OpenCV's pool, runs no more workers than the cores, and says so on stderr when asked to.
+  cv::setNumThreads(std::min(threads, resolveThreadCount(0)));
   return threads;
 }
 

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <opencv2/core/utility.hpp>
 #include <thread>
 
 #include "ffloc/core/error.h"
@@ -24,6 +25,17 @@ TEST(Threads, CountsOutsideTheRangeAreRefusedNamingTheField) {
       EXPECT_EQ(std::string(e.what()).rfind("threads: must be 0 (all hardware threads) to 256", 0), 0u) << e.what();
     }
   }
+}
+
+// More threads than cores: the count is kept for the pools that take it, OpenCV's runs one a core
+// (TBB would not start the rest, and said so on stderr).
+TEST(Threads, OpenCvRunsAtMostOneThreadPerCore) {
+  const int cores = resolveThreadCount(0);
+  EXPECT_EQ(setLibraryThreadCount(cores + 3), cores + 3);
+  EXPECT_EQ(cv::getNumThreads(), cores);
+  EXPECT_EQ(setLibraryThreadCount(1), 1);
+  EXPECT_EQ(cv::getNumThreads(), 1);
+  setLibraryThreadCount(0);
 }
 
 }  // namespace
