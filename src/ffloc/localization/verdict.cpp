@@ -180,10 +180,10 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
              (!metric || evidence.predicted_centre_sigma <= options.max_centre_sigma_m)))
     verdict.reason = "the inliers leave the pose too uncertain";
   else if (focalLengthMisfits(evidence, options))
-    verdict.reason = "the inliers fit a focal length " + std::to_string(evidence.focal_scale) +
+    verdict.reason = "the correspondences fit a focal length " + std::to_string(evidence.focal_scale) +
                      " times the one given: check the query's intrinsics";
   else if (principalPointMisfits(evidence, options))
-    verdict.reason = "the inliers fit a principal point " + std::to_string(evidence.principal_point_shift) +
+    verdict.reason = "the correspondences fit a principal point " + std::to_string(evidence.principal_point_shift) +
                      " focal lengths from the one given: check the query's intrinsics";
   else if (!std::isfinite(evidence.agreement_translation) || evidence.agreement_translation < 0) {
     if (evidence.independent_second_estimate)

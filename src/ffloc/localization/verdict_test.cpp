@@ -78,8 +78,8 @@ TEST(Verdict, AFocalLengthTheInliersDoNotFitMakesThePoseUncertain) {
   EXPECT_EQ(judged(0.8, 0.01).status, PoseStatus::kUncertain);   // below 1/1.2
   EXPECT_EQ(judged(1.3, 0.05).status, PoseStatus::kLocalized);    // 5.2 sigma
   EXPECT_EQ(judged(1.3, 0.04).status, PoseStatus::kUncertain);    // 6.6 sigma
-  EXPECT_EQ(judged(1.6, 0.02).reason, "the inliers fit a focal length 1.600000 times the one given: check the "
-                                      "query's intrinsics");
+  EXPECT_EQ(judged(1.6, 0.02).reason,
+            "the correspondences fit a focal length 1.600000 times the one given: check the query's intrinsics");
   EXPECT_EQ(judged(0.6, 0.02).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged(1.6, 0.5).status, PoseStatus::kLocalized);  // a far plane: the focal length is not determined
   EXPECT_EQ(judged(1.6, std::numeric_limits<double>::infinity()).status, PoseStatus::kLocalized);
@@ -100,8 +100,9 @@ TEST(Verdict, APrincipalPointTheInliersDoNotFitMakesThePoseUncertain) {
         rule);
   };
   EXPECT_EQ(judged(0.0, 0.0).status, PoseStatus::kLocalized);
-  EXPECT_EQ(judged(0.26, 483).reason, "the inliers fit a principal point 0.260000 focal lengths from the one given: "
-                                      "check the query's intrinsics");
+  EXPECT_EQ(judged(0.26, 483).reason,
+            "the correspondences fit a principal point 0.260000 focal lengths from the one given: check the query's "
+            "intrinsics");
   EXPECT_EQ(judged(0.12, 9).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged(0.12, 5).status, PoseStatus::kLocalized);   // a narrow view: not determined
   EXPECT_EQ(judged(0.052, 289).status, PoseStatus::kUncertain);  // Strecha fountain, 5 % of the width off
