@@ -19,6 +19,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
+#include "ffloc/io/testing/exif_jpeg.h"
 #include "ffloc/train/training_config.h"
 
 namespace ffloc {
@@ -307,6 +308,30 @@ TEST_F(Cli, LocalizeKeepsItsInputsRefusesTheOtherMethodsFlagsAndReportsLostOutpu
   std::ifstream err(errors);
   const std::string text((std::istreambuf_iterator<char>(err)), {});
   EXPECT_TRUE(contains(text, "error: standard output: write failed")) << text;
+}
+
+// A query stored sideways with an EXIF orientation is decoded upright; localize says so, sizes and
+// all, since intrinsics of the stored image no longer fit. Stored upright, it says nothing.
+TEST_F(Cli, LocalizeSaysWhenAQueryWasTurnedByItsExifOrientation) {
+  const auto [scene, map] = mappedSyntheticScene(6, "classical");
+  ASSERT_FALSE(HasFailure());
+  const cv::Mat upright = cv::imread((scene / "images" / "query_0000_near.png").string());
+  ASSERT_FALSE(upright.empty());
+  cv::Mat sideways;
+  cv::rotate(upright, sideways, cv::ROTATE_90_COUNTERCLOCKWISE);  // orientation 6 turns it back clockwise
+  const fs::path turned = dir_ / "sideways.jpg", plain = dir_ / "upright.jpg";
+  std::ofstream(turned, std::ios::binary) << testing::jpegWithExifOrientation(sideways, 6);
+  ASSERT_TRUE(cv::imwrite(plain.string(), upright));
+  const std::string note = "note: " + turned.string() + ": turned upright by its EXIF orientation, from " +
+                           std::to_string(upright.rows) + "x" + std::to_string(upright.cols) + " to " +
+                           std::to_string(upright.cols) + "x" + std::to_string(upright.rows);
+  const CliRun run = runCli({"localize", "--map", map.string(), "--image", turned.string(), "--intrinsics",
+                             "200,200,127.5,95.5", "--json"});
+  EXPECT_TRUE(contains(run.output, note)) << run.output;
+  const CliRun stored_upright = runCli({"localize", "--map", map.string(), "--image", plain.string(), "--intrinsics",
+                                        "200,200,127.5,95.5", "--json"});
+  EXPECT_FALSE(contains(stored_upright.output, "note:")) << stored_upright.output;
+  EXPECT_TRUE(contains(stored_upright.output, "\"status\"")) << stored_upright.output;
 }
 
 // eval --map of another scene's map scored its poses against this scene's truth without a word.

@@ -17,6 +17,7 @@
 #include "ffloc/eval/exports.h"
 #include "ffloc/eval/report.h"
 #include "ffloc/io/image.h"
+#include "ffloc/io/image_size.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/localization/localization_json.h"
@@ -217,6 +218,17 @@ void refuseOptionsOfTheOtherMethod(const LocalizeArguments& args, LocalizationMe
   }
 }
 
+// A phone stores a portrait photo sideways and says in EXIF how to turn it; the decoder turns it,
+// and intrinsics of the image as stored then fit it only by chance (the verdict then says the
+// principal point does not fit). Said on stderr, so that the answer's cause is in sight.
+void noteExifTurn(const std::filesystem::path& path, const cv::Mat& decoded) {
+  const std::optional<ImageHeader> header = fileImageHeader(path);
+  if (!header || !header->with_exif || header->size == decoded.size()) return;
+  std::cerr << "note: " << path.string() << ": turned upright by its EXIF orientation, from " << header->size.width
+            << "x" << header->size.height << " to " << decoded.cols << "x" << decoded.rows
+            << "; the intrinsics must be the upright image's\n";
+}
+
 int runLocalize(const LocalizeArguments& args) {
   setLibraryThreadCount(args.model.threads);
   if (args.image.empty() == args.image_list.empty()) throw InputError("give exactly one of --image and --images");
@@ -262,7 +274,9 @@ int runLocalize(const LocalizeArguments& args) {
     const Query& query = queries[q];
     nlohmann::json r;
     try {
-      const LocalizationResult result = localizer.localize(readImageRgb(query.path), query.intrinsics, query.name, options);
+      const cv::Mat image = readImageRgb(query.path);
+      noteExifTurn(query.path, image);
+      const LocalizationResult result = localizer.localize(image, query.intrinsics, query.name, options);
       r = localizationJson(query.name, result, localizer);
       FrameResult frame;
       frame.frame = query.name;
