@@ -187,6 +187,9 @@ TEST_F(ClassicalTest, MapsWithoutTheFillUpKeepDescribingQueriesWithoutIt) {
   EXPECT_EQ(old.sift.contrast_threshold, SiftOptions{}.contrast_threshold);
   EXPECT_FALSE(old.sift.correct_upsampling_offset);
   EXPECT_TRUE(readClassicalMap(path).sift.correct_upsampling_offset);
+  const fs::path rewritten = *dir_ / "rewritten-before-fill.ffmap";
+  writeClassicalMap(old, rewritten);
+  EXPECT_FALSE(readClassicalMap(rewritten).sift.correct_upsampling_offset);
 }
 
 // Bright Gaussian blobs on grey at sub-pixel centres (pixel centres at integers), `scale` times
@@ -205,8 +208,8 @@ cv::Mat blobImage(const std::vector<Eigen::Vector2d>& centres, double scale) {
   return image;
 }
 
-// Each keypoint within `tolerance` (pixels of `scale` times a 200 px image) of its blob's centre,
-// on average; the mean offset returned.
+// The mean offset from its blob's centre of the keypoints within 2 * scale px of one; at least one
+// keypoint a blob.
 Eigen::Vector2d meanOffsetFromBlobs(const SiftFeatures& features, const std::vector<Eigen::Vector2d>& centres,
                                     double scale) {
   Eigen::Vector2d sum = Eigen::Vector2d::Zero();

@@ -13,12 +13,14 @@ namespace ffloc {
 namespace {
 
 // OpenCV's first octave is the image doubled: its pixel j samples the original at j / 2 - 1/4,
-// while OpenCV reports a keypoint found at j at j / 2 (SiftOptions::correct_upsampling_offset).
+// while OpenCV reports a keypoint found at j at j / 2 (SiftOptions::correct_upsampling_offset;
+// OpenCV's issue 23123). OpenCV 4.8's `enable_precise_upscale`, off by default, removes the offset
+// at its source: turning it on would need this off.
 constexpr double kUpsamplingOffset = 0.25;
 
 // OpenCV's cap keeps every keypoint tied with the last one it keeps (the orientations of one
-// point share its response), so a cap of N could keep N + 1. The strongest `limit`, the first
-// of a tie first.
+// point share its response), so a cap of N could keep several more. The strongest `limit`, the
+// first of a tie first.
 void keepStrongest(std::vector<cv::KeyPoint>& keypoints, cv::Mat& descriptors, int limit) {
   if (static_cast<int>(keypoints.size()) <= limit) return;
   std::vector<int> order(keypoints.size());

@@ -28,8 +28,9 @@ int resolveThreadCount(int requested) {
 int setLibraryThreadCount(int requested) {
   const int threads = resolveThreadCount(requested);
   setBlasThreadCount(threads);
-  // TBB, OpenCV's pool, runs no more workers than the cores, and says so on stderr when asked to.
-  cv::setNumThreads(std::min(threads, resolveThreadCount(0)));
+  // TBB, OpenCV's pool, runs no more workers than the cores this process may use (its affinity
+  // mask, not the machine's count), and says so on stderr when asked to.
+  cv::setNumThreads(std::min(threads, cv::getNumberOfCPUs()));
   return threads;
 }
 

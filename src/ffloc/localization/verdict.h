@@ -70,17 +70,17 @@ struct VerdictOptions {
   double max_centre_sigma_m = 0.10;                                            // in metric maps only
   double max_rotation_sigma_deg = std::numeric_limits<double>::infinity();
   // A query given the wrong focal length still gets hundreds of inliers, its pose slid metres
-  // along the optical axis. When the inliers fit a focal length more than this fraction above the
-  // one given, or below it by the same ratio (1.2x or 1/1.2x), and more than kFocalSignificance
-  // predicted standard deviations of its logarithm away, the pose
-  // is kUncertain (docs/verdict.md). The prediction runs small, as the pose's does (its errors
+  // along the optical axis. When the correspondences fit a focal length more than this fraction
+  // above the one given, or below it by the same ratio (1.2x or 1/1.2x), and more than
+  // kFocalSignificance predicted standard deviations of its logarithm away, the pose is kUncertain
+  // (docs/verdict.md). The prediction runs small, as the pose's does (its errors
   // run up to 3 times what it predicts): at 3 sigma, six right poses of the tuning scenes with a
   // few dozen inliers were thrown out (3.3-8.6 sigma), at 6 two; queries given 0.6 times their
   // focal length fit 7.6-51 sigma away, at 10 sigma two of them stayed `localized`.
   double max_focal_deviation = 0.2;
   static constexpr double kFocalSignificance = 6;
-  // The same for the principal point: when the inliers fit one farther than this fraction of the
-  // focal length (for small shifts, the angle it turns the view by) from the one given, and more
+  // The same for the principal point: when the correspondences fit one farther than this fraction
+  // of the focal length (for small shifts, the angle it turns the view by) from the one given, and more
   // than kPrincipalPointSignificance predicted standard deviations away. On 919 right poses of
   // every set (classical and sift-baseline) fits 0.1 away reached 15 sigma at most; on
   // redkitchen fits up to 0.07 away are common (its intrinsics are nominal).
