@@ -119,6 +119,18 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
   EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
   // It said "A subcommand is required", as if none had been typed.
   EXPECT_TRUE(contains(unknown.output, "error: unknown command 'localise' (commands: eval, synth,")) << unknown.output;
+  // CLI11 said "The following arguments were not expected: classical --methds", or for a
+  // mistyped required option only that the required one was missing.
+  for (const auto& [arguments, expected] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"eval", "--dataset", "d", "--methds", "classical"}, "error: --methds: not an option of 'ffloc eval'; did you mean --methods?"},
+           {{"eval", "--dataset", "d", "--method=classical"}, "error: --method: not an option of 'ffloc eval'; did you mean --methods?"},
+           {{"localize", "--mapp", "m.ffmap", "--image", "q.jpg"}, "error: --mapp: not an option of 'ffloc localize'; did you mean --map?"},
+           {{"serve", "--map", "m.ffmap", "--prot", "9"}, "error: --prot: not an option of 'ffloc serve'; did you mean --port?"},
+           {{"eval", "--dataset", "d", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc eval' (ffloc eval --help lists them)"}}) {
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << run.output;
+    EXPECT_TRUE(contains(run.output, expected)) << run.output;
+  }
   const CliRun help = runCli({"convert", "--help"});
   EXPECT_EQ(help.exit_code, 0) << help.output;
   EXPECT_TRUE(contains(help.output, "--input")) << help.output;

@@ -2,6 +2,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <sstream>
@@ -71,6 +72,50 @@ CLI::Validator notNegative() {
         return input.find('-') == std::string::npos ? std::string() : "must be at least 0, got " + input;
       },
       ">= 0");
+}
+
+namespace {
+
+// Insertions, deletions, substitutions and swaps of neighbours ("--prot" is one from "--port").
+size_t editDistance(const std::string& a, const std::string& b) {
+  std::vector<std::vector<size_t>> d(a.size() + 1, std::vector<size_t>(b.size() + 1));
+  for (size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (size_t j = 0; j <= b.size(); ++j) d[0][j] = j;
+  for (size_t i = 1; i <= a.size(); ++i)
+    for (size_t j = 1; j <= b.size(); ++j) {
+      d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+}  // namespace
+
+std::string unknownOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments) {
+  std::vector<std::string> names;
+  for (const CLI::Option* option : command.get_options())
+    for (const std::string& name : option->get_lnames()) names.push_back(name);
+  for (const std::string& argument : arguments) {
+    if (argument == "--") break;  // what follows is not options
+    if (argument.rfind("--", 0) != 0 || argument.size() < 3) continue;
+    const std::string name = argument.substr(2, argument.find('=') - 2);
+    if (std::find(names.begin(), names.end(), name) != names.end()) continue;
+    // One typing slip in a short name, two in a longer one, or a name the option's begins with
+    // ("--method" for "--methods").
+    std::string nearest;
+    size_t nearest_distance = (name.size() <= 4 ? 1 : 2) + 1;
+    for (const std::string& known : names) {
+      const size_t distance = known.rfind(name, 0) == 0 ? 1 : editDistance(name, known);
+      if (distance < nearest_distance) {
+        nearest = known;
+        nearest_distance = distance;
+      }
+    }
+    const std::string where = "not an option of 'ffloc " + command.get_name() + "'";
+    return "--" + name + ": " + where +
+           (nearest.empty() ? " (ffloc " + command.get_name() + " --help lists them)" : "; did you mean --" + nearest + "?");
+  }
+  return "";
 }
 
 CLI::Validator atLeast(int64_t minimum) {

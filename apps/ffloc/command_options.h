@@ -53,6 +53,13 @@ void checkOutputFolder(const std::string& flag, const std::string& path);
 // For a flag read into an unsigned integer (seeds, counts): CLI11 reads "-1" as 2^64 - 1.
 CLI::Validator notNegative();
 
+// The first argument of `arguments` (what follows the command's name) that looks like a long option
+// `command` does not have, named with the command's option it most likely meant: "--methds: not
+// an option of 'ffloc eval'; did you mean --methods?". Empty when every one is known. CLI11 said
+// "The following arguments were not expected: classical --methds", or, for a mistyped required
+// option, only that the required one is missing.
+std::string unknownOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments);
+
 // For an integer count: "must be at least 1, got 0", where CLI11's PositiveNumber said "Value 0
 // not in range 0.000000 to 1797...", the largest double in full.
 CLI::Validator atLeast(int64_t minimum);
