@@ -233,6 +233,11 @@ class RemoveNewFolderOnError {
       : folder_(std::move(folder)), lock_name_(std::move(lock_name)) {
     std::error_code error;
     made_here_ = lead && !fs::exists(folder_, error) && !error;
+    // The parents --out makes with it go too.
+    for (fs::path parent = fs::absolute(folder_, error).parent_path();
+         made_here_ && !error && parent.has_relative_path() && !fs::exists(parent, error);
+         parent = parent.parent_path())
+      new_parents_.push_back(parent);
   }
   RemoveNewFolderOnError(const RemoveNewFolderOnError&) = delete;
   RemoveNewFolderOnError& operator=(const RemoveNewFolderOnError&) = delete;
@@ -244,13 +249,17 @@ class RemoveNewFolderOnError {
     }
     if (error) return;
     fs::remove(folder_ / lock_name_, error);
-    fs::remove(folder_, error);  // not recursive: whatever came in meanwhile stays, and so does the folder
+    // Not recursive: whatever came in meanwhile stays, and so do the folders above it.
+    if (!fs::remove(folder_, error)) return;
+    for (const fs::path& parent : new_parents_)
+      if (!fs::remove(parent, error)) return;
   }
 
  private:
   fs::path folder_;
   fs::path lock_name_;
   bool made_here_ = false;
+  std::vector<fs::path> new_parents_;  // deepest first
 };
 
 void runTrain(const TrainArguments& args) {

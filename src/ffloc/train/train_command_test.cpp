@@ -103,6 +103,14 @@ TEST_F(TrainCommandInput, RefusesARunFolderItCannotUseAndAnOverflowingRateBefore
   EXPECT_TRUE(contains("error: " + bad_rate + ": field 'learning_rate': must be in (0, 1], got 1e+300")) << output();
   EXPECT_FALSE(fs::exists(run));
 
+  // Refused after --out was made (the validation data is read then): it goes, and so do the
+  // parents it was made with, which stayed before.
+  const fs::path nested = root_ / "new" / "deeper" / "run";
+  EXPECT_EQ(train("--out " + nested.string() + " --val-data " + (root_ / "missing").string()), 2) << output();
+  EXPECT_TRUE(contains("missing")) << output();
+  EXPECT_FALSE(fs::exists(root_ / "new")) << output();
+  EXPECT_TRUE(fs::exists(root_));
+
   // The second of two equal keys won silently: this trained 1 step.
   const std::string twice = config(R"({"steps": 10, "warmup_steps": 0, "steps": 1})");
   EXPECT_EQ(train("--config " + twice + " --out " + run.string()), 2) << output();
