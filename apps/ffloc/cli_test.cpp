@@ -126,6 +126,7 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
            {{"eval", "--dataset", "d", "--method=classical"}, "error: --method: not an option of 'ffloc eval'; did you mean --methods?"},
            {{"localize", "--mapp", "m.ffmap", "--image", "q.jpg"}, "error: --mapp: not an option of 'ffloc localize'; did you mean --map?"},
            {{"serve", "--map", "m.ffmap", "--prot", "9"}, "error: --prot: not an option of 'ffloc serve'; did you mean --port?"},
+           {{"bench", "model", "--thread", "2"}, "error: --thread: not an option of 'ffloc bench model'; did you mean --threads?"},
            {{"eval", "--dataset", "d", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc eval' (ffloc eval --help lists them)"}}) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << run.output;

@@ -92,9 +92,20 @@ size_t editDistance(const std::string& a, const std::string& b) {
 }  // namespace
 
 std::string unknownOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments) {
+  // The command and the subcommands named after it ("ffloc bench model"): each one's options count.
+  std::string full_name = command.get_name();
   std::vector<std::string> names;
-  for (const CLI::Option* option : command.get_options())
-    for (const std::string& name : option->get_lnames()) names.push_back(name);
+  size_t next_argument = 0;
+  for (const CLI::App* current = &command; current != nullptr;) {
+    for (const CLI::Option* option : current->get_options())
+      for (const std::string& name : option->get_lnames()) names.push_back(name);
+    const CLI::App* named = nullptr;
+    for (; next_argument < arguments.size() && named == nullptr; ++next_argument)
+      for (const CLI::App* subcommand : current->get_subcommands({}))
+        if (subcommand->get_name() == arguments[next_argument]) named = subcommand;
+    if (named != nullptr) full_name += " " + named->get_name();
+    current = named;
+  }
   for (const std::string& argument : arguments) {
     if (argument == "--") break;  // what follows is not options
     if (argument.rfind("--", 0) != 0 || argument.size() < 3) continue;
@@ -111,9 +122,9 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
         nearest_distance = distance;
       }
     }
-    const std::string where = "not an option of 'ffloc " + command.get_name() + "'";
+    const std::string where = "not an option of 'ffloc " + full_name + "'";
     return "--" + name + ": " + where +
-           (nearest.empty() ? " (ffloc " + command.get_name() + " --help lists them)" : "; did you mean --" + nearest + "?");
+           (nearest.empty() ? " (ffloc " + full_name + " --help lists them)" : "; did you mean --" + nearest + "?");
   }
   return "";
 }

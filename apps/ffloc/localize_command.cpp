@@ -219,8 +219,8 @@ void refuseOptionsOfTheOtherMethod(const LocalizeArguments& args, LocalizationMe
 }
 
 // A phone stores a portrait photo sideways and says in EXIF how to turn it; the decoder turns it,
-// and intrinsics of the image as stored then fit it only by chance (the verdict then says the
-// principal point does not fit). Said on stderr, so that the answer's cause is in sight.
+// and intrinsics of the image as stored then fit it only by chance (the verdict mostly finds a
+// principal point that does not fit). Said on stderr, so that the answer's cause is in sight.
 void noteExifTurn(const std::filesystem::path& path, const cv::Mat& decoded) {
   const std::optional<ImageHeader> header = fileImageHeader(path);
   if (!header || !header->with_exif || header->size == decoded.size()) return;
