@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ccache pkg-config
   libtorch-dev libgloo-dev libopenblas0-pthread libblas-dev
-  libopencv-dev libeigen3-dev nlohmann-json3-dev libcli11-dev
+  libopencv-dev libjpeg-dev libeigen3-dev nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 # Without these the build still succeeds and leaves out what needs them (CMake says which).

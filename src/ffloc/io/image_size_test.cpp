@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/testing/shared_data.h"
@@ -65,6 +69,60 @@ TEST(ImageFormat, JpegsCutShortAreRefused) {
                               {"half.jpg", "image: cannot decode: a JPEG cut short"});
   }
   EXPECT_FALSE(jpegReachesItsEnd("\x89PNG\r\n\x1a\n"));
+}
+
+// Damaged compressed data (here 32 one-bits, longer than any Huffman code) decoded without an
+// error, the blocks after it garbage (libjpeg printed "Corrupt JPEG data", naming no file): it is
+// refused, naming the file, baseline or progressive; a clean file, one with bytes after its end,
+// and one with stray bytes between its segments (some cameras write them) are not.
+TEST(ImageFormat, JpegsWithDamagedDataAreRefused) {
+  cv::Mat3b image(96, 128);
+  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
+  const auto dir = testing::makeTempDir("ffloc-jpeg-damage");
+  for (const std::vector<int>& parameters : {std::vector<int>{}, std::vector<int>{cv::IMWRITE_JPEG_PROGRESSIVE, 1}}) {
+    std::vector<uchar> encoded;
+    ASSERT_TRUE(cv::imencode(".jpg", image, encoded, parameters));
+    const std::string whole(encoded.begin(), encoded.end());
+    EXPECT_EQ(jpegDamage(whole), "");
+    EXPECT_EQ(jpegDamage(whole + "trailer a camera appended"), "");
+    const size_t scan = whole.find("\xFF\xDA");
+    ASSERT_NE(scan, std::string::npos);
+    std::string stray = whole;
+    stray.insert(scan, "\x00\x00\x00");
+    EXPECT_EQ(jpegDamage(stray), "");
+    std::string padded = whole;  // a webcam's "2 extraneous bytes before marker 0xd9"
+    padded.insert(whole.size() - 2, "\x00\x00");
+    EXPECT_EQ(jpegDamage(padded), "");
+
+    for (int quarter = 1; quarter <= 3; ++quarter) {
+      std::string damaged = whole;
+      damaged.replace(scan + (whole.size() - scan) * quarter / 4, 8, std::string("\xFF\x00\xFF\x00\xFF\x00\xFF\x00", 8));
+      ASSERT_TRUE(jpegReachesItsEnd(damaged));
+      const std::string damage = jpegDamage(damaged);
+      EXPECT_EQ(damage.rfind("Corrupt JPEG data: ", 0), 0u) << quarter << ": " << damage;
+      testing::writeTextFile(dir / "damaged.jpg", damaged);
+      testing::expectInputError([&] { readImageRgb(dir / "damaged.jpg"); },
+                                {"damaged.jpg", "image: cannot decode: damaged JPEG data", "(libjpeg: Corrupt JPEG data"});
+    }
+  }
+  EXPECT_EQ(jpegDamage("\x89PNG\r\n\x1a\n"), "");
+  EXPECT_EQ(jpegDamage("\xFF\xD8\xFF"), "Premature end of JPEG file");  // the start and nothing after
+}
+
+// Every JPEG of the real datasets is clean: the test passes none of the cameras' own quirks off
+// as damage.
+TEST(ImageFormat, TheRealDatasetsJpegsAreNotDamaged) {
+  FFLOC_REQUIRE_SHARED(data, "data");
+  int jpegs = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(data)) {
+    const std::string extension = entry.path().extension().string();
+    if (extension != ".jpg" && extension != ".JPG" && extension != ".jpeg") continue;
+    std::ifstream in(entry.path(), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    EXPECT_EQ(jpegDamage(bytes), "") << entry.path();
+    ++jpegs;
+  }
+  EXPECT_GT(jpegs, 300);
 }
 
 TEST(ImageSize, ReadsHeadersOfEveryEncoding) {

@@ -185,6 +185,23 @@ TEST(LocalizeRequest, OnlyPngAndJpegBodiesOfADeclaredSizeReachADecoder) {
   }
 }
 
+// An upload whose compressed data is damaged was decoded, the blocks after the damage garbage
+// (libjpeg only warned on stderr).
+TEST(LocalizeRequest, AJpegWithDamagedDataIsRefused) {
+  cv::Mat3b pixels(48, 64);
+  cv::randu(pixels, cv::Scalar::all(0), cv::Scalar::all(255));
+  std::vector<uchar> encoded;
+  ASSERT_TRUE(cv::imencode(".jpg", pixels, encoded));
+  std::string damaged(encoded.begin(), encoded.end());
+  const size_t scan = damaged.find("\xFF\xDA");
+  ASSERT_NE(scan, std::string::npos);
+  damaged.replace(scan + (damaged.size() - scan) / 3, 8, std::string("\xFF\x00\xFF\x00\xFF\x00\xFF\x00", 8));
+  EXPECT_EQ(requestErrorOf(pinholeFields(), damaged).rfind(
+                "image: damaged JPEG data, which the decoder would fill with garbage (libjpeg: Corrupt JPEG data: ", 0),
+            0u)
+      << requestErrorOf(pinholeFields(), damaged);
+}
+
 // An upload cut short was decoded with its missing rows grey (libjpeg only warned on stderr).
 TEST(LocalizeRequest, AJpegCutShortIsRefused) {
   cv::Mat3b pixels(48, 64);
