@@ -49,21 +49,29 @@ TEST(ImageFormat, FilesOfOtherFormatsAreRefusedBeforeDecoding) {
 // A JPEG cut short decoded without an error, its missing rows grey (libjpeg printed "Premature end
 // of JPEG file", naming no file). Every cut inside the compressed data is refused now, naming the
 // file; a whole file, baseline or progressive (several scans), or with bytes after its end, is not.
-TEST(ImageFormat, JpegsCutShortAreRefused) {
+// A 128 x 96 image of noise as a baseline JPEG and as a progressive one (several scans).
+std::vector<std::string> noiseJpegs() {
   cv::Mat3b image(96, 128);
   cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
-  const auto dir = testing::makeTempDir("ffloc-jpeg-cut");
+  std::vector<std::string> jpegs;
   for (const std::vector<int>& parameters : {std::vector<int>{}, std::vector<int>{cv::IMWRITE_JPEG_PROGRESSIVE, 1}}) {
     std::vector<uchar> encoded;
-    ASSERT_TRUE(cv::imencode(".jpg", image, encoded, parameters));
-    const std::string whole(encoded.begin(), encoded.end());
+    EXPECT_TRUE(cv::imencode(".jpg", image, encoded, parameters));
+    jpegs.emplace_back(encoded.begin(), encoded.end());
+  }
+  return jpegs;
+}
+
+TEST(ImageFormat, JpegsCutShortAreRefused) {
+  const auto dir = testing::makeTempDir("ffloc-jpeg-cut");
+  for (const std::string& whole : noiseJpegs()) {
     EXPECT_TRUE(jpegReachesItsEnd(whole));
     EXPECT_TRUE(jpegReachesItsEnd(whole + "trailer a camera appended"));
     for (size_t kept : {whole.size() / 3, whole.size() / 2, whole.size() - 2, whole.size() - 1}) {
       EXPECT_FALSE(jpegReachesItsEnd(whole.substr(0, kept))) << kept << " of " << whole.size();
     }
     testing::writeTextFile(dir / "whole.jpg", whole);
-    EXPECT_EQ(readImageRgb(dir / "whole.jpg").size(), image.size());
+    EXPECT_EQ(readImageRgb(dir / "whole.jpg").size(), cv::Size(128, 96));
     testing::writeTextFile(dir / "half.jpg", whole.substr(0, whole.size() / 2));
     testing::expectInputError([&] { readImageRgb(dir / "half.jpg"); },
                               {"half.jpg", "image: cannot decode: a JPEG cut short"});
@@ -76,13 +84,8 @@ TEST(ImageFormat, JpegsCutShortAreRefused) {
 // refused, naming the file, baseline or progressive; a clean file, one with bytes after its end,
 // and one with stray bytes between its segments (some cameras write them) are not.
 TEST(ImageFormat, JpegsWithDamagedDataAreRefused) {
-  cv::Mat3b image(96, 128);
-  cv::randu(image, cv::Scalar::all(0), cv::Scalar::all(255));
   const auto dir = testing::makeTempDir("ffloc-jpeg-damage");
-  for (const std::vector<int>& parameters : {std::vector<int>{}, std::vector<int>{cv::IMWRITE_JPEG_PROGRESSIVE, 1}}) {
-    std::vector<uchar> encoded;
-    ASSERT_TRUE(cv::imencode(".jpg", image, encoded, parameters));
-    const std::string whole(encoded.begin(), encoded.end());
+  for (const std::string& whole : noiseJpegs()) {
     EXPECT_EQ(jpegDamage(whole), "");
     EXPECT_EQ(jpegDamage(whole + "trailer a camera appended"), "");
     const size_t scan = whole.find("\xFF\xDA");
