@@ -124,6 +124,12 @@ std::string jpegDamage(std::string_view bytes) {
   jpeg_create_decompress(&decoder);
   jpeg_mem_src(&decoder, reinterpret_cast<const unsigned char*>(bytes.data()), static_cast<unsigned long>(bytes.size()));
   jpeg_read_header(&decoder, TRUE);
+  // Past OpenCV's pixel limit (OPENCV_IO_MAX_IMAGE_PIXELS' default) the decoder refuses the file
+  // from its header, where a progressive one's coefficients would take gigabytes here first.
+  if (static_cast<uint64_t>(decoder.image_width) * decoder.image_height > (uint64_t{1} << 30)) {
+    jpeg_destroy_decompress(&decoder);
+    return "";
+  }
   // Every coefficient is read, for the damage is in the entropy-coded data, but the image comes
   // out an eighth of the size in grey: a fraction of a decode's time, and of its memory for a
   // single-scan JPEG (a progressive one holds its coefficients as any decode of it does).
