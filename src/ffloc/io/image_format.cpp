@@ -6,9 +6,12 @@
 #include <cstdio>
 #include <fstream>
 #include <iterator>
+#include <type_traits>
 
-#include <jerror.h>
+// jpeglib.h first: it brings the configuration jerror.h numbers its messages by, and in the other
+// order every message after the arithmetic-coding ones is numbered two lower than libjpeg's.
 #include <jpeglib.h>
+#include <jerror.h>
 
 #include "ffloc/core/error.h"
 #include "ffloc/io/image_size.h"
@@ -71,21 +74,28 @@ bool jpegReachesItsEnd(std::string_view bytes) {
 
 namespace {
 
-// libjpeg's error manager, with the first damage warning kept and fatal errors turned into a
-// jump back to jpegDamage (libjpeg's default ends the process).
-struct DamageWatch {
-  jpeg_error_mgr manager;
-  std::jmp_buf fatal;
-  char damage[JMSG_LENGTH_MAX] = {};
+// libjpeg's error and progress managers, with the first problem kept as text; fatal errors and
+// problems jump back to jpegDataProblem (libjpeg's default error exit ends the process).
+struct JpegWatch {
+  jpeg_error_mgr manager;  // first: libjpeg hands back a pointer to it
+  jpeg_progress_mgr progress;
+  std::jmp_buf stop;
+  char problem[JMSG_LENGTH_MAX + 128] = {};
 };
+static_assert(std::is_standard_layout_v<JpegWatch>);
+
+JpegWatch& watchOf(j_common_ptr cinfo) { return *reinterpret_cast<JpegWatch*>(cinfo->err); }
 
 // Compressed data left over after the last block: a baseline JPEG with a flipped bit decodes
 // without a bad code (libjpeg-turbo's fast Huffman path reads one as a zero) and ends with
 // hundreds of such bytes (298-3014 in the tests); encoders pad a scan by a byte or two (some
 // webcams' "2 extraneous bytes before marker 0xd9"). None of the 352 JPEGs in ../shared/data has any.
 constexpr int kMostPaddingBytes = 64;
+// A progressive JPEG has about ten scans; each costs a pass over the image (2.5 ms at 40
+// megapixels), and a 32 MB upload of tiny repeated scans held hours of them.
+constexpr int kMostScans = 256;
 
-bool isDamage(const jpeg_error_mgr& message) {
+bool isDamage(const jpeg_decompress_struct& decoder, const jpeg_error_mgr& message) {
   switch (message.msg_code) {
     case JWRN_HIT_MARKER:       // "Corrupt JPEG data: premature end of data segment"
     case JWRN_HUFF_BAD_CODE:    // "Corrupt JPEG data: bad Huffman code"
@@ -93,8 +103,13 @@ bool isDamage(const jpeg_error_mgr& message) {
     case JWRN_JPEG_EOF:         // "Premature end of JPEG file"
     case JWRN_BOGUS_PROGRESSION:
       return true;
-    case JWRN_EXTRANEOUS_DATA:  // "Corrupt JPEG data: N extraneous bytes before marker 0x.."
-      return message.msg_parm.i[0] > kMostPaddingBytes;
+    case JWRN_EXTRANEOUS_DATA: {  // "Corrupt JPEG data: N extraneous bytes before marker 0x.."
+      // Between header segments, before any scan, stray bytes are harmless; before a restart
+      // marker no encoder pads.
+      if (decoder.input_scan_number == 0) return false;
+      const int marker = message.msg_parm.i[1];
+      return message.msg_parm.i[0] > kMostPaddingBytes || (marker >= 0xD0 && marker <= 0xD7);
+    }
     default:
       return false;
   }
@@ -102,26 +117,37 @@ bool isDamage(const jpeg_error_mgr& message) {
 
 }  // namespace
 
-std::string jpegDamage(std::string_view bytes) {
+std::string jpegDataProblem(std::string_view bytes) {
   if (!startsLikeJpeg(bytes)) return "";
-  jpeg_decompress_struct decoder;
-  DamageWatch watch;
+  jpeg_decompress_struct decoder{};
+  JpegWatch watch;
   decoder.err = jpeg_std_error(&watch.manager);
-  watch.manager.error_exit = [](j_common_ptr cinfo) {
-    std::longjmp(reinterpret_cast<DamageWatch*>(cinfo->err)->fatal, 1);
-  };
+  watch.manager.error_exit = [](j_common_ptr cinfo) { std::longjmp(watchOf(cinfo).stop, 1); };
   watch.manager.emit_message = [](j_common_ptr cinfo, int level) {
-    DamageWatch& own = *reinterpret_cast<DamageWatch*>(cinfo->err);
-    if (level >= 0 || own.damage[0] != '\0' || !isDamage(own.manager)) return;
-    own.manager.format_message(cinfo, own.damage);
-    std::longjmp(own.fatal, 1);  // no need to read on
+    JpegWatch& own = watchOf(cinfo);
+    if (level >= 0 || !isDamage(*reinterpret_cast<j_decompress_ptr>(cinfo), own.manager)) return;
+    char damage[JMSG_LENGTH_MAX];
+    own.manager.format_message(cinfo, damage);
+    std::snprintf(own.problem, sizeof(own.problem),
+                  "damaged JPEG data, which the decoder would fill with garbage (libjpeg: %s)", damage);
+    std::longjmp(own.stop, 1);  // no need to read on
   };
-  if (setjmp(watch.fatal) != 0) {
+  watch.progress.progress_monitor = [](j_common_ptr cinfo) {
+    if (reinterpret_cast<j_decompress_ptr>(cinfo)->input_scan_number <= kMostScans) return;
+    JpegWatch& own = watchOf(cinfo);
+    std::snprintf(own.problem, sizeof(own.problem),
+                  "a JPEG of more than %d scans (a progressive one has about ten), each a pass of the decoder over "
+                  "the image",
+                  kMostScans);
+    std::longjmp(own.stop, 1);
+  };
+  if (setjmp(watch.stop) != 0) {
     // A fatal error is the decoder's to report (OpenCV then cannot decode the file either).
     jpeg_destroy_decompress(&decoder);
-    return watch.damage;
+    return watch.problem;
   }
   jpeg_create_decompress(&decoder);
+  decoder.progress = &watch.progress;
   jpeg_mem_src(&decoder, reinterpret_cast<const unsigned char*>(bytes.data()), static_cast<unsigned long>(bytes.size()));
   jpeg_read_header(&decoder, TRUE);
   // Past OpenCV's pixel limit (OPENCV_IO_MAX_IMAGE_PIXELS' default) the decoder refuses the file
@@ -145,7 +171,7 @@ std::string jpegDamage(std::string_view bytes) {
   while (decoder.output_scanline < decoder.output_height) jpeg_read_scanlines(&decoder, rows, 1);
   jpeg_finish_decompress(&decoder);
   jpeg_destroy_decompress(&decoder);
-  return watch.damage;
+  return watch.problem;
 }
 
 void requireDecodableImageFile(const std::filesystem::path& path, const std::string& refusal) {
@@ -166,8 +192,8 @@ void requireDecodableImageFile(const std::filesystem::path& path, const std::str
     in.seekg(0);
     const std::string whole((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     if (!jpegReachesItsEnd(whole)) throwInputError(path.string(), 0, refusal + ": " + kJpegCutShort);
-    if (const std::string damage = jpegDamage(whole); !damage.empty())
-      throwInputError(path.string(), 0, refusal + ": " + damagedJpegMessage(damage));
+    if (const std::string problem = jpegDataProblem(whole); !problem.empty())
+      throwInputError(path.string(), 0, refusal + ": " + problem);
   }
 }
 

@@ -2,10 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 
+#include <jpeglib.h>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/testing/shared_data.h"
@@ -81,35 +84,89 @@ TEST(ImageFormat, JpegsCutShortAreRefused) {
 
 // Damaged compressed data (here 32 one-bits, longer than any Huffman code) decoded without an
 // error, the blocks after it garbage (libjpeg printed "Corrupt JPEG data", naming no file): it is
-// refused, naming the file, baseline or progressive; a clean file, one with bytes after its end,
-// and one with stray bytes between its segments (some cameras write them) are not.
+// refused, naming the file, baseline or progressive. A clean file, one with bytes after its end,
+// one with stray bytes between its header segments and one padded by two bytes before its end
+// (some webcams) are not; data left over after the last block is.
 TEST(ImageFormat, JpegsWithDamagedDataAreRefused) {
   const auto dir = testing::makeTempDir("ffloc-jpeg-damage");
   for (const std::string& whole : noiseJpegs()) {
-    EXPECT_EQ(jpegDamage(whole), "");
-    EXPECT_EQ(jpegDamage(whole + "trailer a camera appended"), "");
+    EXPECT_EQ(jpegDataProblem(whole), "");
+    EXPECT_EQ(jpegDataProblem(whole + "trailer a camera appended"), "");
     const size_t scan = whole.find("\xFF\xDA");
     ASSERT_NE(scan, std::string::npos);
     std::string stray = whole;
-    stray.insert(scan, "\x00\x00\x00");
-    EXPECT_EQ(jpegDamage(stray), "");
-    std::string padded = whole;  // a webcam's "2 extraneous bytes before marker 0xd9"
-    padded.insert(whole.size() - 2, "\x00\x00");
-    EXPECT_EQ(jpegDamage(padded), "");
+    stray.insert(whole.find("\xFF\xDB"), std::string(100, '\0'));  // before the quantisation tables
+    EXPECT_EQ(jpegDataProblem(stray), "");
+    std::string padded = whole;
+    padded.insert(whole.size() - 2, std::string(2, '\0'));
+    EXPECT_EQ(jpegDataProblem(padded), "");
+    std::string run_on = whole;
+    run_on.insert(whole.size() - 2, std::string(100, '\x55'));
+    EXPECT_EQ(jpegDataProblem(run_on).rfind("damaged JPEG data", 0), 0u) << jpegDataProblem(run_on);
 
     for (int quarter = 1; quarter <= 3; ++quarter) {
       std::string damaged = whole;
       damaged.replace(scan + (whole.size() - scan) * quarter / 4, 8, std::string("\xFF\x00\xFF\x00\xFF\x00\xFF\x00", 8));
       ASSERT_TRUE(jpegReachesItsEnd(damaged));
-      const std::string damage = jpegDamage(damaged);
-      EXPECT_EQ(damage.rfind("Corrupt JPEG data: ", 0), 0u) << quarter << ": " << damage;
+      const std::string problem = jpegDataProblem(damaged);
+      EXPECT_EQ(problem.rfind("damaged JPEG data, which the decoder would fill with garbage (libjpeg: Corrupt JPEG data: ", 0), 0u)
+          << quarter << ": " << problem;
       testing::writeTextFile(dir / "damaged.jpg", damaged);
       testing::expectInputError([&] { readImageRgb(dir / "damaged.jpg"); },
                                 {"damaged.jpg", "image: cannot decode: damaged JPEG data", "(libjpeg: Corrupt JPEG data"});
     }
   }
-  EXPECT_EQ(jpegDamage("\x89PNG\r\n\x1a\n"), "");
-  EXPECT_EQ(jpegDamage("\xFF\xD8\xFF"), "Premature end of JPEG file");  // the start and nothing after
+  EXPECT_EQ(jpegDataProblem("\x89PNG\r\n\x1a\n"), "");
+  EXPECT_EQ(jpegDataProblem("\xFF\xD8\xFF"),  // the start and nothing after
+            "damaged JPEG data, which the decoder would fill with garbage (libjpeg: Premature end of JPEG file)");
+}
+
+// A colour JPEG of 380 valid progressive scans: each coefficient of each component alone, a first
+// pass and a refinement, written with libjpeg's own encoder.
+std::string jpegOfManyScans() {
+  jpeg_compress_struct encoder;
+  jpeg_error_mgr errors;
+  encoder.err = jpeg_std_error(&errors);
+  jpeg_create_compress(&encoder);
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  jpeg_mem_dest(&encoder, &buffer, &size);
+  encoder.image_width = 32;
+  encoder.image_height = 24;
+  encoder.input_components = 3;
+  encoder.in_color_space = JCS_RGB;
+  jpeg_set_defaults(&encoder);
+  std::vector<jpeg_scan_info> scans;
+  scans.push_back({3, {0, 1, 2, 0}, 0, 0, 0, 1});  // DC of every component, then its last bit
+  scans.push_back({3, {0, 1, 2, 0}, 0, 0, 1, 0});
+  for (int refinement = 0; refinement < 2; ++refinement)
+    for (int component = 0; component < 3; ++component)
+      for (int k = 1; k < 64; ++k) scans.push_back({1, {component, 0, 0, 0}, k, k, refinement, 1 - refinement});
+  encoder.scan_info = scans.data();
+  encoder.num_scans = static_cast<int>(scans.size());
+  jpeg_start_compress(&encoder, TRUE);
+  std::vector<unsigned char> row(32 * 3);
+  for (int y = 0; y < 24; ++y) {
+    for (size_t x = 0; x < row.size(); ++x) row[x] = static_cast<unsigned char>((x * 37 + y * 91) % 256);
+    JSAMPROW rows[1] = {row.data()};
+    jpeg_write_scanlines(&encoder, rows, 1);
+  }
+  jpeg_finish_compress(&encoder);
+  jpeg_destroy_compress(&encoder);
+  std::string jpeg(reinterpret_cast<const char*>(buffer), size);
+  std::free(buffer);
+  return jpeg;
+}
+
+// A 32 MB upload of tiny scans held the decoder for hours (2.5 ms a scan at 40 megapixels): a JPEG
+// of more than 256 scans is refused, before any decoder runs over them.
+TEST(ImageFormat, JpegsOfHundredsOfScansAreRefused) {
+  const std::string jpeg = jpegOfManyScans();
+  size_t scans = 0;
+  for (size_t at = jpeg.find("\xFF\xDA"); at != std::string::npos; at = jpeg.find("\xFF\xDA", at + 2)) ++scans;
+  ASSERT_EQ(scans, 380u);
+  EXPECT_EQ(jpegDataProblem(jpeg).rfind("a JPEG of more than 256 scans", 0), 0u) << jpegDataProblem(jpeg);
+  for (const std::string& progressive : noiseJpegs()) EXPECT_EQ(jpegDataProblem(progressive), "");
 }
 
 // Every JPEG of the real datasets is clean: the test passes none of the cameras' own quirks off
@@ -122,7 +179,7 @@ TEST(ImageFormat, TheRealDatasetsJpegsAreNotDamaged) {
     if (extension != ".jpg" && extension != ".JPG" && extension != ".jpeg") continue;
     std::ifstream in(entry.path(), std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    EXPECT_EQ(jpegDamage(bytes), "") << entry.path();
+    EXPECT_EQ(jpegDataProblem(bytes), "") << entry.path();
     ++jpegs;
   }
   EXPECT_GT(jpegs, 300);

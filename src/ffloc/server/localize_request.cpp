@@ -104,7 +104,7 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
     throw InputError(pixelLimitError(*declared, max_image_pixels));
   }
   if (startsLikeJpeg(bytes) && !jpegReachesItsEnd(bytes)) throw InputError(std::string("image: ") + kJpegCutShort);
-  if (const std::string damage = jpegDamage(bytes); !damage.empty()) throw InputError("image: " + damagedJpegMessage(damage));
+  if (const std::string problem = jpegDataProblem(bytes); !problem.empty()) throw InputError("image: " + problem);
   const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data()));
   cv::Mat bgr;
   try {
