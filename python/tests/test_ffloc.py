@@ -1,4 +1,5 @@
 """Each function of the Python module against the CLI on the same inputs, and bad inputs."""
+import fcntl
 import json
 import os
 import pathlib
@@ -325,6 +326,34 @@ def test_ctrl_c_stops_a_build_before_it_replaces_the_map(cli, tmp_path):
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
     assert out.read_bytes() == before
+
+
+def test_ctrl_c_ends_a_wait_for_another_writers_lock(cli, tmp_path):
+    # The wait blocked in flock, deaf to Ctrl-C until the other writer let go.
+    cli("synth", "--out", tmp_path / "synth", "--seed", 11, "--kind", "indoor", "--quiet")
+    scene = str(tmp_path / "synth" / "scene_000_indoor")
+    out = tmp_path / "m.ffmap"
+    held = open(tmp_path / ".m.ffmap.lock", "w")
+    fcntl.flock(held, fcntl.LOCK_EX)
+    release = threading.Timer(5.0, lambda: fcntl.flock(held, fcntl.LOCK_UN))
+    release.start()
+
+    def interrupt(*_):
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGALRM, interrupt)
+    try:
+        signal.setitimer(signal.ITIMER_REAL, 0.5)
+        started = time.monotonic()
+        with pytest.raises(KeyboardInterrupt):
+            ffloc.build_map(scene, out=str(out), threads=1)
+        assert time.monotonic() - started < 3.0  # not when the other writer let go, at 5 s
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+        release.cancel()
+        held.close()
+    assert not out.exists()
 
 
 def test_settings_the_maps_method_ignores_and_empty_paths_are_refused(cli_map, scene_dir):

@@ -29,6 +29,10 @@ StopCheck::StopCheck(std::function<bool()> stop_requested) : previous_(std::move
 
 StopCheck::~StopCheck() { stop_requested_here = std::move(previous_); }
 
+void stopIfRequested(const std::string& what) {
+  if (stop_requested_here && stop_requested_here()) throw Stopped(what + ": stopped");
+}
+
 void ProgressBar::update(std::size_t done) {
   if (stop_requested_here && stop_requested_here())
     throw Stopped(label_ + ": stopped at " + std::to_string(done) + " of " + std::to_string(total_));

@@ -28,6 +28,10 @@ class StopCheck {
   std::function<bool()> previous_;
 };
 
+// Throws Stopped, saying `what` stopped, when a StopCheck on this thread asks: for waits that are
+// no loop of steps (a lock held by another process).
+void stopIfRequested(const std::string& what);
+
 // A one-line progress bar on stderr for long loops; redraws at most ~10 times a second and
 // prints nothing when quiet. finish() prints the total time. Where stderr is not a terminal (a
 // log file, CI, a service) a line every `log_interval` instead: a redrawn bar there is noise, and

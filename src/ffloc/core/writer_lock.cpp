@@ -5,9 +5,12 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstring>
+#include <thread>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
 
 namespace ffloc {
 
@@ -30,11 +33,21 @@ WriterLock::WriterLock(const std::filesystem::path& target, const std::function<
       throw;
     }
   }
-  while (::flock(descriptor_, LOCK_EX) != 0) {
-    if (errno == EINTR) continue;
+  // Asked again every tenth of a second rather than blocked on: a wait blocked in flock heard
+  // no Ctrl-C from Python, whose handler runs only when the library asks (StopCheck).
+  while (::flock(descriptor_, LOCK_EX | LOCK_NB) != 0) {
     const int error = errno;
-    ::close(descriptor_);
-    throwInputError(lock_file.string(), 0, std::string("cannot lock: ") + std::strerror(error));
+    if (error != EWOULDBLOCK && error != EINTR) {
+      ::close(descriptor_);
+      throwInputError(lock_file.string(), 0, std::string("cannot lock: ") + std::strerror(error));
+    }
+    try {
+      stopIfRequested("waiting for " + lock_file.string());
+    } catch (...) {
+      ::close(descriptor_);
+      throw;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
 }
 

@@ -13,9 +13,9 @@ std::filesystem::path writerLockFile(const std::filesystem::path& target);
 // them at once do not both start from the same old file and the later rename drop the earlier
 // one's work. The lock is on a hidden file beside the target, `.<name>.lock`, which stays (a
 // lock file removed while another process waits on it would let a third one in beside it).
-// Blocks while another process holds it, after calling `on_wait` (when given) once; an
-// exception from `on_wait` refuses to wait. InputError naming the lock file when it cannot be
-// created or locked.
+// Waits while another process holds it, after calling `on_wait` (when given) once; an
+// exception from `on_wait` refuses to wait, and a StopCheck on this thread (Ctrl-C in Python)
+// ends the wait with Stopped. InputError naming the lock file when it cannot be created or locked.
 class WriterLock {
  public:
   WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait);

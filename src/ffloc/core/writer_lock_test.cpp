@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
 #include "ffloc/core/testing/shared_data.h"
 
 namespace ffloc {
@@ -30,6 +31,26 @@ TEST(WriterLock, ASecondWriterOfTheFileWaitsForTheFirst) {
   second.join();
   EXPECT_TRUE(waited);
   EXPECT_TRUE(second_holds);
+}
+
+// The wait blocked in flock, deaf to Python's Ctrl-C, which the library hears only by asking
+// (StopCheck): asked while waiting, it ends the wait.
+TEST(WriterLock, AWaitEndsWhenAStopIsAsked) {
+  const auto folder = testing::makeTempDir("ffloc-writer-lock");
+  const WriterLock first(folder / "m.ffmap", nullptr);
+  int asked = 0;
+  const StopCheck stop([&] { return ++asked >= 3; });
+  bool waited = false;
+  try {
+    const WriterLock second(folder / "m.ffmap", [&] { waited = true; });
+    ADD_FAILURE() << "locked a file another writer holds";
+  } catch (const Stopped& e) {
+    EXPECT_NE(std::string(e.what()).find(".m.ffmap.lock: stopped"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(waited);
+  EXPECT_EQ(asked, 3);
+  const WriterLock other(folder / "n.ffmap", nullptr);  // the stop asked nothing of a free file
+  EXPECT_EQ(asked, 3);
 }
 
 TEST(WriterLock, AFolderThatDoesNotExistIsNamed) {
