@@ -127,6 +127,10 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
            {{"localize", "--mapp", "m.ffmap", "--image", "q.jpg"}, "error: --mapp: not an option of 'ffloc localize'; did you mean --map?"},
            {{"serve", "--map", "m.ffmap", "--prot", "9"}, "error: --prot: not an option of 'ffloc serve'; did you mean --port?"},
            {{"bench", "model", "--thread", "2"}, "error: --thread: not an option of 'ffloc bench model'; did you mean --threads?"},
+           {{"eval", "--dataset", "d", "--max", "3"},
+            "error: --max: not an option of 'ffloc eval'; did you mean one of --map, --max-correspondences, --max-queries?"},
+           // A value that looks like an option is the option's value: the error is the seed's.
+           {{"synth", "--out", "--dir", "--seed", "-1"}, "--seed: must be at least 0"},
            {{"eval", "--dataset", "d", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc eval' (ffloc eval --help lists them)"}}) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << run.output;

@@ -95,10 +95,14 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
   // The command and the subcommands named after it ("ffloc bench model"): each one's options count.
   std::string full_name = command.get_name();
   std::vector<std::string> names;
+  std::vector<std::string> taking_values;  // options whose next argument is their value
   size_t next_argument = 0;
   for (const CLI::App* current = &command; current != nullptr;) {
     for (const CLI::Option* option : current->get_options())
-      for (const std::string& name : option->get_lnames()) names.push_back(name);
+      for (const std::string& name : option->get_lnames()) {
+        names.push_back(name);
+        if (option->get_expected_min() > 0) taking_values.push_back(name);
+      }
     const CLI::App* named = nullptr;
     for (; next_argument < arguments.size() && named == nullptr; ++next_argument)
       for (const CLI::App* subcommand : current->get_subcommands({}))
@@ -106,25 +110,37 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
     if (named != nullptr) full_name += " " + named->get_name();
     current = named;
   }
+  const auto known = [](const std::vector<std::string>& list, const std::string& name) {
+    return std::find(list.begin(), list.end(), name) != list.end();
+  };
+  bool is_value = false;  // the argument after an option that takes one ("--out --dir" writes to "--dir")
   for (const std::string& argument : arguments) {
     if (argument == "--") break;  // what follows is not options
-    if (argument.rfind("--", 0) != 0 || argument.size() < 3) continue;
-    const std::string name = argument.substr(2, argument.find('=') - 2);
-    if (std::find(names.begin(), names.end(), name) != names.end()) continue;
-    // One typing slip in a short name, two in a longer one, or a name the option's begins with
-    // ("--method" for "--methods").
-    std::string nearest;
-    size_t nearest_distance = (name.size() <= 4 ? 1 : 2) + 1;
-    for (const std::string& known : names) {
-      const size_t distance = known.rfind(name, 0) == 0 ? 1 : editDistance(name, known);
-      if (distance < nearest_distance) {
-        nearest = known;
-        nearest_distance = distance;
-      }
+    const bool was_value = is_value;
+    is_value = false;
+    if (was_value || argument.rfind("--", 0) != 0) continue;
+    const size_t equals = argument.find('=');
+    const std::string name = argument.substr(2, equals == std::string::npos ? std::string::npos : equals - 2);
+    if (known(names, name)) {
+      is_value = equals == std::string::npos && known(taking_values, name);
+      continue;
     }
-    const std::string where = "not an option of 'ffloc " + full_name + "'";
-    return "--" + name + ": " + where +
-           (nearest.empty() ? " (ffloc " + full_name + " --help lists them)" : "; did you mean --" + nearest + "?");
+    // One typing slip in a short name, two in a longer one, or a name the option's begins with
+    // ("--method" for "--methods"); every option at the least distance.
+    std::vector<std::string> nearest;
+    size_t nearest_distance = name.size() <= 4 ? 1 : 2;
+    for (const std::string& option : name.empty() ? std::vector<std::string>{} : names) {
+      const size_t distance = option.rfind(name, 0) == 0 ? 1 : editDistance(name, option);
+      if (distance > nearest_distance) continue;
+      if (distance < nearest_distance) nearest.clear();
+      nearest_distance = distance;
+      if (!known(nearest, option)) nearest.push_back(option);
+    }
+    std::string message = "--" + name + ": not an option of 'ffloc " + full_name + "'";
+    if (nearest.empty()) return message + " (ffloc " + full_name + " --help lists them)";
+    message += nearest.size() == 1 ? "; did you mean " : "; did you mean one of ";
+    for (size_t i = 0; i < nearest.size(); ++i) message += (i == 0 ? "--" : ", --") + nearest[i];
+    return message + "?";
   }
   return "";
 }

@@ -233,8 +233,11 @@ class RemoveNewFolderOnError {
       : folder_(std::move(folder)), lock_name_(std::move(lock_name)) {
     std::error_code error;
     made_here_ = lead && !fs::exists(folder_, error) && !error;
-    // The parents --out makes with it go too.
-    for (fs::path parent = fs::absolute(folder_, error).parent_path();
+    // The parents --out makes with it go too: those of the path as it resolves ("x/../keep/run"
+    // names the folder keep, which exists, however new x is; "a/b/run/" has the parent a/b).
+    fs::path resolved = fs::weakly_canonical(fs::absolute(folder_, error), error);
+    if (!resolved.has_filename()) resolved = resolved.parent_path();
+    for (fs::path parent = resolved.parent_path();
          made_here_ && !error && parent.has_relative_path() && !fs::exists(parent, error);
          parent = parent.parent_path())
       new_parents_.push_back(parent);

@@ -105,11 +105,18 @@ TEST_F(TrainCommandInput, RefusesARunFolderItCannotUseAndAnOverflowingRateBefore
 
   // Refused after --out was made (the validation data is read then): it goes, and so do the
   // parents it was made with, which stayed before.
-  const fs::path nested = root_ / "new" / "deeper" / "run";
-  EXPECT_EQ(train("--out " + nested.string() + " --val-data " + (root_ / "missing").string()), 2) << output();
+  const std::string missing_data = " --val-data " + (root_ / "missing").string();
+  EXPECT_EQ(train("--out " + (root_ / "new" / "deeper" / "run").string() + missing_data), 2) << output();
   EXPECT_TRUE(contains("missing")) << output();
   EXPECT_FALSE(fs::exists(root_ / "new")) << output();
   EXPECT_TRUE(fs::exists(root_));
+  EXPECT_EQ(train("--out " + (root_ / "new" / "deeper" / "run").string() + "/" + missing_data), 2) << output();
+  EXPECT_FALSE(fs::exists(root_ / "new")) << "a trailing slash";
+  // Through a folder that does not exist yet to one that does: that one stays, empty as it is.
+  fs::create_directories(root_ / "keep");
+  EXPECT_EQ(train("--out " + (root_ / "x" / ".." / "keep" / "run").string() + missing_data), 2) << output();
+  EXPECT_TRUE(fs::exists(root_ / "keep"));
+  EXPECT_FALSE(fs::exists(root_ / "keep" / "run"));
 
   // The second of two equal keys won silently: this trained 1 step.
   const std::string twice = config(R"({"steps": 10, "warmup_steps": 0, "steps": 1})");
