@@ -21,6 +21,8 @@ double ProgressBar::elapsedSeconds() const {
 
 namespace {
 thread_local std::function<bool()> stop_requested_here;
+
+bool stopRequestedHere() { return stop_requested_here && stop_requested_here(); }
 }  // namespace
 
 StopCheck::StopCheck(std::function<bool()> stop_requested) : previous_(std::move(stop_requested_here)) {
@@ -30,11 +32,11 @@ StopCheck::StopCheck(std::function<bool()> stop_requested) : previous_(std::move
 StopCheck::~StopCheck() { stop_requested_here = std::move(previous_); }
 
 void stopIfRequested(const std::string& what) {
-  if (stop_requested_here && stop_requested_here()) throw Stopped(what + ": stopped");
+  if (stopRequestedHere()) throw Stopped(what + ": stopped");
 }
 
 void ProgressBar::update(std::size_t done) {
-  if (stop_requested_here && stop_requested_here())
+  if (stopRequestedHere())
     throw Stopped(label_ + ": stopped at " + std::to_string(done) + " of " + std::to_string(total_));
   if (quiet_) return;
   const auto now = std::chrono::steady_clock::now();

@@ -20,8 +20,9 @@ std::string threadCountProblem(int64_t requested);
 int resolveThreadCount(int requested);
 
 // Sets the thread pools of OpenBLAS (behind libblas: matrix products) and OpenCV (SIFT, image
-// resampling; at most one thread per core) to resolveThreadCount(requested) and returns it. Left alone each starts one
-// thread per core, and their pools and libtorch's then fight over the same cores.
+// resampling; at most one thread per core) to resolveThreadCount(requested) and returns it. Left
+// alone each starts one thread per core, and their pools and libtorch's then fight over the same
+// cores.
 int setLibraryThreadCount(int requested);
 
 // OpenBLAS's own pool, reached through the symbols libblas exports when it is OpenBLAS (Debian's
