@@ -86,10 +86,10 @@ static_assert(std::is_standard_layout_v<JpegWatch>);
 
 JpegWatch& watchOf(j_common_ptr cinfo) { return *reinterpret_cast<JpegWatch*>(cinfo->err); }
 
-// Compressed data left over after the last block: a baseline JPEG with a flipped bit decodes
+// Compressed data left over after a scan's last block: a baseline JPEG with a flipped bit decodes
 // without a bad code (libjpeg-turbo's fast Huffman path reads one as a zero) and ends with
 // hundreds of such bytes (298-3014 in the tests); encoders pad a scan by a byte or two (some
-// webcams' "2 extraneous bytes before marker 0xd9"). None of the 352 JPEGs in ../shared/data has any.
+// webcams' "2 extraneous bytes before marker 0xd9"). No JPEG in ../shared/data has any.
 constexpr int kMostPaddingBytes = 64;
 // A progressive JPEG has about ten scans; each costs a pass over the image (2.5 ms at 40
 // megapixels), and a 32 MB upload of tiny repeated scans held hours of them.
