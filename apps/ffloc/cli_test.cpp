@@ -129,6 +129,7 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
            {{"bench", "model", "--thread", "2"}, "error: --thread: not an option of 'ffloc bench model'; did you mean --threads?"},
            {{"eval", "--dataset", "d", "--max", "3"},
             "error: --max: not an option of 'ffloc eval'; did you mean one of --map, --max-correspondences, --max-queries?"},
+           {{"--dataset", "d", "eval"}, "error: --dataset: not an option of 'ffloc'; options go after the command"},
            // A value that looks like an option is the option's value: the error is the seed's.
            {{"synth", "--out", "--dir", "--seed", "-1"}, "--seed: must be at least 0"},
            {{"eval", "--dataset", "d", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc eval' (ffloc eval --help lists them)"}}) {

@@ -40,6 +40,16 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // Before the command, only --help and --version: CLI11 said "A subcommand is required", or the
+  // command's own complaint, for "ffloc --typo eval".
+  if (argc > 1 && argv[1][0] == '-') {
+    const std::string first = argv[1];
+    if (first != "--help" && first != "-h" && first != "--version") {
+      std::cerr << "error: " << first << ": not an option of 'ffloc'; options go after the command ('ffloc <command> "
+                   "--help' lists them)\n";
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
