@@ -25,29 +25,21 @@ WriterLock::WriterLock(const std::filesystem::path& target, const std::function<
   if (descriptor_ < 0)
     throwInputError(lock_file.string(), 0, std::string("cannot create the lock file: ") + std::strerror(errno));
   if (::flock(descriptor_, LOCK_EX | LOCK_NB) == 0) return;
-  if (errno == EWOULDBLOCK && on_wait) {
-    try {
-      on_wait();
-    } catch (...) {
-      ::close(descriptor_);
-      throw;
-    }
-  }
-  // Asked again every tenth of a second rather than blocked on: a wait blocked in flock heard
-  // no Ctrl-C from Python, whose handler runs only when the library asks (StopCheck).
-  while (::flock(descriptor_, LOCK_EX | LOCK_NB) != 0) {
-    const int error = errno;
-    if (error != EWOULDBLOCK && error != EINTR) {
-      ::close(descriptor_);
-      throwInputError(lock_file.string(), 0, std::string("cannot lock: ") + std::strerror(error));
-    }
-    try {
+  // The constructor that throws runs no destructor: the descriptor is closed here.
+  try {
+    if (errno == EWOULDBLOCK && on_wait) on_wait();
+    // Asked again every tenth of a second rather than blocked on: a wait blocked in flock heard
+    // no Ctrl-C from Python, whose handler runs only when the library asks (StopCheck).
+    while (::flock(descriptor_, LOCK_EX | LOCK_NB) != 0) {
+      const int error = errno;
+      if (error != EWOULDBLOCK && error != EINTR)
+        throwInputError(lock_file.string(), 0, std::string("cannot lock: ") + std::strerror(error));
       stopIfRequested("waiting for " + lock_file.string());
-    } catch (...) {
-      ::close(descriptor_);
-      throw;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  } catch (...) {
+    ::close(descriptor_);
+    throw;
   }
 }
 
