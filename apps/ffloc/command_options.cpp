@@ -84,7 +84,8 @@ size_t editDistance(const std::string& a, const std::string& b) {
   for (size_t i = 1; i <= a.size(); ++i)
     for (size_t j = 1; j <= b.size(); ++j) {
       d[i][j] = std::min({d[i - 1][j] + 1, d[i][j - 1] + 1, d[i - 1][j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1]) d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
+      if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1])
+        d[i][j] = std::min(d[i][j], d[i - 2][j - 2] + 1);
     }
   return d[a.size()][b.size()];
 }
@@ -94,15 +95,11 @@ size_t editDistance(const std::string& a, const std::string& b) {
 std::string unknownOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments) {
   // The command and the subcommands named after it ("ffloc bench model"): each one's options count.
   std::string full_name = command.get_name();
-  std::vector<std::string> names;
-  std::vector<std::string> taking_values;  // options whose next argument is their value
+  std::map<std::string, bool> takes_value;  // each long option: whether its next argument is its value
   size_t next_argument = 0;
   for (const CLI::App* current = &command; current != nullptr;) {
     for (const CLI::Option* option : current->get_options())
-      for (const std::string& name : option->get_lnames()) {
-        names.push_back(name);
-        if (option->get_expected_min() > 0) taking_values.push_back(name);
-      }
+      for (const std::string& name : option->get_lnames()) takes_value.emplace(name, option->get_expected_min() > 0);
     const CLI::App* named = nullptr;
     for (; next_argument < arguments.size() && named == nullptr; ++next_argument)
       for (const CLI::App* subcommand : current->get_subcommands({}))
@@ -110,9 +107,6 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
     if (named != nullptr) full_name += " " + named->get_name();
     current = named;
   }
-  const auto known = [](const std::vector<std::string>& list, const std::string& name) {
-    return std::find(list.begin(), list.end(), name) != list.end();
-  };
   bool is_value = false;  // the argument after an option that takes one ("--out --dir" writes to "--dir")
   for (const std::string& argument : arguments) {
     if (argument == "--") break;  // what follows is not options
@@ -121,20 +115,21 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
     if (was_value || argument.rfind("--", 0) != 0) continue;
     const size_t equals = argument.find('=');
     const std::string name = argument.substr(2, equals == std::string::npos ? std::string::npos : equals - 2);
-    if (known(names, name)) {
-      is_value = equals == std::string::npos && known(taking_values, name);
+    if (const auto known = takes_value.find(name); known != takes_value.end()) {
+      is_value = equals == std::string::npos && known->second;
       continue;
     }
     // One typing slip in a short name, two in a longer one, or a name the option's begins with
-    // ("--method" for "--methods"); every option at the least distance.
+    // ("--method" for "--methods"); every option at the least distance, in alphabetical order.
     std::vector<std::string> nearest;
     size_t nearest_distance = name.size() <= 4 ? 1 : 2;
-    for (const std::string& option : name.empty() ? std::vector<std::string>{} : names) {
+    for (const auto& [option, ignored] : takes_value) {
+      if (name.empty()) break;  // "--=x": every name begins so
       const size_t distance = option.rfind(name, 0) == 0 ? 1 : editDistance(name, option);
       if (distance > nearest_distance) continue;
       if (distance < nearest_distance) nearest.clear();
       nearest_distance = distance;
-      if (!known(nearest, option)) nearest.push_back(option);
+      nearest.push_back(option);
     }
     std::string message = "--" + name + ": not an option of 'ffloc " + full_name + "'";
     if (nearest.empty()) return message + " (ffloc " + full_name + " --help lists them)";

@@ -56,8 +56,8 @@ int main(int argc, char** argv) {
     // CLI11's own codes (105, 106, ...) would contradict the documented 2 for bad input; --help
     // and --version end here too, with 0.
     if (e.get_exit_code() != 0 && argc > 1 && argv[1][0] != '-') {
-      const std::string unknown =
-          ffloc::cli::unknownOptionMessage(*app.get_subcommand(argv[1]), std::vector<std::string>(argv + 2, argv + argc));
+      const std::string unknown = ffloc::cli::unknownOptionMessage(*app.get_subcommand(argv[1]),
+                                                                   std::vector<std::string>(argv + 2, argv + argc));
       if (!unknown.empty()) {
         std::cerr << "error: " << unknown << "\n";
         return 2;

@@ -180,7 +180,8 @@ ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   map.sift.min_features = sift.has("min_features") ? static_cast<int>(sift.integer("min_features", 0, SiftOptions::kMaxFeatures)) : 0;
   if (sift.has("low_contrast_threshold")) map.sift.low_contrast_threshold = sift.finiteNumber("low_contrast_threshold");
   // Likewise the keypoints of maps written before OpenCV's offset was corrected.
-  map.sift.correct_upsampling_offset = sift.has("correct_upsampling_offset") && sift.boolean("correct_upsampling_offset");
+  map.sift.correct_upsampling_offset =
+      sift.has("correct_upsampling_offset") && sift.boolean("correct_upsampling_offset");
   map.ratio = static_cast<float>(top.finiteNumber("ratio"));
   try {
     map.sift.check();
