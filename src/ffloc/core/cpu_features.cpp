@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <sstream>
 
 namespace ffloc {
 
@@ -9,7 +10,18 @@ bool cpuHasFlag(const std::string& flag) {
   std::ifstream cpuinfo("/proc/cpuinfo");
   std::string line;
   while (std::getline(cpuinfo, line)) {
-    if (line.rfind("flags", 0) == 0) return (" " + line + " ").find(" " + flag + " ") != std::string::npos;
+    if (line.rfind("flags", 0) == 0) return cpuinfoFlagsLineLists(line, flag);
+  }
+  return false;
+}
+
+bool cpuinfoFlagsLineLists(const std::string& flags_line, const std::string& flag) {
+  const size_t colon = flags_line.find(':');
+  if (colon == std::string::npos) return false;
+  std::istringstream words(flags_line.substr(colon + 1));
+  std::string word;
+  while (words >> word) {
+    if (word == flag) return true;
   }
   return false;
 }

@@ -18,7 +18,20 @@ TEST(CpuFeatures, FindsWholeFlagsOnly) {
 #endif
   EXPECT_FALSE(cpuHasFlag("no_such_cpu_flag"));
   EXPECT_FALSE(cpuHasFlag(""));
+  EXPECT_FALSE(cpuHasFlag("flags"));
   EXPECT_EQ(cpuHasNativeBfloat16(), cpuHasFlag("amx_bf16") || cpuHasFlag("avx512_bf16"));
+}
+
+TEST(CpuFeatures, ReadsAFlagsLineWithRunsOfBlanks) {
+  // As an AMD EPYC (Zen 5) VM's kernel writes it: a tab before the colon, eight spaces in a gap.
+  const std::string line = "flags\t\t: fpu sse2 pti        vmmcall avx512_bf16";
+  EXPECT_TRUE(cpuinfoFlagsLineLists(line, "pti"));
+  EXPECT_TRUE(cpuinfoFlagsLineLists(line, "vmmcall"));
+  EXPECT_TRUE(cpuinfoFlagsLineLists(line, "avx512_bf16"));
+  EXPECT_FALSE(cpuinfoFlagsLineLists(line, ""));
+  EXPECT_FALSE(cpuinfoFlagsLineLists(line, "flags"));
+  EXPECT_FALSE(cpuinfoFlagsLineLists(line, "avx512"));
+  EXPECT_FALSE(cpuinfoFlagsLineLists("flags without a colon", "without"));
 }
 
 }  // namespace
