@@ -240,6 +240,18 @@ void refuseUnknown(const std::vector<std::string>& unused, const std::string& fu
 
 // A str or os.PathLike argument; InputError naming `argument` for anything else (None gave
 // Python's own TypeError, naming no argument).
+// Map and Result have no Python constructor: the library makes them. pybind11 (2.10) would
+// still let `Map.__new__(Map)` make an instance whose C++ object was never built, and the first
+// method called on it reads unbuilt memory (an outside probe: a segmentation fault). Their
+// `__new__` refuses, naming what makes one; instances the library returns do not pass through it.
+template <typename Class>
+void refuseDirectNew(py::class_<Class>& bound, const std::string& made_by) {
+  const std::string message = "ffloc." + std::string(py::str(bound.attr("__name__"))) + " cannot be made directly: " + made_by;
+  bound.def_static("__new__", [message](const py::handle&, const py::args&, const py::kwargs&) -> py::object {
+    throw py::type_error(message);
+  });
+}
+
 std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
   if (!py::isinstance<py::str>(value) && !py::isinstance<py::bytes>(value) && !py::hasattr(value, "__fspath__"))
     throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
@@ -485,7 +497,9 @@ PYBIND11_MODULE(_ffloc, m) {
         },
         py::arg("path"), "An image file as ffloc reads it: H x W x 3 uint8 RGB");
 
-  py::class_<Map>(m, "Map", "A map file opened for queries")
+  py::class_<Map> map_class(m, "Map", "A map file opened for queries");
+  refuseDirectNew(map_class, "open a map file with ffloc.Map.load(path) or write one with ffloc.build_map");
+  map_class
       .def_static("load",
                   [](const py::handle& path, const std::string& model, const std::string& dtype, int threads) {
                     return Map::load(pathArgument(path, "path", "a map file path"), model, dtype, threads);
@@ -569,7 +583,9 @@ PYBIND11_MODULE(_ffloc, m) {
       py::arg("threads") = 0, py::arg("format") = "auto", py::arg("quiet") = true,
       "Maps the scene's mapping split into the file `out` (as 'ffloc map') and opens it");
 
-  py::class_<Result>(m, "Result", "One query's answer")
+  py::class_<Result> result_class(m, "Result", "One query's answer");
+  refuseDirectNew(result_class, "Localizer.localize returns one");
+  result_class
       .def_property_readonly("pose",
                              [](const Result& r) -> py::object {
                                return r.camera_to_world ? py::object(toArray(r.camera_to_world->matrix())) : py::none();

@@ -293,6 +293,18 @@ def test_arguments_of_the_wrong_type_raise_errors_naming_them():
         ffloc.Localizer(None)
 
 
+def test_classes_the_library_makes_cannot_be_made_empty(cli_map, query):
+    # Map.__new__(Map) gave an object with no C++ map behind it, and len() of it a segmentation
+    # fault; the instances the library returns still come through.
+    with pytest.raises(TypeError, match="ffloc.Map cannot be made directly: open a map file with ffloc.Map.load"):
+        ffloc.Map.__new__(ffloc.Map)
+    with pytest.raises(TypeError, match="ffloc.Result cannot be made directly: Localizer.localize returns one"):
+        ffloc.Result.__new__(ffloc.Result)
+    opened = ffloc.Map.load(cli_map)
+    assert len(opened) > 0
+    assert ffloc.Localizer(opened, threads=1).localize(query.image_path, query.intrinsics).status != "failed"
+
+
 def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
     opened = ffloc.Map.load(cli_map)  # os.PathLike taken, as every path argument, and bytes
     assert ffloc.Map.load(os.fsencode(str(cli_map))).method == opened.method == "classical"
