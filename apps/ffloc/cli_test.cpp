@@ -132,7 +132,13 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
            {{"--dataset", "d", "eval"}, "error: --dataset: not an option of 'ffloc'; options go after the command"},
            // A value that looks like an option is the option's value: the error is the seed's.
            {{"synth", "--out", "--dir", "--seed", "-1"}, "--seed: must be at least 0"},
-           {{"eval", "--dataset", "d", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc eval' (ffloc eval --help lists them)"}}) {
+           {{"eval", "--dataset", "d", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc eval' (ffloc eval --help lists them)"},
+           // One dash: CLI11 said "--dataset is required", or for "-output" (-o with "utput")
+           // that "m.ffmap" was not expected.
+           {{"map", "-dataset", "d", "--output", "m.ffmap"}, "error: -dataset: options take two dashes; did you mean --dataset?"},
+           {{"map", "--dataset", "d", "-output", "m.ffmap"}, "error: -output: options take two dashes; did you mean --output?"},
+           {{"eval", "-methds", "classical", "--dataset", "d"},
+            "error: -methds: not an option of 'ffloc eval' (options take two dashes); did you mean --methods?"}}) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << run.output;
     EXPECT_TRUE(contains(run.output, expected)) << run.output;

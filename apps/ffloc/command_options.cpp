@@ -3,8 +3,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <map>
+#include <set>
 #include <sstream>
 
 #include "ffloc/core/error.h"
@@ -96,10 +98,13 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
   // The command and the subcommands named after it ("ffloc bench model"): each one's options count.
   std::string full_name = command.get_name();
   std::map<std::string, bool> takes_value;  // each long option: whether its next argument is its value
+  std::set<std::string> short_names;
   size_t next_argument = 0;
   for (const CLI::App* current = &command; current != nullptr;) {
-    for (const CLI::Option* option : current->get_options())
+    for (const CLI::Option* option : current->get_options()) {
       for (const std::string& name : option->get_lnames()) takes_value.emplace(name, option->get_expected_min() > 0);
+      for (const std::string& name : option->get_snames()) short_names.insert(name);
+    }
     const CLI::App* named = nullptr;
     for (; next_argument < arguments.size() && named == nullptr; ++next_argument)
       for (const CLI::App* subcommand : current->get_subcommands({}))
@@ -112,10 +117,15 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
     if (argument == "--") break;  // what follows is not options
     const bool was_value = is_value;
     is_value = false;
-    if (was_value || argument.rfind("--", 0) != 0) continue;
+    // "-dataset" for "--dataset": CLI11 reads it as short options ("-o utput" for "-output"), and
+    // then names another argument or says the long one is missing.
+    const bool single_dash = argument.size() > 2 && argument[0] == '-' && std::isalpha(static_cast<unsigned char>(argument[1]));
+    if (was_value || (argument.rfind("--", 0) != 0 && !single_dash)) continue;
+    const size_t dashes = single_dash ? 1 : 2;
     const size_t equals = argument.find('=');
-    const std::string name = argument.substr(2, equals == std::string::npos ? std::string::npos : equals - 2);
+    const std::string name = argument.substr(dashes, equals == std::string::npos ? std::string::npos : equals - dashes);
     if (const auto known = takes_value.find(name); known != takes_value.end()) {
+      if (single_dash) return "-" + name + ": options take two dashes; did you mean --" + name + "?";
       is_value = equals == std::string::npos && known->second;
       continue;
     }
@@ -131,7 +141,10 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
       nearest_distance = distance;
       nearest.push_back(option);
     }
-    std::string message = "--" + name + ": not an option of 'ffloc " + full_name + "'";
+    // A short option with its value attached ("-ofile.ffmap") is no slip.
+    if (single_dash && (nearest.empty() || short_names.count(name.substr(0, 1)) > 0)) continue;
+    std::string message = std::string(dashes, '-') + name + ": not an option of 'ffloc " + full_name + "'";
+    if (single_dash) message += " (options take two dashes)";
     if (nearest.empty()) return message + " (ffloc " + full_name + " --help lists them)";
     message += nearest.size() == 1 ? "; did you mean " : "; did you mean one of ";
     for (size_t i = 0; i < nearest.size(); ++i) message += (i == 0 ? "--" : ", --") + nearest[i];
