@@ -382,7 +382,9 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   // Open to every client, for load balancers: says nothing a key would protect beyond the count.
   get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
     const size_t withdrawn = maps_.withdrawnCount();
-    nlohmann::json body = {{"status", withdrawn == 0 ? "ok" : "degraded"}, {"maps", maps_.names().size()}};
+    nlohmann::json body = {{"status", withdrawn == 0 ? "ok" : "degraded"},
+                           {"maps", maps_.names().size()},
+                           {"queries_in_flight", queriesInFlight()}};
     if (withdrawn > 0) body["withdrawn"] = withdrawn;
     response.set_content(jsonText(body), kJson);
     log(request, "200");

@@ -86,6 +86,9 @@ class LocalizationServer {
   // waiting for their clients; then serve() returns (at once, when it had not started listening
   // yet).
   void stop();
+  // Queries admitted and not yet answered: the one being localized and those waiting their turn
+  // (GET /health says it as "queries_in_flight").
+  size_t queriesInFlight() const { return queries_in_flight_.load(); }
 
  private:
   struct Http;
