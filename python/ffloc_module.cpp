@@ -238,20 +238,25 @@ void refuseUnknown(const std::vector<std::string>& unused, const std::string& fu
                      " (query options: preset, top_k, features, seed, selection, retrieval, solver, verify, pose_guided)");
 }
 
-// A str or os.PathLike argument; InputError naming `argument` for anything else (None gave
-// Python's own TypeError, naming no argument).
-// Map and Result have no Python constructor: the library makes them. pybind11 (2.10) would
-// still let `Map.__new__(Map)` make an instance whose C++ object was never built, and the first
-// method called on it reads unbuilt memory (an outside probe: a segmentation fault). Their
-// `__new__` refuses, naming what makes one; instances the library returns do not pass through it.
+// pybind11 (2.10) lets `Map.__new__(Map)` make an instance whose C++ object is never built; the
+// first method called on it reads unbuilt memory (an outside probe: a segmentation fault from
+// len() of a Map, from Scene.mapping_indices() and Frame.distortion). Such a `__new__` refuses,
+// naming what makes one: always for the classes the library makes (Map, Result, Scene, Frame),
+// and without arguments for those Python constructs (Localizer: its __init__ takes the map, and
+// the library's own instances never pass through __new__).
+enum class MadeBy { kLibrary, kConstructor };
 template <typename Class>
-void refuseDirectNew(py::class_<Class>& bound, const std::string& made_by) {
-  const std::string message = "ffloc." + std::string(py::str(bound.attr("__name__"))) + " cannot be made directly: " + made_by;
-  bound.def_static("__new__", [message](const py::handle&, const py::args&, const py::kwargs&) -> py::object {
-    throw py::type_error(message);
+void refuseEmptyNew(py::class_<Class>& bound, MadeBy made_by, const std::string& how) {
+  const std::string message = "ffloc." + std::string(py::str(bound.attr("__name__"))) + " cannot be made empty: " + how;
+  const newfunc make_instance = reinterpret_cast<PyTypeObject*>(bound.ptr())->tp_new;
+  bound.def_static("__new__", [=](const py::handle& type, const py::args& args, const py::kwargs& kwargs) -> py::object {
+    if (made_by == MadeBy::kLibrary || (args.empty() && kwargs.empty())) throw py::type_error(message);
+    return py::reinterpret_steal<py::object>(make_instance(reinterpret_cast<PyTypeObject*>(type.ptr()), args.ptr(), kwargs.ptr()));
   });
 }
 
+// A str or os.PathLike argument; InputError naming `argument` for anything else (None gave
+// Python's own TypeError, naming no argument).
 std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
   if (!py::isinstance<py::str>(value) && !py::isinstance<py::bytes>(value) && !py::hasattr(value, "__fspath__"))
     throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
@@ -447,7 +452,9 @@ PYBIND11_MODULE(_ffloc, m) {
     }
   });
 
-  py::class_<Frame>(m, "Frame", "One posed image of a dataset")
+  py::class_<Frame> frame_class(m, "Frame", "One posed image of a dataset");
+  refuseEmptyNew(frame_class, MadeBy::kLibrary, "Scene.frames holds a dataset's frames");
+  frame_class
       .def_readonly("name", &Frame::name)
       .def_property_readonly("image_path", [](const Frame& f) { return f.image_path.string(); })
       .def_property_readonly("intrinsics", [](const Frame& f) { return toArray(f.intrinsics.K()); }, "3x3 K")
@@ -463,7 +470,9 @@ PYBIND11_MODULE(_ffloc, m) {
       .def_property_readonly("split", [](const Frame& f) { return std::string(toString(f.split)); })
       .def("__repr__", [](const Frame& f) { return "<ffloc.Frame " + f.name + " (" + toString(f.split) + ")>"; });
 
-  py::class_<Scene>(m, "Scene", "A dataset: posed frames with their split")
+  py::class_<Scene> scene_class(m, "Scene", "A dataset: posed frames with their split");
+  refuseEmptyNew(scene_class, MadeBy::kLibrary, "ffloc.load_dataset(path) reads one");
+  scene_class
       .def_readonly("name", &Scene::name)
       .def_property_readonly("root", [](const Scene& s) { return s.root.string(); })
       .def_readonly("format", &Scene::format)
@@ -498,7 +507,7 @@ PYBIND11_MODULE(_ffloc, m) {
         py::arg("path"), "An image file as ffloc reads it: H x W x 3 uint8 RGB");
 
   py::class_<Map> map_class(m, "Map", "A map file opened for queries");
-  refuseDirectNew(map_class, "open a map file with ffloc.Map.load(path) or write one with ffloc.build_map");
+  refuseEmptyNew(map_class, MadeBy::kLibrary, "ffloc.Map.load(path) opens one; ffloc.build_map and Localizer.map return one");
   map_class
       .def_static("load",
                   [](const py::handle& path, const std::string& model, const std::string& dtype, int threads) {
@@ -584,7 +593,7 @@ PYBIND11_MODULE(_ffloc, m) {
       "Maps the scene's mapping split into the file `out` (as 'ffloc map') and opens it");
 
   py::class_<Result> result_class(m, "Result", "One query's answer");
-  refuseDirectNew(result_class, "Localizer.localize returns one");
+  refuseEmptyNew(result_class, MadeBy::kLibrary, "Localizer.localize returns one");
   result_class
       .def_property_readonly("pose",
                              [](const Result& r) -> py::object {
@@ -615,7 +624,9 @@ PYBIND11_MODULE(_ffloc, m) {
                std::to_string(r.answer["inliers"].get<int>()) + " inliers>";
       });
 
-  py::class_<PyLocalizer>(m, "Localizer", "Localizes queries against a map with its method")
+  py::class_<PyLocalizer> localizer_class(m, "Localizer", "Localizes queries against a map with its method");
+  refuseEmptyNew(localizer_class, MadeBy::kConstructor, "ffloc.Localizer(map) makes one");
+  localizer_class
       .def(py::init([](const py::handle& map, const std::optional<std::string>& model,
                        const std::optional<std::string>& dtype, int threads, const py::kwargs& kwargs) {
              std::vector<std::string> unused;

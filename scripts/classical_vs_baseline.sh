@@ -15,13 +15,14 @@ datasets=("${@:4}")
 [ ${#datasets[@]} -gt 0 ] || datasets=(7scenes_redkitchen strecha_fountain_p11 strecha_herzjesu_p8)
 ffloc="$build/bin/ffloc"
 [ -x /usr/bin/time ] || { echo "error: /usr/bin/time is missing (apt-get install time)" >&2; exit 2; }
+for dataset in "${datasets[@]}"; do  # all of them before the first run
+  [ -d "$shared/data/$dataset" ] || { echo "error: $shared/data/$dataset: no such dataset folder" >&2; exit 2; }
+done
 mkdir -p "$out"
 { date -u; grep -m1 "model name" /proc/cpuinfo; nproc; uptime; } | tee "$out/machine.txt"
 
 # peak_mib LOG: the peak resident set size /usr/bin/time -v wrote, in MiB.
 peak_mib() { awk -F': ' '/Maximum resident set size/ {printf "%.0f", $2 / 1024}' "$1"; }
-# wall_s LOG: its elapsed wall-clock time in seconds.
-wall_s() { awk -F': ' '/Elapsed \(wall clock\)/ {n = split($2, p, ":"); s = 0; for (i = 1; i <= n; ++i) s = s * 60 + p[i]; printf "%.1f", s}' "$1"; }
 
 resources="$out/resources.md"
 echo "| dataset | images mapped | mapping time per image | map size per image | peak RSS, mapping | peak RSS, eval |" > "$resources"
@@ -30,7 +31,6 @@ accuracy="$out/accuracy.md"
 : > "$accuracy"
 for dataset in "${datasets[@]}"; do
   data="$shared/data/$dataset"
-  [ -d "$data" ] || { echo "error: $data: no such dataset folder" >&2; exit 2; }
   label=$(basename "$dataset")
   map="$out/$label.ffmap"
   echo "== $label: ffloc map =="
@@ -38,16 +38,17 @@ for dataset in "${datasets[@]}"; do
   /usr/bin/time -v -o "$out/$label.map.time" "$ffloc" map --dataset "$data" --output "$map" --quiet \
     | tee "$out/$label.map.log"
   images=$(sed -n 's/.* holds \([0-9]*\) images.*/\1/p' "$out/$label.map.log")
+  per_image=$(sed -n 's/.*(\([0-9.]*\) s\/image).*/\1/p' "$out/$label.map.log")
   echo "== $label: ffloc eval --methods sift-baseline --map $map =="
   /usr/bin/time -v -o "$out/$label.eval.time" "$ffloc" eval --dataset "$data" --methods sift-baseline --map "$map" \
     --quiet --json "$out/$label.json" > /dev/null
   if [ -s "$accuracy" ]; then tail -n +3 "$out/$label.md" >> "$accuracy"; else cat "$out/$label.md" >> "$accuracy"; fi
-  awk -v d="$label" -v n="$images" -v t="$(wall_s "$out/$label.map.time")" -v bytes="$(stat -c %s "$map")" \
+  awk -v d="$label" -v n="$images" -v t="$per_image" -v bytes="$(stat -c %s "$map")" \
     -v m="$(peak_mib "$out/$label.map.time")" -v e="$(peak_mib "$out/$label.eval.time")" \
-    'BEGIN {printf "| %s | %d | %.3f s | %.2f MiB | %d MiB | %d MiB |\n", d, n, t / n, bytes / n / 1048576, m, e}' >> "$resources"
+    'BEGIN {printf "| %s | %d | %.3f s | %.2f MiB | %d MiB | %d MiB |\n", d, n, t, bytes / n / 1048576, m, e}' >> "$resources"
 done
 echo
 cat "$accuracy"
 echo
-echo "(mapping time per image: the whole 'ffloc map' run, start-up and writing included, over the images)"
+echo "(mapping time per image: as 'ffloc map' reports it, without start-up)"
 cat "$resources"

@@ -138,7 +138,10 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
            {{"map", "-dataset", "d", "--output", "m.ffmap"}, "error: -dataset: options take two dashes; did you mean --dataset?"},
            {{"map", "--dataset", "d", "-output", "m.ffmap"}, "error: -output: options take two dashes; did you mean --output?"},
            {{"eval", "-methds", "classical", "--dataset", "d"},
-            "error: -methds: not an option of 'ffloc eval' (options take two dashes); did you mean --methods?"}}) {
+            "error: -methds: not an option of 'ffloc eval' (options take two dashes); did you mean --methods?"},
+           // A line CLI11 parses: it wrote the map to ./utput. The value of -o is a value.
+           {{"map", "--dataset", "d", "-output", "--quiet"}, "error: -output: options take two dashes; did you mean --output?"},
+           {{"map", "-o", "-quiet", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc map'"}}) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << run.output;
     EXPECT_TRUE(contains(run.output, expected)) << run.output;

@@ -92,48 +92,89 @@ size_t editDistance(const std::string& a, const std::string& b) {
   return d[a.size()][b.size()];
 }
 
+// The options of a command and of the subcommands named after it ("ffloc bench model"), and
+// which of the arguments are options rather than their values.
+struct CommandOptions {
+  std::string full_name;                  // "bench model"
+  std::map<std::string, bool> long_names;  // each long option: whether its next argument is its value
+  std::map<char, bool> short_names;       // the same for each one-letter option
+
+  CommandOptions(const CLI::App& command, const std::vector<std::string>& arguments) : full_name(command.get_name()) {
+    size_t next_argument = 0;
+    for (const CLI::App* current = &command; current != nullptr;) {
+      for (const CLI::Option* option : current->get_options()) {
+        const bool takes_value = option->get_expected_min() > 0;
+        for (const std::string& name : option->get_lnames()) long_names.emplace(name, takes_value);
+        for (const std::string& name : option->get_snames()) short_names.emplace(name[0], takes_value);
+      }
+      const CLI::App* named = nullptr;
+      for (; next_argument < arguments.size() && named == nullptr; ++next_argument)
+        for (const CLI::App* subcommand : current->get_subcommands({}))
+          if (subcommand->get_name() == arguments[next_argument]) named = subcommand;
+      if (named != nullptr) full_name += " " + named->get_name();
+      current = named;
+    }
+  }
+
+  // The arguments before "--" that are not the value of the option before them ("--out --dir"
+  // writes to "--dir", "-o -quiet" to "-quiet").
+  std::vector<std::string> optionsAndOperands(const std::vector<std::string>& arguments) const {
+    std::vector<std::string> kept;
+    bool is_value = false;
+    for (const std::string& argument : arguments) {
+      if (argument == "--") break;  // what follows is not options
+      const bool was_value = is_value;
+      is_value = false;
+      if (was_value) continue;
+      kept.push_back(argument);
+      if (argument.rfind("--", 0) == 0) {
+        const auto known = long_names.find(argument.substr(2));  // "--name=value" carries its value
+        is_value = known != long_names.end() && known->second;
+      } else if (argument.size() == 2 && argument[0] == '-') {
+        const auto known = short_names.find(argument[1]);  // "-ofile" carries its value
+        is_value = known != short_names.end() && known->second;
+      }
+    }
+    return kept;
+  }
+};
+
+// The long option name `argument` is, typed with one dash ("-dataset"); empty otherwise.
+std::string oneDashLongName(const CommandOptions& options, const std::string& argument) {
+  if (argument.size() <= 2 || argument[0] != '-' || !std::isalpha(static_cast<unsigned char>(argument[1]))) return "";
+  const std::string name = argument.substr(1, argument.find('=') - 1);
+  // "-help" is CLI11's "-h elp": help, as typed.
+  return name != "help" && options.long_names.count(name) > 0 ? name : "";
+}
+
 }  // namespace
 
+std::string oneDashOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments) {
+  const CommandOptions options(command, arguments);
+  for (const std::string& argument : options.optionsAndOperands(arguments))
+    if (const std::string name = oneDashLongName(options, argument); !name.empty())
+      return "-" + name + ": options take two dashes; did you mean --" + name + "?";
+  return "";
+}
+
 std::string unknownOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments) {
-  // The command and the subcommands named after it ("ffloc bench model"): each one's options count.
-  std::string full_name = command.get_name();
-  std::map<std::string, bool> takes_value;  // each long option: whether its next argument is its value
-  std::set<std::string> short_names;
-  size_t next_argument = 0;
-  for (const CLI::App* current = &command; current != nullptr;) {
-    for (const CLI::Option* option : current->get_options()) {
-      for (const std::string& name : option->get_lnames()) takes_value.emplace(name, option->get_expected_min() > 0);
-      for (const std::string& name : option->get_snames()) short_names.insert(name);
-    }
-    const CLI::App* named = nullptr;
-    for (; next_argument < arguments.size() && named == nullptr; ++next_argument)
-      for (const CLI::App* subcommand : current->get_subcommands({}))
-        if (subcommand->get_name() == arguments[next_argument]) named = subcommand;
-    if (named != nullptr) full_name += " " + named->get_name();
-    current = named;
-  }
-  bool is_value = false;  // the argument after an option that takes one ("--out --dir" writes to "--dir")
-  for (const std::string& argument : arguments) {
-    if (argument == "--") break;  // what follows is not options
-    const bool was_value = is_value;
-    is_value = false;
-    // "-dataset" for "--dataset": CLI11 reads it as short options ("-o utput" for "-output"), and
-    // then names another argument or says the long one is missing.
-    const bool single_dash = argument.size() > 2 && argument[0] == '-' && std::isalpha(static_cast<unsigned char>(argument[1]));
-    if (was_value || (argument.rfind("--", 0) != 0 && !single_dash)) continue;
-    const size_t dashes = single_dash ? 1 : 2;
-    const size_t equals = argument.find('=');
-    const std::string name = argument.substr(dashes, equals == std::string::npos ? std::string::npos : equals - dashes);
-    if (const auto known = takes_value.find(name); known != takes_value.end()) {
-      if (single_dash) return "-" + name + ": options take two dashes; did you mean --" + name + "?";
-      is_value = equals == std::string::npos && known->second;
+  const CommandOptions options(command, arguments);
+  for (const std::string& argument : options.optionsAndOperands(arguments)) {
+    // One dash: CLI11 reads "-methds" as short options and then says another argument was not
+    // expected. "-ofile.ffmap" is a short option with its value.
+    const bool one_dash = argument.size() > 2 && argument[0] == '-' && std::isalpha(static_cast<unsigned char>(argument[1]));
+    if (argument.rfind("--", 0) != 0 && !(one_dash && options.short_names.count(argument[1]) == 0)) continue;
+    const size_t dashes = one_dash ? 1 : 2;
+    const std::string name = argument.substr(dashes, argument.find('=') - dashes);
+    if (options.long_names.count(name) > 0) {
+      if (one_dash) return "-" + name + ": options take two dashes; did you mean --" + name + "?";
       continue;
     }
     // One typing slip in a short name, two in a longer one, or a name the option's begins with
     // ("--method" for "--methods"); every option at the least distance, in alphabetical order.
     std::vector<std::string> nearest;
     size_t nearest_distance = name.size() <= 4 ? 1 : 2;
-    for (const auto& [option, ignored] : takes_value) {
+    for (const auto& [option, ignored] : options.long_names) {
       if (name.empty()) break;  // "--=x": every name begins so
       const size_t distance = option.rfind(name, 0) == 0 ? 1 : editDistance(name, option);
       if (distance > nearest_distance) continue;
@@ -141,11 +182,10 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
       nearest_distance = distance;
       nearest.push_back(option);
     }
-    // A short option with its value attached ("-ofile.ffmap") is no slip.
-    if (single_dash && (nearest.empty() || short_names.count(name.substr(0, 1)) > 0)) continue;
-    std::string message = std::string(dashes, '-') + name + ": not an option of 'ffloc " + full_name + "'";
-    if (single_dash) message += " (options take two dashes)";
-    if (nearest.empty()) return message + " (ffloc " + full_name + " --help lists them)";
+    if (one_dash && nearest.empty()) continue;  // left to CLI11
+    std::string message = std::string(dashes, '-') + name + ": not an option of 'ffloc " + options.full_name + "'";
+    if (one_dash) message += " (options take two dashes)";
+    if (nearest.empty()) return message + " (ffloc " + options.full_name + " --help lists them)";
     message += nearest.size() == 1 ? "; did you mean " : "; did you mean one of ";
     for (size_t i = 0; i < nearest.size(); ++i) message += (i == 0 ? "--" : ", --") + nearest[i];
     return message + "?";

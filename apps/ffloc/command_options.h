@@ -60,6 +60,11 @@ CLI::Validator notNegative();
 // option, only that the required one is missing.
 std::string unknownOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments);
 
+// The first argument that is one of `command`'s long options typed with one dash ("-output"),
+// not an option's value: "-output: options take two dashes; did you mean --output?". Checked
+// before parsing, as CLI11 reads "-output" as "-o utput" and writes the map to ./utput.
+std::string oneDashOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments);
+
 // For an integer count: "must be at least 1, got 0", where CLI11's PositiveNumber said "Value 0
 // not in range 0.000000 to 1797...", the largest double in full.
 CLI::Validator atLeast(int64_t minimum);

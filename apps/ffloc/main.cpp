@@ -50,6 +50,14 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  if (argc > 1 && argv[1][0] != '-') {
+    const std::string one_dash =
+        ffloc::cli::oneDashOptionMessage(*app.get_subcommand(argv[1]), std::vector<std::string>(argv + 2, argv + argc));
+    if (!one_dash.empty()) {
+      std::cerr << "error: " << one_dash << "\n";
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

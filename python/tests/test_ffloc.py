@@ -293,16 +293,24 @@ def test_arguments_of_the_wrong_type_raise_errors_naming_them():
         ffloc.Localizer(None)
 
 
-def test_classes_the_library_makes_cannot_be_made_empty(cli_map, query):
-    # Map.__new__(Map) gave an object with no C++ map behind it, and len() of it a segmentation
-    # fault; the instances the library returns still come through.
-    with pytest.raises(TypeError, match="ffloc.Map cannot be made directly: open a map file with ffloc.Map.load"):
-        ffloc.Map.__new__(ffloc.Map)
-    with pytest.raises(TypeError, match="ffloc.Result cannot be made directly: Localizer.localize returns one"):
-        ffloc.Result.__new__(ffloc.Result)
+def test_no_class_can_be_made_empty(cli_map, query):
+    # X.__new__(X) gave an object with no C++ object behind it: len() of a Map, Scene.mapping_indices()
+    # and Frame.distortion crashed the interpreter, Localizer.localize read garbage settings.
+    for kind, message in ((ffloc.Map, "ffloc.Map.load\\(path\\) opens one"),
+                          (ffloc.Result, "Localizer.localize returns one"),
+                          (ffloc.Scene, "ffloc.load_dataset\\(path\\) reads one"),
+                          (ffloc.Frame, "Scene.frames holds"),
+                          (ffloc.Localizer, "ffloc.Localizer\\(map\\) makes one")):
+        with pytest.raises(TypeError, match=f"ffloc.{kind.__name__} cannot be made empty: {message}"):
+            kind.__new__(kind)
+    with pytest.raises(TypeError, match="ffloc.Map cannot be made empty"):
+        ffloc.Map.__new__(ffloc.Map, str(cli_map))
+    # What the library and the constructor make still comes through.
     opened = ffloc.Map.load(cli_map)
-    assert len(opened) > 0
-    assert ffloc.Localizer(opened, threads=1).localize(query.image_path, query.intrinsics).status != "failed"
+    localizer = ffloc.Localizer(opened, threads=1)
+    assert len(opened) == len(localizer.map) > 0
+    assert localizer.localize(query.image_path, query.intrinsics).status != "failed"
+    assert len(query.name) > 0
 
 
 def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
