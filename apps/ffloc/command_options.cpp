@@ -166,10 +166,7 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
     if (argument.rfind("--", 0) != 0 && !(one_dash && options.short_names.count(argument[1]) == 0)) continue;
     const size_t dashes = one_dash ? 1 : 2;
     const std::string name = argument.substr(dashes, argument.find('=') - dashes);
-    if (options.long_names.count(name) > 0) {
-      if (one_dash) return "-" + name + ": options take two dashes; did you mean --" + name + "?";
-      continue;
-    }
+    if (options.long_names.count(name) > 0) continue;  // one-dash ones are refused before parsing
     // One typing slip in a short name, two in a longer one, or a name the option's begins with
     // ("--method" for "--methods"); every option at the least distance, in alphabetical order.
     std::vector<std::string> nearest;

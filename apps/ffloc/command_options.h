@@ -57,7 +57,8 @@ CLI::Validator notNegative();
 // `command` does not have, named with the command's option it most likely meant: "--methds: not
 // an option of 'ffloc eval'; did you mean --methods?". Empty when every one is known. CLI11 said
 // "The following arguments were not expected: classical --methds", or, for a mistyped required
-// option, only that the required one is missing.
+// option, only that the required one is missing. A one-dash word near a long option is named the
+// same way ("-methds"), unless it begins with a short option's letter ("-ofile.ffmap").
 std::string unknownOptionMessage(const CLI::App& command, const std::vector<std::string>& arguments);
 
 // The first argument that is one of `command`'s long options typed with one dash ("-output"),

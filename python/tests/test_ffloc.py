@@ -310,7 +310,7 @@ def test_no_class_can_be_made_empty(cli_map, query):
     localizer = ffloc.Localizer(opened, threads=1)
     assert len(opened) == len(localizer.map) > 0
     assert localizer.localize(query.image_path, query.intrinsics).status != "failed"
-    assert len(query.name) > 0
+    assert query.name and query.split == "query"  # a Frame of Scene.frames
 
 
 def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
