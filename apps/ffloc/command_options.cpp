@@ -6,7 +6,6 @@
 #include <cctype>
 #include <cmath>
 #include <map>
-#include <set>
 #include <sstream>
 
 #include "ffloc/core/error.h"
@@ -139,9 +138,14 @@ struct CommandOptions {
   }
 };
 
+// A word of one dash and at least two letters ("-dataset", "-ofile.ffmap"), not a number ("-1").
+bool isOneDashWord(const std::string& argument) {
+  return argument.size() > 2 && argument[0] == '-' && std::isalpha(static_cast<unsigned char>(argument[1]));
+}
+
 // The long option name `argument` is, typed with one dash ("-dataset"); empty otherwise.
 std::string oneDashLongName(const CommandOptions& options, const std::string& argument) {
-  if (argument.size() <= 2 || argument[0] != '-' || !std::isalpha(static_cast<unsigned char>(argument[1]))) return "";
+  if (!isOneDashWord(argument)) return "";
   const std::string name = argument.substr(1, argument.find('=') - 1);
   // "-help" is CLI11's "-h elp": help, as typed.
   return name != "help" && options.long_names.count(name) > 0 ? name : "";
@@ -162,7 +166,7 @@ std::string unknownOptionMessage(const CLI::App& command, const std::vector<std:
   for (const std::string& argument : options.optionsAndOperands(arguments)) {
     // One dash: CLI11 reads "-methds" as short options and then says another argument was not
     // expected. "-ofile.ffmap" is a short option with its value.
-    const bool one_dash = argument.size() > 2 && argument[0] == '-' && std::isalpha(static_cast<unsigned char>(argument[1]));
+    const bool one_dash = isOneDashWord(argument);
     if (argument.rfind("--", 0) != 0 && !(one_dash && options.short_names.count(argument[1]) == 0)) continue;
     const size_t dashes = one_dash ? 1 : 2;
     const std::string name = argument.substr(dashes, argument.find('=') - dashes);

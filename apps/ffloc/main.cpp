@@ -27,8 +27,12 @@ int main(int argc, char** argv) {
 #ifdef FFLOC_WITH_SERVER
   ffloc::cli::registerServeCommand(app, run);
 #endif
+  // The arguments after a command's name, where one is named first.
+  const bool command_named = argc > 1 && argv[1][0] != '-';
+  const std::vector<std::string> command_arguments =
+      command_named ? std::vector<std::string>(argv + 2, argv + argc) : std::vector<std::string>();
   // CLI11 said only "A subcommand is required" for a mistyped command.
-  if (argc > 1 && argv[1][0] != '-') {
+  if (command_named) {
     std::string commands;
     bool known = false;
     for (const CLI::App* command : app.get_subcommands({})) {
@@ -39,22 +43,19 @@ int main(int argc, char** argv) {
       std::cerr << "error: unknown command '" << argv[1] << "' (commands: " << commands << ")\n";
       return 2;
     }
+    const std::string one_dash = ffloc::cli::oneDashOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
+    if (!one_dash.empty()) {
+      std::cerr << "error: " << one_dash << "\n";
+      return 2;
+    }
   }
   // Before the command, only --help and --version: CLI11 said "A subcommand is required", or the
   // command's own complaint, for "ffloc --typo eval".
-  if (argc > 1 && argv[1][0] == '-') {
+  if (argc > 1 && !command_named) {
     const std::string first = argv[1];
     if (first != "--help" && first != "-h" && first != "--version") {
       std::cerr << "error: " << first << ": not an option of 'ffloc'; options go after the command ('ffloc <command> "
                    "--help' lists them)\n";
-      return 2;
-    }
-  }
-  if (argc > 1 && argv[1][0] != '-') {
-    const std::string one_dash =
-        ffloc::cli::oneDashOptionMessage(*app.get_subcommand(argv[1]), std::vector<std::string>(argv + 2, argv + argc));
-    if (!one_dash.empty()) {
-      std::cerr << "error: " << one_dash << "\n";
       return 2;
     }
   }
@@ -63,9 +64,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     // CLI11's own codes (105, 106, ...) would contradict the documented 2 for bad input; --help
     // and --version end here too, with 0.
-    if (e.get_exit_code() != 0 && argc > 1 && argv[1][0] != '-') {
-      const std::string unknown = ffloc::cli::unknownOptionMessage(*app.get_subcommand(argv[1]),
-                                                                   std::vector<std::string>(argv + 2, argv + argc));
+    if (e.get_exit_code() != 0 && command_named) {
+      const std::string unknown = ffloc::cli::unknownOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
       if (!unknown.empty()) {
         std::cerr << "error: " << unknown << "\n";
         return 2;
