@@ -226,8 +226,10 @@ MapHeader readMapHeader(const std::filesystem::path& path) {
 }
 
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {
-  // Shared: each image's tokens keep the mapping alive.
-  const std::shared_ptr<const TensorArchive> archive = openSafetensors(path);
+  // Shared: each image's tokens keep the mapping alive. A snapshot: a map stays open in a server
+  // or a Python session while the file may be written over in place, and the file as mapped then
+  // changed under its tokens or, cut short, ended the process (SIGBUS) at the next query.
+  const std::shared_ptr<const TensorArchive> archive = openSafetensors(path, FileMapping::kSnapshot);
   const std::string file = path.string();
   const nlohmann::json metadata = readMapMetadata(*archive, file);
   const MapHeader header = mapHeader(metadata, file);

@@ -17,10 +17,10 @@
 namespace ffloc {
 
 // A map image's tokens, fp16 bits, row-major (token, channel). Held in memory while a map is
-// built; a view into the memory-mapped file once a map is read, so that reading a map copies no
-// tokens (a 150-image map of the large configuration held 236 MB of copies) and a query pages in
-// only the K images it selects. A view keeps its file mapped: a map file replaced on disk
-// (atomic rename) leaves the old inode, and so the view, intact.
+// built; a view into the map file's snapshot once a map is read (mapped_file.h): reading a map
+// makes no per-image copies (a 150-image map of the large configuration held 236 MB of them), a
+// query pages in only the K images it selects, and a map file replaced on disk, or written over
+// in place, leaves the view intact.
 class StoredTokens {
  public:
   StoredTokens() = default;
@@ -105,9 +105,9 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path);
 
 // Validates the container, the version, every checksum and every size. When expected_model_id is
 // non-empty and differs from the map's, InputError says which model built the map. The tokens
-// are views into the file, mapped read-only (StoredTokens); every tensor's checksum is verified
-// here, streaming over the mapping and releasing each stretch once hashed, so the check leaves
-// no token resident.
+// are views into a snapshot of the file taken here (StoredTokens), so the map holds memory of the
+// file's size for as long as it lives; every tensor's checksum is verified here, streaming over
+// the snapshot and releasing each stretch once hashed, so the check leaves no token resident.
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id = "");
 
 }  // namespace ffloc

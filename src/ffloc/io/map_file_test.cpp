@@ -67,10 +67,12 @@ TEST(MapFile, RoundTripIsExact) {
   EXPECT_EQ(files, 1u);
 }
 
-// Tokens are read through the file's memory map, not copied (a 150-image large-configuration
-// map held 236 MB of copies). The mapping keeps the file read alive: a map replaced on disk by
-// atomic rename, as `ffloc map` writes, or deleted, leaves the map read before it intact.
-TEST(MapFile, TokensAreViewsOfTheMappedFileWhichOutliveItsReplacement) {
+// Tokens are views into one snapshot of the file, not per-image copies (a 150-image
+// large-configuration map held 236 MB of those). The snapshot keeps the map read intact whatever
+// happens to the file: replaced by atomic rename, as `ffloc map` writes, deleted, or written over
+// in place and cut short, which under the file's own mapping changed the tokens of a served map or
+// ended the server with SIGBUS at its next query (found by an outside probe).
+TEST(MapFile, TokensAreViewsOfASnapshotThatOutlivesAnyChangeToTheFile) {
   const auto dir = testing::makeTempDir("ffloc-map");
   const MapFile written = smallMap();
   writeMapFile(written, dir / "scene.ffmap");
@@ -88,6 +90,15 @@ TEST(MapFile, TokensAreViewsOfTheMappedFileWhichOutliveItsReplacement) {
   // Copies of a read map share the mapping; the last one to go unmaps it.
   MapFile copy = read;
   EXPECT_EQ(copy.images[1].tokens, written.images[1].tokens);
+
+  // Written over in place (the same inode, as `cp` does), then cut short.
+  writeMapFile(written, dir / "served.ffmap");
+  const MapFile served = readMapFile(dir / "served.ffmap");
+  writeMapFile(other, dir / "other.ffmap");
+  std::filesystem::copy_file(dir / "other.ffmap", dir / "served.ffmap", std::filesystem::copy_options::overwrite_existing);
+  for (size_t i = 0; i < written.images.size(); ++i) EXPECT_EQ(served.images[i].tokens, written.images[i].tokens) << i;
+  std::filesystem::resize_file(dir / "served.ffmap", 64);
+  for (size_t i = 0; i < written.images.size(); ++i) EXPECT_EQ(served.images[i].tokens, written.images[i].tokens) << i;
 }
 
 TEST(MapFile, RefusesAMapBuiltWithAnotherModel) {

@@ -2,6 +2,7 @@
 
 #include <fcntl.h>
 #include <sys/mman.h>
+#include <sys/sendfile.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -12,7 +13,44 @@
 
 namespace ffloc {
 
-MappedFile::MappedFile(const std::filesystem::path& path) : path_(path) {
+namespace {
+
+struct FileState {
+  off_t size = 0;
+  int64_t modified_ns = 0;
+  bool operator==(const FileState& other) const { return size == other.size && modified_ns == other.modified_ns; }
+};
+
+FileState stateOf(const struct stat& info) {
+  return {info.st_size, static_cast<int64_t>(info.st_mtim.tv_sec) * 1000000000 + info.st_mtim.tv_nsec};
+}
+
+// A memfd holding the first `size` bytes of `fd`, or -1 with errno set; `changed` when the file's
+// size or modification time moved while it was copied (a writer in place: the copy may be torn).
+int snapshotOf(int fd, const struct stat& before, bool& changed) {
+  const int copy = ::memfd_create("ffloc-snapshot", MFD_CLOEXEC);
+  if (copy < 0) return -1;
+  const auto size = static_cast<std::size_t>(before.st_size);
+  off_t offset = 0;
+  while (static_cast<std::size_t>(offset) < size) {
+    const ssize_t sent = ::sendfile(copy, fd, &offset, size - static_cast<std::size_t>(offset));
+    if (sent < 0 && errno == EINTR) continue;
+    if (sent <= 0) {
+      changed = sent == 0;  // the file ended early: cut short while it was copied
+      const int error = errno;
+      ::close(copy);
+      errno = error;
+      return -1;
+    }
+  }
+  struct stat after {};
+  changed = ::fstat(fd, &after) != 0 || !(stateOf(after) == stateOf(before));
+  return copy;
+}
+
+}  // namespace
+
+MappedFile::MappedFile(const std::filesystem::path& path, FileMapping mapping) : path_(path) {
   // O_NONBLOCK so that a FIFO given by mistake is rejected below instead of blocking the open.
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK);
   if (fd < 0) throwInputError(path.string(), 0, std::string("cannot open: ") + std::strerror(errno));
@@ -22,17 +60,28 @@ MappedFile::MappedFile(const std::filesystem::path& path) : path_(path) {
     throwInputError(path.string(), 0, "not a regular file");
   }
   size_ = static_cast<std::size_t>(info.st_size);
-  if (size_ > 0) {
-    void* mapping = ::mmap(nullptr, size_, PROT_READ, MAP_PRIVATE, fd, 0);
-    if (mapping == MAP_FAILED) {
-      const int error = errno;
-      ::close(fd);
-      throwInputError(path.string(), 0, std::string("cannot map into memory: ") + std::strerror(error));
-    }
-    data_ = static_cast<const uint8_t*>(mapping);
+  if (size_ == 0) {
+    ::close(fd);
+    return;
   }
+  int source = fd;
+  if (mapping == FileMapping::kSnapshot) {
+    bool changed = false;
+    source = snapshotOf(fd, info, changed);
+    const int error = errno;
+    ::close(fd);
+    if (changed) {
+      if (source >= 0) ::close(source);
+      throwInputError(path.string(), 0, "changed while it was read (written in place?); read it again once written");
+    }
+    if (source < 0) throwInputError(path.string(), 0, std::string("cannot copy into memory: ") + std::strerror(error));
+  }
+  void* bytes = ::mmap(nullptr, size_, PROT_READ, mapping == FileMapping::kSnapshot ? MAP_SHARED : MAP_PRIVATE, source, 0);
+  const int error = errno;
   // The mapping stays valid after the descriptor is closed.
-  ::close(fd);
+  ::close(source);
+  if (bytes == MAP_FAILED) throwInputError(path.string(), 0, std::string("cannot map into memory: ") + std::strerror(error));
+  data_ = static_cast<const uint8_t*>(bytes);
 }
 
 MappedFile::~MappedFile() {

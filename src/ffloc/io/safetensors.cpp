@@ -39,7 +39,7 @@ constexpr int kMaxTensorEntryKeys = 16;
 
 class SafetensorsArchive : public TensorArchive {
  public:
-  explicit SafetensorsArchive(const std::filesystem::path& path);
+  SafetensorsArchive(const std::filesystem::path& path, FileMapping mapping);
 
  private:
   [[noreturn]] void fail(const std::string& what) const {
@@ -67,7 +67,7 @@ void writeLe64(uint64_t value, uint8_t* bytes) {
   for (int i = 0; i < 8; ++i) bytes[i] = static_cast<uint8_t>(value >> (8 * i));
 }
 
-SafetensorsArchive::SafetensorsArchive(const std::filesystem::path& path) : file_(path) {
+SafetensorsArchive::SafetensorsArchive(const std::filesystem::path& path, FileMapping mapping) : file_(path, mapping) {
   path_ = path;
   const uint64_t file_size = file_.size();
   if (file_size < 8) {
@@ -306,8 +306,8 @@ void writeAll(int fd, const uint8_t* bytes, size_t size, const std::filesystem::
 
 }  // namespace
 
-std::unique_ptr<TensorArchive> openSafetensors(const std::filesystem::path& path) {
-  return std::make_unique<SafetensorsArchive>(path);
+std::unique_ptr<TensorArchive> openSafetensors(const std::filesystem::path& path, FileMapping mapping) {
+  return std::make_unique<SafetensorsArchive>(path, mapping);
 }
 
 void writeSafetensors(const std::filesystem::path& path, const std::vector<TensorView>& tensors,

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "ffloc/io/mapped_file.h"
+
 namespace ffloc {
 
 // Element types of stored tensors (safetensors names: F32, F16, BF16, F64, I64, I32, I16, I8,
@@ -62,7 +64,8 @@ class TensorArchive {
 
 // Opens by content (safetensors header or zip magic), whatever the extension.
 std::unique_ptr<TensorArchive> openTensorArchive(const std::filesystem::path& path);
-std::unique_ptr<TensorArchive> openSafetensors(const std::filesystem::path& path);
+// Views into the file as mapped, or into a snapshot of it (mapped_file.h).
+std::unique_ptr<TensorArchive> openSafetensors(const std::filesystem::path& path, FileMapping mapping = FileMapping::kFile);
 // A zip-format torch.save() checkpoint. When the pickled top-level object is a dict holding a
 // state dict under "model" (DUSt3R's official layout, with a non-tensor "args"), the archive
 // exposes that state dict; a plain state dict is exposed as it is. Names that share a storage

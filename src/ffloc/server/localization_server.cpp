@@ -368,24 +368,15 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
           return nullptr;
       }
     }
-    std::shared_ptr<const ServedMap> map;
-    try {
-      map = maps_.get(name);
-    } catch (const MapWithdrawn& withdrawn) {
-      replyError(response, 503, withdrawn.what());
-      return nullptr;
-    }
+    std::shared_ptr<const ServedMap> map = maps_.get(name);
     if (!map) replyError(response, 404, "map '" + name + "': no such map (GET /maps lists them)");
     return map;
   };
 
   // Open to every client, for load balancers: says nothing a key would protect beyond the count.
   get("/health", [this, log](const httplib::Request& request, httplib::Response& response) {
-    const size_t withdrawn = maps_.withdrawnCount();
-    nlohmann::json body = {{"status", withdrawn == 0 ? "ok" : "degraded"},
-                           {"maps", maps_.names().size()},
-                           {"queries_in_flight", queriesInFlight()}};
-    if (withdrawn > 0) body["withdrawn"] = withdrawn;
+    const nlohmann::json body = {
+        {"status", "ok"}, {"maps", maps_.names().size()}, {"queries_in_flight", queriesInFlight()}};
     response.set_content(jsonText(body), kJson);
     log(request, "200");
   });
@@ -401,13 +392,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       names = options_.keys->allowedMaps(authorization, names);
     }
     nlohmann::json list = nlohmann::json::array();
-    for (const std::string& name : names) {
-      try {
-        list.push_back(mapSummary(name, *maps_.get(name)));
-      } catch (const MapWithdrawn& withdrawn) {
-        list.push_back({{"name", name}, {"withdrawn", withdrawn.what()}});
-      }
-    }
+    for (const std::string& name : names) list.push_back(mapSummary(name, *maps_.get(name)));
     response.set_content(jsonText({{"maps", list}}), kJson);
     log(request, "200");
   });

@@ -36,11 +36,9 @@ bool stampOf(const std::filesystem::path& path, FileStamp& stamp) {
 
 struct MapCatalog::Slot {
   Source source;
-  mutable std::mutex mutex;  // guards current, withdrawn, stamp, served_stamp, last_check
+  mutable std::mutex mutex;  // guards current, stamp, last_check
   std::shared_ptr<const ServedMap> current;
-  std::string withdrawn;  // why `current` is no longer served; empty while it is
-  FileStamp stamp;         // of the file last looked at
-  FileStamp served_stamp;  // of the file `current` was opened from
+  FileStamp stamp;  // of the file last looked at
   std::chrono::steady_clock::time_point last_check;
   mutable std::mutex reloading;  // one reload of a map at a time
 };
@@ -57,7 +55,6 @@ MapCatalog::MapCatalog(std::vector<Source> sources, MapOpener open, std::chrono:
     }
     auto slot = std::make_unique<Slot>();
     stampOf(source.path, slot->stamp);
-    slot->served_stamp = slot->stamp;
     slot->current = std::make_shared<const ServedMap>(open_(source.path));
     slot->last_check = std::chrono::steady_clock::now();
     slot->source = std::move(source);
@@ -83,18 +80,15 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
   {
     const std::lock_guard<std::mutex> lock(slot.mutex);
     const auto now = std::chrono::steady_clock::now();
-    if (!open_ || now - slot.last_check < reload_check_) return served(slot);
+    if (!open_ || now - slot.last_check < reload_check_) return slot.current;
     slot.last_check = now;
   }
   FileStamp stamp;
   std::unique_lock<std::mutex> reload(slot.reloading, std::try_to_lock);
   {
     const std::lock_guard<std::mutex> lock(slot.mutex);
-    // Another request is reopening it, or the file is missing (mid-replacement) or unchanged. A
-    // withdrawn map is tried again whatever its stamp: an in-place writer may finish within one
-    // tick of the modification time, and an open may have failed for want of memory.
-    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || (stamp == slot.stamp && slot.withdrawn.empty()))
-      return served(slot);
+    // Another request is reopening it, or the file is missing (mid-replacement) or unchanged.
+    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || stamp == slot.stamp) return slot.current;
   }
   std::shared_ptr<const ServedMap> reopened;
   std::string failure;
@@ -104,41 +98,18 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
     failure = e.what();
   }
   const std::lock_guard<std::mutex> lock(slot.mutex);
-  // A broken file renamed over the served one and then written over in place leaves the served
-  // version intact: it is the served file that must have changed.
-  const bool in_place = stamp.sameFile(slot.served_stamp);
-  slot.stamp = stamp;  // a broken replacement is not retried until the file changes again
   if (reopened) {
     slot.current = std::move(reopened);
-    slot.served_stamp = stamp;
-    slot.withdrawn.clear();
+    slot.stamp = stamp;
     if (log_) log_("map '" + slot.source.name + "': reloaded " + slot.source.path.string());
-  } else if (in_place) {
-    // A FastForward map reads its tokens from the file as mapped: the old version went with the
-    // file's bytes, and a file cut short ended the server (SIGBUS) at the next query.
-    slot.withdrawn = "its file " + slot.source.path.string() +
-                     " was changed in place and does not open (" + failure +
-                     "), so the version it held is gone too; replace map files by renaming a complete one over them, "
-                     "as 'ffloc map' does";
-    if (log_) log_("map '" + slot.source.name + "': withdrawn: " + slot.withdrawn);
-  } else if (log_) {
-    log_("map '" + slot.source.name + "': the replaced file does not open, still serving the previous one: " + failure);
+  } else {
+    // Tried again when the file changes again. A file written over in place has the same
+    // inode, and a writer may finish within one tick of its modification time: the stamp kept is
+    // the one seen before the open, so a write that lands after it is looked at again.
+    slot.stamp = stamp;
+    if (log_) log_("map '" + slot.source.name + "': the changed file does not open, still serving the previous one: " + failure);
   }
-  return served(slot);
-}
-
-std::shared_ptr<const ServedMap> MapCatalog::served(const Slot& slot) {
-  if (!slot.withdrawn.empty()) throw MapWithdrawn("map '" + slot.source.name + "': withdrawn: " + slot.withdrawn);
   return slot.current;
-}
-
-size_t MapCatalog::withdrawnCount() const {
-  size_t withdrawn = 0;
-  for (const auto& slot : slots_) {
-    const std::lock_guard<std::mutex> lock(slot->mutex);
-    if (!slot->withdrawn.empty()) ++withdrawn;
-  }
-  return withdrawn;
 }
 
 MapCatalog::Source MapCatalog::parseSource(const std::string& text) {

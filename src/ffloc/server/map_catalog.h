@@ -5,7 +5,6 @@
 #include <functional>
 #include <memory>
 #include <mutex>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -20,20 +19,15 @@ struct ServedMap {
   std::string model_description;
 };
 
-// A served map whose file changed in place and no longer opens (MapCatalog::get).
-class MapWithdrawn : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
 // Opens a map file for serving (the CLI passes openMapLocalizer's work; tests pass their own).
 using MapOpener = std::function<ServedMap(const std::filesystem::path&)>;
 
 // The maps of one server, by name. A map file replaced on disk (ffloc map writes by atomic
-// rename) is reopened on the first request that looks after the change: requests already holding
-// the old version finish on it, later ones get the new one, and a replacement that fails to open
-// leaves the old version serving. A file changed in place (written over, cut short) that fails to
-// open takes the old version with it: the map is withdrawn until the file opens again.
+// rename) or written over in place is reopened on the first request that looks after the change
+// (at most once per reload_check): requests already holding the old version finish on it, later
+// ones get the new one, and a changed file that fails to open leaves the old version serving.
+// The opener must return a map that holds its own copy of whatever it reads from the file
+// (readMapFile's snapshot), or a file written over in place would change the served version.
 class MapCatalog {
  public:
   struct Source {
@@ -49,10 +43,7 @@ class MapCatalog {
   ~MapCatalog();
 
   // The current version of the named map (null for a name the catalog does not hold).
-  // MapWithdrawn, saying why, for a withdrawn map.
   std::shared_ptr<const ServedMap> get(const std::string& name) const;
-  // How many maps are withdrawn now.
-  size_t withdrawnCount() const;
   // Names in the order given.
   const std::vector<std::string>& names() const { return names_; }
   // Called with a line for each reload and each failed one (from a request's thread).
@@ -65,7 +56,6 @@ class MapCatalog {
 
  private:
   struct Slot;
-  static std::shared_ptr<const ServedMap> served(const Slot& slot);
   std::vector<std::unique_ptr<Slot>> slots_;
   std::vector<std::string> names_;
   MapOpener open_;
