@@ -146,7 +146,7 @@ void registerBenchCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--reference", args->reference,
                   "Python reference timing file (default: $FFLOC_SHARED_DIR/fixtures/dust3r/"
                   "python_reference_timing.txt when it exists)");
-  cmd->add_option("--seed", args->seed, "Seed of the random weights and inputs")->check(notNegative())->capture_default_str();
+  cmd->add_option("--seed", args->seed, "Seed of the random weights and inputs")->check(wholeNumber())->capture_default_str();
   cmd->add_flag("--profile", args->profile,
                 "After each row, one more call with the time and GFLOP/s per kind of operation (GEMM, attention, "
                 "softmax, layer norm, GELU, RoPE, copies, convolutions)");

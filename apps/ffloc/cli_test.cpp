@@ -131,7 +131,7 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
             "error: --max: not an option of 'ffloc eval'; did you mean one of --map, --max-correspondences, --max-queries?"},
            {{"--dataset", "d", "eval"}, "error: --dataset: not an option of 'ffloc'; options go after the command"},
            // A value that looks like an option is the option's value: the error is the seed's.
-           {{"synth", "--out", "--dir", "--seed", "-1"}, "--seed: must be at least 0"},
+           {{"synth", "--out", "--dir", "--seed", "-1"}, "--seed: expected an integer in [0, 9223372036854775807], got '-1'"},
            {{"eval", "--dataset", "d", "--zzzzzz"}, "error: --zzzzzz: not an option of 'ffloc eval' (ffloc eval --help lists them)"},
            // One dash: CLI11 said "--dataset is required", or for "-output" (-o with "utput")
            // that "m.ffmap" was not expected.
@@ -562,7 +562,16 @@ TEST_F(Cli, EmptyPathsAndCountsBelowTheirMinimumNameTheFlagAndTheBound) {
            {{"retrieval", "--map", map, "--dataset", data, "--top-k", "5,-1"}, "--top-k"}}) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << arguments[0] << ": " << run.output;
-    EXPECT_TRUE(contains(run.output, flag + ": must be at least 0, got -1")) << arguments[0] << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, flag + ": expected an integer in [0, 9223372036854775807], got '-1'"))
+        << arguments[0] << ": " << run.output;
+  }
+  // CLI11 alone saturated a seed past 2^64 without a word, read "" as 0 and "0x10" as 16; the
+  // server refuses seeds past 2^63 - 1.
+  for (const std::string seed : {"99999999999999999999999", "18446744073709551616", "9223372036854775808", "", "0x10"}) {
+    const CliRun run = runCli({"localize", "--map", map, "--image", "q.png", "--intrinsics", "50,50,31.5,23.5", "--seed", seed});
+    EXPECT_EQ(run.exit_code, 2) << seed << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, "--seed: expected an integer in [0, 9223372036854775807], got '" + seed + "'"))
+        << seed << ": " << run.output;
   }
   // A FIFO given as the reference timings blocked the bench until someone wrote to it.
   const fs::path fifo = dir_ / "timings.fifo";

@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <charconv>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -67,12 +69,18 @@ CLI::Validator nonEmptyPath() {
   return CLI::Validator([](const std::string& input) { return input.empty() ? "the path is empty" : ""; }, "PATH");
 }
 
-CLI::Validator notNegative() {
+CLI::Validator wholeNumber() {
+  constexpr uint64_t kLargest = static_cast<uint64_t>(std::numeric_limits<int64_t>::max());
   return CLI::Validator(
       [](const std::string& input) {
-        return input.find('-') == std::string::npos ? std::string() : "must be at least 0, got " + input;
+        uint64_t value = 0;
+        const char* end = input.data() + input.size();
+        const auto [stop, error] = std::from_chars(input.data(), end, value);
+        if (input.empty() || stop != end || error != std::errc() || value > kLargest)
+          return "expected an integer in [0, " + std::to_string(kLargest) + "], got '" + input + "'";
+        return std::string();
       },
-      ">= 0");
+      "0 to " + std::to_string(kLargest));
 }
 
 namespace {
@@ -256,7 +264,7 @@ void addQueryOptions(CLI::App& command, QueryArguments& args) {
   args.features_option =
       command.add_option("--features", args.features, "fastforward: map tokens per query (overrides the preset)");
   command.add_option("--seed", args.seed, "Seed of RANSAC, the token sampling and random selection")
-      ->check(notNegative())
+      ->check(wholeNumber())
       ->capture_default_str();
   command.add_option("--selection", args.selection, "fastforward: mapping image selection: retrieval, uniform or random")
       ->capture_default_str();

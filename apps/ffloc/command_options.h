@@ -50,8 +50,10 @@ void checkOutputPath(const std::string& flag, const std::string& path);
 // run (requireEmptyOutputFolder), and the error names `flag`.
 void checkOutputFolder(const std::string& flag, const std::string& path);
 
-// For a flag read into an unsigned integer (seeds, counts): CLI11 reads "-1" as 2^64 - 1.
-CLI::Validator notNegative();
+// For a flag read into an unsigned integer (seeds, counts): decimal digits only, at most 2^63 - 1
+// (the server's bound on the same fields). CLI11 alone reads "-1" as 2^64 - 1, saturates a longer
+// number without a word, takes "" as 0 and "0x10" as 16.
+CLI::Validator wholeNumber();
 
 // The first argument of `arguments` (what follows the command's name) that looks like a long option
 // `command` does not have, named with the command's option it most likely meant: "--methds: not

@@ -363,14 +363,14 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
       ->capture_default_str();
   cmd->add_option("--max-correspondences", args->max_correspondences,
                   "Subsample to at most this many correspondences before PnP")
-      ->check(notNegative())
+      ->check(wholeNumber())
       ->capture_default_str();
   cmd->add_option("--min-correspondences", args->min_correspondences,
                   "When fewer pass the confidence threshold, use this many most confident ones (0: strict threshold)")
-      ->check(notNegative())
+      ->check(wholeNumber())
       ->capture_default_str();
   cmd->add_option("--max-queries", args->max_queries, "Evaluate at most this many evenly spaced queries (0 = all)")
-      ->check(notNegative())
+      ->check(wholeNumber())
       ->capture_default_str();
   addQueryOptions(*cmd, args->query);
   cmd->add_flag("--no-depth", args->no_depth, "classical: triangulate every point, even where frames have depth");

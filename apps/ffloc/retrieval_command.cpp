@@ -263,11 +263,11 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
   cmd->add_option("--top-k", args->top_k, "Comma-separated K values")
       ->delimiter(',')
-      ->check(notNegative())
+      ->check(wholeNumber())
       ->capture_default_str();
   cmd->add_option("--max-queries", args->max_queries, "Measure at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "Seed of the random selection")->check(notNegative())->capture_default_str();
+  cmd->add_option("--seed", args->seed, "Seed of the random selection")->check(wholeNumber())->capture_default_str();
   cmd->add_option("--retrieval", args->retrieval,
                   "FastForward maps: what ranks the mapping images: encoder (the model's pooled tokens), vlad (the "
                   "classical descriptor; the map must have been built with --vlad) or token-vlad (a VLAD of the "

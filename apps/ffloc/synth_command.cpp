@@ -98,7 +98,7 @@ void registerSynthCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--out", args->out, "New (or empty) output folder; scene i goes to OUT/scene_<i>_<kind>")
       ->required();
   cmd->add_option("--seed", args->seed, "Seed; the same seed gives the same bytes")
-      ->check(notNegative())
+      ->check(wholeNumber())
       ->capture_default_str();
   cmd->add_option("--scenes", args->scenes, "Number of scenes")->capture_default_str();
   cmd->add_option("--kind", args->kind, "indoor, outdoor, object, or mixed (cycles the three)")

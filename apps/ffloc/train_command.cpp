@@ -463,7 +463,7 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
   cmd->add_flag("--resume", args->resume, "Continue from the latest checkpoint in the run folder");
   cmd->add_option("--steps", args->steps, "Total optimiser steps (overrides the config)");
   cmd->add_option("--lr", args->learning_rate, "Peak learning rate (overrides the config)");
-  cmd->add_option("--seed", args->seed, "Run seed (overrides the config)")->check(notNegative());
+  cmd->add_option("--seed", args->seed, "Run seed (overrides the config)")->check(wholeNumber());
   cmd->add_option("--device", args->device, "cpu or cuda (overrides the config)");
   cmd->add_option("--model", args->model, "Initial weights (overrides the config): checkpoint or random:<preset>");
   cmd->add_option("--threads", args->threads, "libtorch threads, 0 = all cores (overrides the config)")
