@@ -14,7 +14,10 @@ namespace ffloc {
 namespace {
 
 bool appendsTo(const std::filesystem::path& output, const MapBuildOptions& options) {
-  if (!options.append || !std::filesystem::exists(output)) return false;
+  if (!options.append) return false;
+  // A mistyped path made a new map of the dataset alone, and said it had appended.
+  if (!std::filesystem::exists(output))
+    throwInputError(output.string(), 0, "append: no map to append to (build it without append first)");
   const MapHeader header = readMapHeader(output);
   if (header.method != toString(options.method))
     throwInputError(output.string(), 0, "append: the map was built with the " + header.method + " method, not " +

@@ -19,8 +19,8 @@ struct MapBuildOptions {
   LocalizationMethod method = LocalizationMethod::kClassical;
   ClassicalMappingOptions classical;
   MappingOptions fastforward;
-  // Add to the map already at the output (same method, and model): its images stay as they are,
-  // frames whose name it holds are skipped.
+  // Add to the map already at the output (same method, and model), which must exist: its images
+  // stay as they are, frames whose name it holds are skipped.
   bool append = false;
 };
 
@@ -48,8 +48,8 @@ struct MapBuildReport {
 
 // Maps scene.mappingIndices() and writes the map to `output` atomically. `load_model` runs only
 // for FastForward. InputError naming the dataset when it has no mapping frame, naming the
-// output when appending to a map of another method or when it exists and is not a map (only maps
-// are replaced). An output that is a symbolic link writes (and appends to) the map it points to.
+// output when appending to a map that is missing or of another method, or when it exists and is
+// not a map (only maps are replaced). An output that is a symbolic link writes (and appends to) the map it points to.
 MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& output, const MapBuildOptions& options,
                         const std::function<LoadedModel()>& load_model);
 

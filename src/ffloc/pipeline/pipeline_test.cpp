@@ -415,6 +415,18 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
   EXPECT_EQ(buildMap(scene, link, options, no_model).images, 3u);
   EXPECT_TRUE(fs::is_symlink(link));
   EXPECT_EQ(readClassicalMap(real).images.size(), 3u);
+
+  // Appended to a mistyped path: a new map of the dataset alone was written (found by an outside
+  // probe).
+  const fs::path mistyped = scene.root / "rael.ffmap";
+  try {
+    buildMap(scene, mistyped, options, no_model);
+    ADD_FAILURE() << "appended to a map that does not exist";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find(mistyped.string() + ": append: no map to append to"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(fs::exists(mistyped));
 }
 
 // The matching family maps with the points of its tokens, which come from depth: they survive the
