@@ -98,16 +98,14 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
     failure = e.what();
   }
   const std::lock_guard<std::mutex> lock(slot.mutex);
+  // The stamp seen before the open: a file that does not open is tried again once it changes
+  // again, and a write landing during the open is looked at on a later request.
+  slot.stamp = stamp;
   if (reopened) {
     slot.current = std::move(reopened);
-    slot.stamp = stamp;
     if (log_) log_("map '" + slot.source.name + "': reloaded " + slot.source.path.string());
-  } else {
-    // Tried again when the file changes again. A file written over in place has the same
-    // inode, and a writer may finish within one tick of its modification time: the stamp kept is
-    // the one seen before the open, so a write that lands after it is looked at again.
-    slot.stamp = stamp;
-    if (log_) log_("map '" + slot.source.name + "': the changed file does not open, still serving the previous one: " + failure);
+  } else if (log_) {
+    log_("map '" + slot.source.name + "': the changed file does not open, still serving the previous one: " + failure);
   }
   return slot.current;
 }
