@@ -34,16 +34,8 @@ namespace py = pybind11;
 namespace ffloc::python {
 namespace {
 
-// Thread pools are per process: every call that computes sets them, so the last call's
-// `threads=` holds while it runs (0: every core).
-void useThreads(int threads, bool network) {
-  setLibraryThreadCount(threads);
-  if (network) setTorchThreadCount(threads);
-}
-
-std::function<LoadedModel()> modelLoader(const std::string& model, const std::string& dtype, int threads) {
+std::function<LoadedModel()> modelLoader(const std::string& model, const std::string& dtype) {
   return [=] {
-    setTorchThreadCount(threads);
     ModelLoadOptions options;
     options.dtype = parseNetworkDtype(dtype);
     return loadModel(model, options);
@@ -140,19 +132,40 @@ std::vector<Vector> pointsFrom(const py::handle& value, const std::string& field
   return points;
 }
 
+// A path or file name from the library as os.fsdecode gives it: bytes that are not UTF-8 kept as
+// surrogates, so that Python opens the same file with it.
+py::str pythonPath(const std::string& path) {
+  PyObject* decoded = PyUnicode_DecodeFSDefaultAndSize(path.data(), static_cast<py::ssize_t>(path.size()));
+  if (decoded == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(decoded);
+}
+
+std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
+  if (!py::isinstance<py::str>(value) && !py::isinstance<py::bytes>(value) && !py::hasattr(value, "__fspath__"))
+    throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
+  // fsencode: str, bytes and os.PathLike of either, to the bytes the file system has, UTF-8 or not
+  // (a name of other bytes, decoded by Python with surrogates, was refused as a cast error).
+  const std::string path = py::bytes(py::module_::import("os").attr("fsencode")(value)).cast<std::string>();
+  // build_map(out='') built the whole map, then failed to rename it into place.
+  if (path.empty()) throw InputError(argument + ": the path is empty");
+  return path;
+}
+
 // An image as a path (read as `ffloc localize` reads it) or an H x W x 3 uint8 RGB array, which
 // the returned Mat shares without copying while `keep` holds it.
 cv::Mat imageFrom(const py::handle& image, py::object& keep, std::string& name) {
-  if (py::isinstance<py::str>(image) || py::hasattr(image, "__fspath__")) {
+  if (py::isinstance<py::str>(image) || py::isinstance<py::bytes>(image) || py::hasattr(image, "__fspath__")) {
     // The GIL is released only once the path is a C++ string.
-    const std::string path = py::str(py::module_::import("os").attr("fspath")(image)).cast<std::string>();
+    const std::string path = pathArgument(image, "image", "a path or an H x W x 3 uint8 array");
     if (name.empty()) name = path;
     py::gil_scoped_release unlocked;
+    const ThreadCountLease pools(std::nullopt);
     return readImageRgb(path);
   }
   if (!py::isinstance<py::array>(image)) throw InputError("image: expected a path or an H x W x 3 uint8 array");
   py::array array = py::reinterpret_borrow<py::array>(image);
-  if (!array.dtype().is(py::dtype::of<uint8_t>()))
+  // Equal, not the same object: uint8 with metadata, or marked big-endian, is still uint8.
+  if (!array.dtype().equal(py::dtype::of<uint8_t>()))
     throw InputError("image: dtype must be uint8, got " + dtypeText(array));
   if (array.ndim() != 3 || array.shape(2) != 3)
     throw InputError("image: shape must be H x W x 3 (RGB), got " + shapeText(array));
@@ -257,20 +270,11 @@ void refuseEmptyNew(py::class_<Class>& bound, MadeBy made_by, const std::string&
 
 // A str or os.PathLike argument; InputError naming `argument` for anything else (None gave
 // Python's own TypeError, naming no argument).
-std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
-  if (!py::isinstance<py::str>(value) && !py::isinstance<py::bytes>(value) && !py::hasattr(value, "__fspath__"))
-    throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
-  // fsdecode: str, bytes and os.PathLike of either, as os.fspath alone is not.
-  const std::string path = py::str(py::module_::import("os").attr("fsdecode")(value)).cast<std::string>();
-  // build_map(out='') built the whole map, then failed to rename it into place.
-  if (path.empty()) throw InputError(argument + ": the path is empty");
-  return path;
-}
-
 Scene sceneFrom(const py::handle& value, const std::string& format) {
   if (py::isinstance<Scene>(value)) return value.cast<Scene>();
   const std::string path = pathArgument(value, "dataset", "a folder path or an ffloc.Scene");
   py::gil_scoped_release unlocked;
+  const ThreadCountLease pools(std::nullopt);
   return loadDataset(path, format);
 }
 
@@ -293,9 +297,9 @@ struct Map {
 
   static Map load(const std::string& path, const std::string& model, const std::string& dtype, int threads) {
     py::gil_scoped_release unlocked;
-    useThreads(threads, false);
+    const ThreadCountLease pools(threads);
     Map map;
-    map.opened = std::make_shared<MapLocalizer>(openMapLocalizer(path, modelLoader(model, dtype, threads)));
+    map.opened = std::make_shared<MapLocalizer>(openMapLocalizer(path, modelLoader(model, dtype)));
     map.path = path;
     map.threads = threads;
     return map;
@@ -308,6 +312,14 @@ struct Result {
   std::optional<Pose> camera_to_world;
 };
 
+// As the CLI refuses their flags: a setting the map's method ignores was taken silently.
+void refuseSettingsTheMapIgnores(const Map& map, const std::vector<std::string>& given) {
+  const LocalizationMethod method = map.localizer().method();
+  for (const std::string& field : given)
+    if (!methodUsesSetting(method, field))
+      throw InputError(field + ": the map is a " + std::string(toString(method)) + " map, which does not use it");
+}
+
 class PyLocalizer {
  public:
   PyLocalizer(Map map, LocalizeOptions options) : map_(std::move(map)), options_(std::move(options)) {}
@@ -318,7 +330,7 @@ class PyLocalizer {
     const Intrinsics camera = intrinsicsFrom(intrinsics, distortion);
     const cv::Mat rgb = imageFrom(image, keep, name);
     py::gil_scoped_release unlocked;
-    useThreads(map_.threads, map_.opened->model != nullptr);
+    const ThreadCountLease pools(map_.threads);
     const LocalizationResult result = map_.localizer().localize(rgb, camera, name, options_);
     Result out;
     out.answer = localizationJson(name, result, map_.localizer());
@@ -396,7 +408,7 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
   std::vector<int> inliers;
   {
     py::gil_scoped_release unlocked;
-    useThreads(threads, false);
+    const ThreadCountLease pools(threads);
     result = estimatePose(pairs, camera, pnp);
     if (result.ok())
       inliers = findInliers(pairs.pixels, pairs.points, camera, result.camera_to_world.inverse(), pnp.inlier_threshold_px);
@@ -445,7 +457,11 @@ PYBIND11_MODULE(_ffloc, m) {
       const std::string option = "MappingOptions::vlad";
       if (const size_t at = message.find(option); at != std::string::npos)
         message.replace(at, option.size(), "build_map(vlad=True)");
-      error(message.c_str());
+      // Bytes that are not UTF-8 (a file's name) shown as escapes: PyErr_SetString raised a
+      // UnicodeDecodeError in place of the message.
+      const py::str text = py::reinterpret_steal<py::str>(
+          PyUnicode_DecodeUTF8(message.data(), static_cast<py::ssize_t>(message.size()), "backslashreplace"));
+      PyErr_SetObject(error.ptr(), text.ptr());
     } catch (const Stopped& e) {
       // Python's handler already raised the KeyboardInterrupt that stopped the work.
       if (!PyErr_Occurred()) PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
@@ -455,8 +471,8 @@ PYBIND11_MODULE(_ffloc, m) {
   py::class_<Frame> frame_class(m, "Frame", "One posed image of a dataset");
   refuseEmptyNew(frame_class, MadeBy::kLibrary, "Scene.frames holds a dataset's frames");
   frame_class
-      .def_readonly("name", &Frame::name)
-      .def_property_readonly("image_path", [](const Frame& f) { return f.image_path.string(); })
+      .def_property_readonly("name", [](const Frame& f) { return pythonPath(f.name); })
+      .def_property_readonly("image_path", [](const Frame& f) { return pythonPath(f.image_path.string()); })
       .def_property_readonly("intrinsics", [](const Frame& f) { return toArray(f.intrinsics.K()); }, "3x3 K")
       .def_property_readonly("width", [](const Frame& f) { return f.intrinsics.width; })
       .def_property_readonly("height", [](const Frame& f) { return f.intrinsics.height; })
@@ -465,7 +481,7 @@ PYBIND11_MODULE(_ffloc, m) {
                              "4x4, OpenCV axes (x right, y down, z forward), scene units")
       .def_property_readonly("depth_path",
                              [](const Frame& f) -> py::object {
-                               return f.depth ? py::object(py::str(f.depth->path.string())) : py::none();
+                               return f.depth ? py::object(pythonPath(f.depth->path.string())) : py::none();
                              })
       .def_property_readonly("split", [](const Frame& f) { return std::string(toString(f.split)); })
       .def("__repr__", [](const Frame& f) { return "<ffloc.Frame " + f.name + " (" + toString(f.split) + ")>"; });
@@ -473,8 +489,8 @@ PYBIND11_MODULE(_ffloc, m) {
   py::class_<Scene> scene_class(m, "Scene", "A dataset: posed frames with their split");
   refuseEmptyNew(scene_class, MadeBy::kLibrary, "ffloc.load_dataset(path) reads one");
   scene_class
-      .def_readonly("name", &Scene::name)
-      .def_property_readonly("root", [](const Scene& s) { return s.root.string(); })
+      .def_property_readonly("name", [](const Scene& s) { return pythonPath(s.name); })
+      .def_property_readonly("root", [](const Scene& s) { return pythonPath(s.root.string()); })
       .def_readonly("format", &Scene::format)
       .def_readonly("metric", &Scene::metric)
       .def_property_readonly("frames",
@@ -500,6 +516,7 @@ PYBIND11_MODULE(_ffloc, m) {
           cv::Mat rgb;
           {
             py::gil_scoped_release unlocked;
+            const ThreadCountLease pools(std::nullopt);
             rgb = readImageRgb(path);
           }
           return imageArray(std::move(rgb));
@@ -510,19 +527,26 @@ PYBIND11_MODULE(_ffloc, m) {
   refuseEmptyNew(map_class, MadeBy::kLibrary, "ffloc.Map.load(path) opens one; ffloc.build_map and Localizer.map return one");
   map_class
       .def_static("load",
-                  [](const py::handle& path, const std::string& model, const std::string& dtype, int threads) {
-                    return Map::load(pathArgument(path, "path", "a map file path"), model, dtype, threads);
+                  [](const py::handle& path, const std::optional<std::string>& model,
+                     const std::optional<std::string>& dtype, int threads) {
+                    Map map = Map::load(pathArgument(path, "path", "a map file path"), model.value_or("default"),
+                                        dtype.value_or("f32"), threads);
+                    std::vector<std::string> given;
+                    if (model) given.push_back("model");
+                    if (dtype) given.push_back("dtype");
+                    refuseSettingsTheMapIgnores(map, given);
+                    return map;
                   },
-                  py::arg("path"), py::arg("model") = "default", py::arg("dtype") = "f32",
+                  py::arg("path"), py::arg("model") = py::none(), py::arg("dtype") = py::none(),
                   py::arg("threads") = 0, "Opens a map from 'ffloc map' (model: for fastforward maps)")
-      .def_readonly("path", &Map::path)
+      .def_property_readonly("path", [](const Map& map) { return pythonPath(map.path); })
       .def_property_readonly("method", [](const Map& map) { return std::string(toString(map.localizer().method())); })
       .def_property_readonly("description", [](const Map& map) { return map.opened->description; })
       .def_property_readonly("metric", [](const Map& map) { return map.localizer().metric(); })
       .def_property_readonly("names",
                              [](const Map& map) {
-                               std::vector<std::string> names;
-                               for (const MapCamera& camera : map.localizer().cameras()) names.push_back(camera.name);
+                               py::list names;
+                               for (const MapCamera& camera : map.localizer().cameras()) names.append(pythonPath(camera.name));
                                return names;
                              })
       .def_property_readonly("camera_to_world",
@@ -579,8 +603,8 @@ PYBIND11_MODULE(_ffloc, m) {
         {
           py::gil_scoped_release unlocked;
           const StopCheck interruptible = stopOnInterrupt();
-          useThreads(threads, false);
-          report = buildMap(scene, out, options, modelLoader(model_spec, precision, threads));
+          const ThreadCountLease pools(threads);
+          report = buildMap(scene, out, options, modelLoader(model_spec, precision));
         }
         Map map = Map::load(out, model_spec, precision, threads);
         map.build_report = report;
@@ -642,6 +666,7 @@ PYBIND11_MODULE(_ffloc, m) {
                                   ": a Map is opened with its model; pass it to ffloc.Map.load(path, model=..., "
                                   "dtype=...), or give Localizer the map's path");
                opened = map.cast<Map>();
+               resolveThreadCount(threads);  // refused here rather than at the first query
                opened.threads = threads;
              } else {
                const std::string path = pathArgument(map, "map", "an ffloc.Map or a map file path");
@@ -649,12 +674,7 @@ PYBIND11_MODULE(_ffloc, m) {
                if (model) given.push_back("model");
                if (dtype) given.push_back("dtype");
              }
-             // As the CLI refuses their flags: a setting the map's method ignores was taken silently.
-             const LocalizationMethod method = opened.localizer().method();
-             for (const std::string& field : given)
-               if (!methodUsesSetting(method, field))
-                 throw InputError(field + ": the map is a " + std::string(toString(method)) +
-                                  " map, which does not use it");
+             refuseSettingsTheMapIgnores(opened, given);
              return PyLocalizer(std::move(opened), options);
            }),
            py::arg("map"), py::arg("model") = py::none(), py::arg("dtype") = py::none(), py::arg("threads") = 0,
@@ -692,7 +712,7 @@ PYBIND11_MODULE(_ffloc, m) {
         // Loaded on first use and shared by the methods that need it.
         auto loaded = std::make_shared<std::optional<LoadedModel>>();
         options.fastforward = [=](const Scene& scene) {
-          if (!*loaded) *loaded = modelLoader(model, dtype, threads)();
+          if (!*loaded) *loaded = modelLoader(model, dtype)();
           MappingOptions mapping;
           mapping.quiet = quiet;
           mapping.vlad = localize.retrieval == FastForwardRetrieval::kVlad;
@@ -702,7 +722,7 @@ PYBIND11_MODULE(_ffloc, m) {
         {
           py::gil_scoped_release unlocked;
           const StopCheck interruptible = stopOnInterrupt();
-          useThreads(threads, false);
+          const ThreadCountLease pools(threads);
           for (const std::string& method : methods) summaries.push_back(summarize(evaluateMethod(scene, method, options)));
         }
         return toPython(summaryJson(summaries));

@@ -3,6 +3,7 @@ import fcntl
 import json
 import os
 import pathlib
+import shutil
 import signal
 import threading
 import time
@@ -212,6 +213,65 @@ def test_the_gil_is_released_while_a_map_is_built(scene_dir, tmp_path):
     assert len(during) >= 5, f"{len(during)} ticks during a {end - start:.2f} s call"
 
 
+def test_queries_from_several_threads_give_the_poses_of_serial_queries(cli, scene_dir, cli_map, query, tmp_path):
+    """Python threads that localize at once, with one localizer and with others at other thread
+    counts, beside image reads: the library's thread pools are the process's, and resizing
+    OpenCV's under another thread's loop crashed the interpreter or hung it."""
+    ff_map = tmp_path / "threads_ff.ffmap"
+    cli("map", "--dataset", scene_dir, "-o", ff_map, "--method", "fastforward", "--threads", 2, "--quiet")
+    shared = ffloc.Localizer(str(ff_map), threads=2)
+    others = [ffloc.Localizer(str(ff_map), threads=1), ffloc.Localizer(str(cli_map), threads=1)]
+    image = ffloc.read_image(query.image_path)
+
+    def pose(localizer):
+        result = localizer.localize(image, query.intrinsics)
+        return None if result.pose is None else result.pose.tobytes()
+
+    expected = {id(localizer): pose(localizer) for localizer in [shared, *others]}
+    mismatches, errors = [], []
+
+    def work(localizer, rounds):
+        try:
+            for _ in range(rounds):
+                if pose(localizer) != expected[id(localizer)]:
+                    mismatches.append(id(localizer))
+                ffloc.read_image(query.image_path)
+        except Exception as error:  # noqa: BLE001 - reported by the assertion below
+            errors.append(repr(error))
+
+    workers = [threading.Thread(target=work, args=(localizer, 25)) for localizer in [shared, shared, shared, *others]]
+    for worker in workers:
+        worker.start()
+    for worker in workers:
+        worker.join()
+    assert errors == []
+    assert mismatches == []
+    with pytest.raises(ffloc.Error, match="threads: must be 0"):
+        ffloc.Localizer(shared.map, threads=999)
+
+
+def test_paths_whose_bytes_are_not_utf8_work_as_python_gives_them(scene_dir, query, tmp_path):
+    """A folder named in Latin-1 bytes, as an old camera's card or a Windows share gives it:
+    Python decodes such names with surrogates (os.fsdecode), which a cast to UTF-8 refused."""
+    folder = os.path.join(os.fsencode(str(tmp_path)), b"caf\xe9")
+    shutil.copytree(os.fsencode(str(scene_dir)), folder)
+    scene = ffloc.load_dataset(os.fsdecode(folder))
+    assert os.fsencode(scene.root) == folder
+    assert all(os.path.exists(frame.image_path) for frame in scene.frames)
+    out = os.path.join(folder, b"m\xe4p.ffmap")
+    built = ffloc.build_map(scene, out=out, threads=1)
+    assert os.fsencode(built.path) == out and built.names == ffloc.Map.load(os.fsdecode(out)).names
+    image = next(frame.image_path for frame in scene.frames if frame.name == query.name)
+    result = ffloc.Localizer(built).localize(image, query.intrinsics)
+    assert result.pose is not None
+    with pytest.raises(ffloc.Error, match=r"caf\\xe9"):  # the bytes shown as escapes in the message
+        ffloc.read_image(os.path.join(folder, b"missing.png"))
+    # A uint8 array is uint8 whatever its byte order says: only the dtype's identity differed.
+    pixels = ffloc.read_image(query.image_path)
+    marked = ffloc.Localizer(built).localize(pixels.view(np.dtype("u1").newbyteorder(">")), query.intrinsics)
+    assert np.array_equal(marked.pose, ffloc.Localizer(built).localize(pixels, query.intrinsics).pose)
+
+
 # The solver
 
 def synthetic_pairs(count, outliers, seed=1):
@@ -320,6 +380,10 @@ def test_a_model_named_beside_an_opened_map_is_refused_not_ignored(cli_map):
         ffloc.Localizer(opened, model="/nonexistent.safetensors")
     with pytest.raises(ffloc.Error, match="dtype: a Map is opened with its model"):
         ffloc.Localizer(opened, dtype="bf16")
+    # A classical map has no model: one named when it is loaded was ignored.
+    for setting in ({"dtype": "f16"}, {"model": "default"}):
+        with pytest.raises(ffloc.Error, match=f"{next(iter(setting))}: the map is a classical map, which does not use it"):
+            ffloc.Map.load(cli_map, **setting)
 
 
 def test_ctrl_c_stops_a_build_before_it_replaces_the_map(cli, tmp_path):

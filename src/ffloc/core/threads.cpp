@@ -27,10 +27,12 @@ int resolveThreadCount(int requested) {
 
 int setLibraryThreadCount(int requested) {
   const int threads = resolveThreadCount(requested);
-  setBlasThreadCount(threads);
+  if (blasThreadCount() != threads) setBlasThreadCount(threads);
   // TBB, OpenCV's pool, runs no more workers than the cores this process may use (its affinity
-  // mask, not the machine's count), and says so on stderr when asked to.
-  cv::setNumThreads(std::min(threads, cv::getNumberOfCPUs()));
+  // mask, not the machine's count), and says so on stderr when asked to. Set only when it changes:
+  // OpenCV rebuilds the pool even for its own count, which crashed a loop another thread ran in it.
+  const int opencv_threads = std::min(threads, cv::getNumberOfCPUs());
+  if (cv::getNumThreads() != opencv_threads) cv::setNumThreads(opencv_threads);
   return threads;
 }
 

@@ -22,7 +22,9 @@ int resolveThreadCount(int requested);
 // Sets the thread pools of OpenBLAS (behind libblas: matrix products) and OpenCV (SIFT, image
 // resampling; at most one thread per core) to resolveThreadCount(requested) and returns it. Left
 // alone each starts one thread per core, and their pools and libtorch's then fight over the same
-// cores.
+// cores. A pool already at its count is left alone. Resizing OpenCV's pool while another thread runs
+// a loop in it crashes: a program computing on several threads sets the count before it starts
+// them, or holds a ThreadCountLease (model/torch_threads.h) on each.
 int setLibraryThreadCount(int requested);
 
 // OpenBLAS's own pool, reached through the symbols libblas exports when it is OpenBLAS (Debian's

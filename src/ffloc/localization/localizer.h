@@ -128,7 +128,8 @@ using PoseGuidedMatching = std::function<void(const Pose& first_pose, Localizati
 
 // The queries' side of a map, whatever the method. `localize` checks the options and the
 // query's intrinsics against the image (InputError naming the field), runs the method, then
-// PnP-RANSAC and the verdict.
+// PnP-RANSAC and the verdict. It may be called from several threads at once; the thread pools
+// they share are set before (setTorchThreadCount), or held by a ThreadCountLease on each.
 class Localizer {
  public:
   virtual ~Localizer() = default;

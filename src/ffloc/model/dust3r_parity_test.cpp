@@ -19,10 +19,7 @@
 #include <utility>
 #include <vector>
 
-#include <opencv2/core/utility.hpp>
-
 #include "ffloc/core/testing/shared_data.h"
-#include "ffloc/core/threads.h"
 #include "ffloc/model/dust3r_model.h"
 #include "ffloc/model/image_tensor.h"
 #include "ffloc/model/rope2d.h"
@@ -190,29 +187,6 @@ TEST_F(Dust3rParity, DecodeKeepsOnlyTheOutputsTheCallerReads) {
     }
   }
   EXPECT_THROW(model_->headForward(1, first_heads[1], views[1].height, views[1].width), std::logic_error);
-}
-
-TEST(TorchThreads, SetsRequestedCount) {
-  EXPECT_EQ(setTorchThreadCount(2), 2);
-  EXPECT_EQ(at::get_num_threads(), 2);
-  EXPECT_EQ(setTorchThreadCount(0), resolveThreadCount(0));
-  EXPECT_EQ(at::get_num_threads(), resolveThreadCount(0));
-}
-
-// Guards that overlap, as two queries from two threads do, leave the counts as they found them
-// whichever ends first.
-TEST(TorchThreads, OverlappingSingleThreadedGuardsRestoreTheCountsOnce) {
-  setTorchThreadCount(3);
-  auto first = std::make_unique<SingleThreadedKernels>();
-  EXPECT_EQ(torchThreadCount(), 1);
-  EXPECT_EQ(cv::getNumThreads(), 1);
-  auto second = std::make_unique<SingleThreadedKernels>();
-  first.reset();
-  EXPECT_EQ(torchThreadCount(), 1);  // the second guard still runs single-threaded
-  second.reset();
-  EXPECT_EQ(torchThreadCount(), 3);
-  EXPECT_EQ(cv::getNumThreads(), std::min(3, cv::getNumberOfCPUs()));
-  setTorchThreadCount(0);
 }
 
 TEST_F(Dust3rParity, RopeUnit) {

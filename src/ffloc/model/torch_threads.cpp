@@ -1,18 +1,32 @@
 #include "ffloc/model/torch_threads.h"
 
 #include <ATen/Parallel.h>
+#include <omp.h>
 
+#include <condition_variable>
 #include <mutex>
-
-#include <opencv2/core/utility.hpp>
+#include <stdexcept>
+#include <string>
 
 #include "ffloc/core/threads.h"
+#include "ffloc/model/cpu_gemm.h"
 
 #ifndef _OPENMP
 #error "torch_threads.cpp must be compiled with OpenMP (see parallelFor in torch_threads.h)"
 #endif
 
 namespace ffloc {
+namespace {
+
+// libtorch's count under OpenMP is each thread's own (OpenMP's nthreads ICV), read by
+// at::parallel_for on that thread. at::set_num_threads also sets the default of later threads and
+// rebuilds libtorch's pthreadpool, a process-wide change; this changes the calling thread only.
+void setTorchThreadsOfThisThread(int threads) {
+  // A thread's first call takes libtorch's default, which would otherwise overwrite ours later.
+  if (at::get_num_threads() != threads) omp_set_num_threads(threads);
+}
+
+}  // namespace
 
 int setTorchThreadCount(int requested) {
   // OpenBLAS backs libblas, and so libtorch's fp32 matmul, with a pool at::set_num_threads does
@@ -25,40 +39,75 @@ int setTorchThreadCount(int requested) {
 
 int torchThreadCount() { return at::get_num_threads(); }
 
+SingleThreadedKernels::SingleThreadedKernels()
+    : blas_(std::make_unique<SingleThreadedBlas>()), saved_torch_threads_(at::get_num_threads()) {
+  setTorchThreadsOfThisThread(1);
+}
+
+SingleThreadedKernels::~SingleThreadedKernels() { setTorchThreadsOfThisThread(saved_torch_threads_); }
+
 namespace {
 
-struct SavedThreadCounts {
+struct ThreadCountLeases {
   std::mutex mutex;
-  int guards = 0;
-  int torch = 1, blas = 0, opencv = 1;
+  std::condition_variable released;
+  int threads = 0;  // the pools' count since the first lease with one; 0 before
+  int holders = 0;
+  int waiting_to_resize = 0;
 };
 
-SavedThreadCounts& savedThreadCounts() {
-  static SavedThreadCounts saved;
-  return saved;
+ThreadCountLeases& threadCountLeases() {
+  static ThreadCountLeases leases;
+  return leases;
 }
+
+thread_local int leases_held_on_this_thread = 0;
 
 }  // namespace
 
-SingleThreadedKernels::SingleThreadedKernels() {
-  SavedThreadCounts& saved = savedThreadCounts();
-  const std::lock_guard<std::mutex> lock(saved.mutex);
-  if (saved.guards++ > 0) return;
-  saved.torch = at::get_num_threads();
-  saved.blas = blasThreadCount();
-  saved.opencv = cv::getNumThreads();
-  at::set_num_threads(1);
-  setBlasThreadCount(1);
-  cv::setNumThreads(1);
+ThreadCountLease::ThreadCountLease(std::optional<int> requested) {
+  const int threads = requested ? resolveThreadCount(*requested) : 0;
+  ThreadCountLeases& leases = threadCountLeases();
+  std::unique_lock<std::mutex> lock(leases.mutex);
+  if (leases_held_on_this_thread > 0) {
+    // Waiting here would wait for this thread's own lease to end.
+    if (requested && threads != leases.threads)
+      throw std::logic_error("ThreadCountLease: this thread holds the pools at " + std::to_string(leases.threads) +
+                             " threads and asks for " + std::to_string(threads));
+    ++leases.holders;
+    ++leases_held_on_this_thread;
+    return;
+  }
+  for (;;) {
+    if (requested && threads != leases.threads) {
+      ++leases.waiting_to_resize;
+      leases.released.wait(lock, [&] { return leases.holders == 0 || threads == leases.threads; });
+      --leases.waiting_to_resize;
+      if (threads != leases.threads) {
+        setTorchThreadCount(threads);
+        leases.threads = threads;
+      }
+      leases.released.notify_all();
+      break;
+    }
+    // Leases wait behind one that waits to resize: a stream of them would keep it waiting for ever.
+    if (leases.waiting_to_resize == 0) break;
+    leases.released.wait(lock);
+  }
+  ++leases.holders;
+  ++leases_held_on_this_thread;
+  lock.unlock();
+  if (requested) setTorchThreadsOfThisThread(threads);
 }
 
-SingleThreadedKernels::~SingleThreadedKernels() {
-  SavedThreadCounts& saved = savedThreadCounts();
-  const std::lock_guard<std::mutex> lock(saved.mutex);
-  if (--saved.guards > 0) return;
-  at::set_num_threads(saved.torch);
-  if (saved.blas > 0) setBlasThreadCount(saved.blas);
-  cv::setNumThreads(saved.opencv);
+ThreadCountLease::~ThreadCountLease() {
+  ThreadCountLeases& leases = threadCountLeases();
+  {
+    const std::lock_guard<std::mutex> lock(leases.mutex);
+    --leases.holders;
+    --leases_held_on_this_thread;
+  }
+  leases.released.notify_all();
 }
 
 void parallelFor(int64_t begin, int64_t end, int64_t grain_size, const std::function<void(int64_t, int64_t)>& body) {

@@ -190,6 +190,8 @@ void FastForwardLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrins
   const bool side_by_side = verify && torchThreadCount() >= 2;
   const auto secondEstimate = [&] {
     c10::InferenceMode inference_on_this_thread;
+    std::optional<SingleThreadedKernels> one_thread_for_this_pass;
+    if (side_by_side) one_thread_for_this_pass.emplace();
     std::vector<size_t> swapped = query.ranked;
     std::swap(swapped[0], swapped[1]);
     QueryPrediction other;
@@ -198,8 +200,8 @@ void FastForwardLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrins
     pnp.seed = options.pnp.seed + 1;
     return estimatePose(other.correspondences, other.camera, pnp);
   };
-  std::optional<SingleThreadedKernels> one_thread_per_pass;
-  if (side_by_side) one_thread_per_pass.emplace();
+  std::optional<SingleThreadedKernels> one_thread_for_the_first_pass;
+  if (side_by_side) one_thread_for_the_first_pass.emplace();
   const auto start = Clock::now();
   std::future<PnpResult> beside;
   if (side_by_side) beside = std::async(std::launch::async, secondEstimate);

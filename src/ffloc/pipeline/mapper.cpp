@@ -120,18 +120,19 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
   ProgressBar progress("mapping " + scene.name, to_add.size(), options.quiet);
   const FastForwardModel& network = *model.model;
   const int workers = frameWorkers(network, options);
-  std::optional<SingleThreadedKernels> one_thread_per_frame;
-  if (workers > 1) one_thread_per_frame.emplace();
   forEachInOrder<MapImage>(
       to_add.size(), workers,
-      [&](size_t i) { return encodeMappingImage(network, *to_add[i], options); },
+      [&](size_t i) {
+        std::optional<SingleThreadedKernels> one_thread_per_frame;
+        if (workers > 1) one_thread_per_frame.emplace();
+        return encodeMappingImage(network, *to_add[i], options);
+      },
       [&](size_t i, MapImage&& image) {
         if (network.config().usesTokenPoints() && image.token_points.empty()) ++report.added_without_points;
         map.images.push_back(std::move(image));
         ++report.added;
         progress.update(i + 1);
       });
-  one_thread_per_frame.reset();
   progress.finish();
   if (options.vlad || !map.vlad_centres.empty()) addVladRetrieval(map, scene, options.quiet);
   report.seconds = secondsSince(start);
