@@ -599,6 +599,9 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
        "--json: '" + (dir_ / "missing" / "r.json").string() + "': folder '" + (dir_ / "missing").string() +
            "' does not exist"},
       {{"--methods", "oracle-depth", "--poses", dir_.string()}, "--poses: '" + dir_.string() + "' is a folder"},
+      // Root passes every permission test in /proc, where no file can be made: the JSON failed after
+      // every query had run.
+      {{"--methods", "oracle-depth", "--json", "/proc/ffloc-r.json"}, "--json: '/proc/ffloc-r.json': folder '/proc' is not writable"},
       // A name the file system cannot look up was an uncaught filesystem_error: "internal error", exit 3.
       {{"--methods", "oracle-depth", "--csv", (dir_ / std::string(300, 'a') / "r.csv").string()},
        "' cannot be reached: File name too long"},

@@ -246,7 +246,7 @@ void checkOutputPath(const std::string& flag, const std::string& path) {
     throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' " +
                      (error && error != std::errc::no_such_file_or_directory ? "cannot be reached: " + error.message()
                                                                              : std::string("does not exist")));
-  if (access(folder.c_str(), W_OK) != 0)
+  if (!canCreateFilesIn(folder))
     throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' is not writable");
 }
 

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 
@@ -33,6 +34,15 @@ bool isDeviceOrPipe(const std::filesystem::file_status& target) {
 bool writesThrough(const std::filesystem::path& path) {
   std::error_code error;
   return openDescriptorNamed(path) || isDeviceOrPipe(std::filesystem::status(path, error));
+}
+
+bool canCreateFilesIn(const std::filesystem::path& folder) {
+  std::string probe = (folder / ".ffloc-write-test-XXXXXX").string();
+  const int descriptor = ::mkstemp(probe.data());
+  if (descriptor < 0) return false;
+  ::close(descriptor);
+  ::unlink(probe.c_str());
+  return true;
 }
 
 void writeTextFile(const std::filesystem::path& named, const std::string& text) {

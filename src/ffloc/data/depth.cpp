@@ -65,8 +65,10 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
   if (!raw_floats) requireDecodableImageFile(source.path, "cannot decode depth image");
   cv::Mat stored;
   try {
+    // ANYCOLOR keeps a colour image's channels, for the test below: IMREAD_ANYDEPTH alone made
+    // them one grey channel.
     stored = raw_floats ? readRawFloatDepth(source.path, camera)
-                                                 : cv::imread(file, cv::IMREAD_ANYDEPTH);
+                        : cv::imread(file, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
   } catch (const cv::Exception& error) {
     // OpenCV refuses some headers (a size beyond its limits) by throwing rather than failing.
     throwInputError(file, 0, std::string("cannot decode depth image: ") + error.err);

@@ -74,6 +74,10 @@ TEST(Depth, BadFilesNameTheFile) {
                    {"small.png", "3x2", "640x480"});
   ASSERT_TRUE(cv::imwrite((dir / "rgb.png").string(), cv::Mat3b(2, 3, cv::Vec3b(1, 2, 3))));
   expectInputError([&] { readDepthMetres(frameWithDepth(dir / "rgb.png", 3, 2)); }, {"rgb.png"});
+  // Read as grey, a 16-bit colour PNG was a weighted sum of its channels, taken as millimetres.
+  ASSERT_TRUE(cv::imwrite((dir / "rgb16.png").string(), cv::Mat_<cv::Vec3w>(2, 3, cv::Vec3w(1000, 2000, 3000))));
+  expectInputError([&] { readDepthMetres(frameWithDepth(dir / "rgb16.png", 3, 2)); },
+                   {"rgb16.png", "3 channels, expected 1"});
   Frame no_depth = frameWithDepth(dir / "x.png", 3, 2);
   no_depth.depth.reset();
   expectInputError([&] { readDepthMetres(no_depth); }, {"f.png", "no depth"});
