@@ -701,6 +701,10 @@ PYBIND11_MODULE(_ffloc, m) {
         refuseUnknown(unused, "evaluate");
         if (const std::string problem = methodListProblem(methods); !problem.empty())
           throw InputError("methods: " + problem);
+        for (const auto& [key, value] : kwargs)
+          if (const std::string problem = settingNoMethodUsesProblem(methods, py::str(key).cast<std::string>());
+              !problem.empty())
+            throw InputError(problem);
         const Scene scene = sceneFrom(dataset, format);
         MethodEvaluationOptions options;
         options.localize = localize;

@@ -482,3 +482,8 @@ def test_evaluate_refuses_unknown_methods(scene_dir):
         ffloc.evaluate(scene_dir, methods=["classical", "classical"])
     with pytest.raises(ffloc.Error, match="dataset: expected a folder path"):
         ffloc.evaluate(3.5)
+    # A setting of a method not evaluated ran as if it were not given.
+    with pytest.raises(ffloc.Error, match=r"features: none of the methods evaluated \(classical, oracle-depth\) uses it"):
+        ffloc.evaluate(scene_dir, methods=["classical", "oracle-depth"], features=500)
+    with pytest.raises(ffloc.Error, match=r"pose_guided: none of the methods evaluated \(fastforward\) uses it"):
+        ffloc.evaluate(scene_dir, methods=["fastforward"], pose_guided=False)

@@ -53,12 +53,22 @@ TEST(WriterLock, AWaitEndsWhenAStopIsAsked) {
   EXPECT_EQ(asked, 3);
 }
 
-TEST(WriterLock, AFolderThatDoesNotExistIsNamed) {
+// The error named the hidden lock file, which the user never gave, rather than the map.
+TEST(WriterLock, AFolderThatDoesNotExistIsNamedWithTheFileToWrite) {
   try {
     WriterLock lock("/nonexistent/ffloc-folder/m.ffmap", nullptr);
     FAIL() << "locked in a folder that does not exist";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/ffloc-folder/.m.ffmap.lock"), std::string::npos) << e.what();
+    EXPECT_EQ(std::string(e.what()), "/nonexistent/ffloc-folder/m.ffmap: output folder does not exist");
+  }
+  try {
+    WriterLock lock("/proc/m.ffmap", nullptr);  // a folder where no one, root included, makes files
+    FAIL() << "locked in /proc";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/proc/m.ffmap: cannot write in its folder: its lock file .m.ffmap.lock "
+                                         "cannot be made: "),
+              std::string::npos)
+        << e.what();
   }
 }
 

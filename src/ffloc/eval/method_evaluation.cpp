@@ -4,6 +4,7 @@
 #include "ffloc/classical/classical_mapper.h"
 #include "ffloc/core/error.h"
 #include "ffloc/eval/sift_baseline_source.h"
+#include "ffloc/localization/localizer.h"
 
 namespace ffloc {
 
@@ -18,6 +19,21 @@ std::string methodListProblem(const std::vector<std::string>& methods) {
   for (auto method = methods.begin(); method != methods.end(); ++method)
     if (std::find(methods.begin(), method, *method) != method) return "'" + *method + "' is given twice";
   return "";
+}
+
+std::string settingNoMethodUsesProblem(const std::vector<std::string>& methods, const std::string& setting) {
+  const bool classical = methodUsesSetting(LocalizationMethod::kClassical, setting);
+  const bool fastforward = methodUsesSetting(LocalizationMethod::kFastForward, setting);
+  std::string names;
+  for (const std::string& method : methods) {
+    // oracle-depth and sift-baseline take the settings both localizers share (seed, solver).
+    const bool uses = method == "classical"     ? classical
+                      : method == "fastforward" ? fastforward
+                                                : classical && fastforward;
+    if (uses) return "";
+    names += (names.empty() ? "" : ", ") + method;
+  }
+  return setting + ": none of the methods evaluated (" + names + ") uses it";
 }
 
 std::vector<FrameResult> evaluateMethod(const Scene& scene, const std::string& method,
