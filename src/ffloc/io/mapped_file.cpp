@@ -10,20 +10,11 @@
 #include <cstring>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/file_stamp.h"
 
 namespace ffloc {
 
 namespace {
-
-struct FileState {
-  off_t size = 0;
-  int64_t modified_ns = 0;
-  bool operator==(const FileState& other) const { return size == other.size && modified_ns == other.modified_ns; }
-};
-
-FileState stateOf(const struct stat& info) {
-  return {info.st_size, static_cast<int64_t>(info.st_mtim.tv_sec) * 1000000000 + info.st_mtim.tv_nsec};
-}
 
 // A memfd holding the first `size` bytes of `fd`, or -1 with errno set; `changed` when the file's
 // size or modification time moved while it was copied (a writer in place: the copy may be torn).
@@ -44,7 +35,7 @@ int snapshotOf(int fd, const struct stat& before, bool& changed) {
     }
   }
   struct stat after {};
-  changed = ::fstat(fd, &after) != 0 || !(stateOf(after) == stateOf(before));
+  changed = ::fstat(fd, &after) != 0 || fileStampOf(after) != fileStampOf(before);
   return copy;
 }
 

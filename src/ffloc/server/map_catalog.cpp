@@ -1,44 +1,17 @@
 #include "ffloc/server/map_catalog.h"
 
-#include <sys/stat.h>
-
 #include <algorithm>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/file_stamp.h"
 
 namespace ffloc {
-
-namespace {
-
-// What tells a replaced file from the one that was opened: an atomic rename brings a new inode.
-struct FileStamp {
-  dev_t device = 0;
-  ino_t inode = 0;
-  off_t size = -1;
-  int64_t modified_ns = 0;
-  bool operator==(const FileStamp& other) const {
-    return sameFile(other) && size == other.size && modified_ns == other.modified_ns;
-  }
-  bool sameFile(const FileStamp& other) const { return device == other.device && inode == other.inode; }
-};
-
-bool stampOf(const std::filesystem::path& path, FileStamp& stamp) {
-  struct stat info {};
-  if (::stat(path.c_str(), &info) != 0) return false;
-  stamp.device = info.st_dev;
-  stamp.inode = info.st_ino;
-  stamp.size = info.st_size;
-  stamp.modified_ns = static_cast<int64_t>(info.st_mtim.tv_sec) * 1000000000 + info.st_mtim.tv_nsec;
-  return true;
-}
-
-}  // namespace
 
 struct MapCatalog::Slot {
   Source source;
   mutable std::mutex mutex;  // guards current, stamp, last_check
   std::shared_ptr<const ServedMap> current;
-  FileStamp stamp;  // of the file last looked at
+  std::optional<FileStamp> stamp;  // of the file last looked at
   std::chrono::steady_clock::time_point last_check;
   mutable std::mutex reloading;  // one reload of a map at a time
 };
@@ -54,7 +27,7 @@ MapCatalog::MapCatalog(std::vector<Source> sources, MapOpener open, std::chrono:
       throwInputError(source.path.string(), 0, "map name '" + source.name + "' given twice");
     }
     auto slot = std::make_unique<Slot>();
-    stampOf(source.path, slot->stamp);
+    slot->stamp = fileStampOf(source.path);
     slot->current = std::make_shared<const ServedMap>(open_(source.path));
     slot->last_check = std::chrono::steady_clock::now();
     slot->source = std::move(source);
@@ -83,12 +56,12 @@ std::shared_ptr<const ServedMap> MapCatalog::get(const std::string& name) const 
     if (!open_ || now - slot.last_check < reload_check_) return slot.current;
     slot.last_check = now;
   }
-  FileStamp stamp;
+  std::optional<FileStamp> stamp;
   std::unique_lock<std::mutex> reload(slot.reloading, std::try_to_lock);
   {
     const std::lock_guard<std::mutex> lock(slot.mutex);
     // Another request is reopening it, or the file is missing (mid-replacement) or unchanged.
-    if (!reload.owns_lock() || !stampOf(slot.source.path, stamp) || stamp == slot.stamp) return slot.current;
+    if (!reload.owns_lock() || !(stamp = fileStampOf(slot.source.path)) || stamp == slot.stamp) return slot.current;
   }
   std::shared_ptr<const ServedMap> reopened;
   std::string failure;
