@@ -599,6 +599,10 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
        "--json: '" + (dir_ / "missing" / "r.json").string() + "': folder '" + (dir_ / "missing").string() +
            "' does not exist"},
       {{"--methods", "oracle-depth", "--poses", dir_.string()}, "--poses: '" + dir_.string() + "' is a folder"},
+      // A flag of a method that does not run changed nothing, without a word.
+      {{"--methods", "classical,oracle-depth", "--features", "500"},
+       "--features: none of the methods evaluated (classical, oracle-depth) uses it"},
+      {{"--methods", "fastforward", "--no-pose-guided"}, "--no-pose-guided: none of the methods evaluated (fastforward) uses it"},
       // Root passes every permission test in /proc, where no file can be made: the JSON failed after
       // every query had run.
       {{"--methods", "oracle-depth", "--json", "/proc/ffloc-r.json"}, "--json: '/proc/ffloc-r.json': folder '/proc' is not writable"},

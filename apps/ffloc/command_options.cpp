@@ -55,6 +55,22 @@ std::string withFlagName(const std::string& message) {
   return flag == flags.end() ? translated : flag->second + translated.substr(colon);
 }
 
+const std::map<std::string, std::string>& methodSettingOfFlag() {
+  static const std::map<std::string, std::string> setting_of_flag = {
+      {"--model", "model"},         {"--dtype", "dtype"},         {"--features", "features"},
+      {"--selection", "selection"}, {"--retrieval", "retrieval"}, {"--no-verify", "verify"},
+      {"--no-pose-guided", "pose_guided"}};
+  return setting_of_flag;
+}
+
+std::vector<std::string> methodFlagsGiven(const CLI::App& command) {
+  std::vector<std::string> given;
+  for (const auto& [flag, setting] : methodSettingOfFlag())
+    if (const CLI::Option* option = command.get_option_no_throw(flag); option != nullptr && option->count() > 0)
+      given.push_back(flag);
+  return given;
+}
+
 CLI::Validator threadCountRange() {
   return CLI::Validator(
       [](const std::string& input) -> std::string {

@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -32,6 +33,12 @@ struct QueryArguments {
 };
 void addQueryOptions(CLI::App& command, QueryArguments& args);
 LocalizeOptions localizeOptions(const QueryArguments& args);
+
+// The flags of settings one localization method alone uses (methodUsesSetting), with the
+// setting each sets, and those of them given on `command`'s line: a flag of a method that does
+// not run was ignored without a word (a model path that does not exist, on a classical map).
+const std::map<std::string, std::string>& methodSettingOfFlag();
+std::vector<std::string> methodFlagsGiven(const CLI::App& command);
 
 // Every --threads flag: 0 (all hardware threads) to kMaxThreads (core/threads.h), checked while
 // the command line is parsed.

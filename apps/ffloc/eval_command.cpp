@@ -21,6 +21,7 @@
 #include "ffloc/eval/report.h"
 #include "ffloc/eval/scene_ply.h"
 #include "ffloc/io/input_file.h"
+#include "ffloc/io/map_file.h"
 #ifdef FFLOC_WITH_TORCH
 #include "command_model.h"
 #include "ffloc/pipeline/map_building.h"
@@ -49,6 +50,7 @@ struct EvalArguments {
   ModelArguments model;
 #endif
   std::string map_path;
+  std::vector<std::string> method_flags_given;
   std::string poses_path, ply_path;
   bool no_depth = false;
   std::string protocol;
@@ -151,6 +153,12 @@ int runEval(const EvalArguments& args) {
     throw InputError("--point-noise: must be a finite distance, 0 or more");
   for (const auto& [flag, path] : outputsWritten(args)) checkOutputPath(flag, path);  // named by --json too
   if (!args.map_path.empty() && args.datasets.size() != 1) throw InputError("--map: a map serves exactly one dataset");
+  std::vector<std::string> evaluated = methods;
+  if (!args.map_path.empty()) evaluated.push_back(readMapHeader(args.map_path).method);
+  for (const std::string& flag : args.method_flags_given)
+    if (const std::string problem = settingNoMethodUsesProblem(evaluated, methodSettingOfFlag().at(flag));
+        !problem.empty())
+      throw InputError(flag + ": " + problem);
   for (size_t i = 0; i < args.datasets.size(); ++i)
     for (size_t j = 0; j < i; ++j)
       if (sameFolderKey(args.datasets[i]) == sameFolderKey(args.datasets[j]))
@@ -388,7 +396,10 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
   cmd->add_flag("--quiet", args->quiet, "No progress bar");
   for (const char* path_flag : {"--map", "--json", "--csv", "--markdown", "--html", "--poses", "--ply"})
     cmd->get_option(path_flag)->check(nonEmptyPath());
-  cmd->callback([args, &run] { run = [args] { return runEval(*args); }; });
+  cmd->callback([args, cmd, &run] {
+    args->method_flags_given = methodFlagsGiven(*cmd);
+    run = [args] { return runEval(*args); };
+  });
 }
 
 }  // namespace ffloc::cli

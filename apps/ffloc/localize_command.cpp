@@ -204,16 +204,10 @@ void refuseOutputsOverInputsOrEachOther(const LocalizeArguments& args, const std
   refuseOutputOverInputs("--ply", args.ply_path, inputs);
 }
 
-// The map decides the method; a flag of the other one would be ignored without a word (a model
-// path that does not exist, on a classical map, was). The flags of settings one method alone uses.
-const std::map<std::string, std::string> kSettingOfFlag = {
-    {"--model", "model"},         {"--dtype", "dtype"},         {"--features", "features"},
-    {"--selection", "selection"}, {"--retrieval", "retrieval"}, {"--no-verify", "verify"},
-    {"--no-pose-guided", "pose_guided"}};
-
+// The map decides the method; a flag of the other one would be ignored without a word.
 void refuseOptionsOfTheOtherMethod(const LocalizeArguments& args, LocalizationMethod method) {
   for (const std::string& flag : args.flags_given) {
-    if (!methodUsesSetting(method, kSettingOfFlag.at(flag)))
+    if (!methodUsesSetting(method, methodSettingOfFlag().at(flag)))
       throw InputError(flag + ": the map is a " + toString(method) + " map, which does not use it");
   }
 }
@@ -349,8 +343,7 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
   for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"})
     cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, cmd, &run] {
-    for (const auto& [flag, setting] : kSettingOfFlag)
-      if (cmd->count(flag) > 0) args->flags_given.push_back(flag);
+    args->flags_given = methodFlagsGiven(*cmd);
     run = [args] { return runLocalize(*args); };
   });
 }

@@ -33,7 +33,7 @@ std::string settingNoMethodUsesProblem(const std::vector<std::string>& methods, 
     if (uses) return "";
     names += (names.empty() ? "" : ", ") + method;
   }
-  return setting + ": none of the methods evaluated (" + names + ") uses it";
+  return "none of the methods evaluated (" + names + ") uses it";
 }
 
 std::vector<FrameResult> evaluateMethod(const Scene& scene, const std::string& method,

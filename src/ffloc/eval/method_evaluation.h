@@ -28,9 +28,10 @@ std::vector<std::string> evaluationMethods(const MethodEvaluationOptions& option
 // twice"), or "": an empty list ran the default without a word, and a method named twice ran twice.
 std::string methodListProblem(const std::vector<std::string>& methods);
 
-// "features: none of the methods evaluated (classical) uses it" when `setting` (a LocalizeOptions
-// field one localization method alone uses, methodUsesSetting) matters to none of `methods`, or "":
-// evaluate(methods=["classical"], features=500) ran as if it were not given.
+// "none of the methods evaluated (classical) uses it" when `setting` (a LocalizeOptions field one
+// localization method alone uses, methodUsesSetting) matters to none of `methods`, or "": callers
+// put the field or flag in front. Python's evaluate(methods=["classical"], features=500) and
+// `ffloc eval --features 500` ran as if it were not given.
 std::string settingNoMethodUsesProblem(const std::vector<std::string>& methods, const std::string& setting);
 
 // oracle-depth and sift-baseline answer with correspondences (evaluate); classical and
