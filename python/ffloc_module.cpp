@@ -132,10 +132,35 @@ std::vector<Vector> pointsFrom(const py::handle& value, const std::string& field
   return points;
 }
 
+// Ctrl-C during a long call with the interpreter's lock released was heard only when the call
+// returned (a build_map ran on and replaced its map): Python's handler runs at each progress
+// step, and the KeyboardInterrupt it raises stops the work there (StopCheck).
+StopCheck stopOnInterrupt() {
+  return StopCheck([] {
+    py::gil_scoped_acquire locked;
+    return PyErr_CheckSignals() != 0;
+  });
+}
+
+// The thread pools at `threads` (none: as they are) for a call, with Ctrl-C heard while it waits
+// for calls at another count to end (ThreadCountLease).
+std::unique_ptr<ThreadCountLease> leasePools(std::optional<int> threads) {
+  const StopCheck interruptible = stopOnInterrupt();
+  return std::make_unique<ThreadCountLease>(threads);
+}
+
 // A path or file name from the library as os.fsdecode gives it: bytes that are not UTF-8 kept as
 // surrogates, so that Python opens the same file with it.
 py::str pythonPath(const std::string& path) {
   PyObject* decoded = PyUnicode_DecodeFSDefaultAndSize(path.data(), static_cast<py::ssize_t>(path.size()));
+  if (decoded == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(decoded);
+}
+
+// Text from the library for people to read (a repr, an error message): bytes that are not UTF-8
+// (a file's name) shown as escapes, \xe9, where a cast to str raised UnicodeDecodeError.
+py::str readableText(const std::string& text) {
+  PyObject* decoded = PyUnicode_DecodeUTF8(text.data(), static_cast<py::ssize_t>(text.size()), "backslashreplace");
   if (decoded == nullptr) throw py::error_already_set();
   return py::reinterpret_steal<py::str>(decoded);
 }
@@ -159,7 +184,7 @@ cv::Mat imageFrom(const py::handle& image, py::object& keep, std::string& name) 
     const std::string path = pathArgument(image, "image", "a path or an H x W x 3 uint8 array");
     if (name.empty()) name = path;
     py::gil_scoped_release unlocked;
-    const ThreadCountLease pools(std::nullopt);
+    const auto pools = leasePools(std::nullopt);
     return readImageRgb(path);
   }
   if (!py::isinstance<py::array>(image)) throw InputError("image: expected a path or an H x W x 3 uint8 array");
@@ -274,18 +299,8 @@ Scene sceneFrom(const py::handle& value, const std::string& format) {
   if (py::isinstance<Scene>(value)) return value.cast<Scene>();
   const std::string path = pathArgument(value, "dataset", "a folder path or an ffloc.Scene");
   py::gil_scoped_release unlocked;
-  const ThreadCountLease pools(std::nullopt);
+  const auto pools = leasePools(std::nullopt);
   return loadDataset(path, format);
-}
-
-// Ctrl-C during a long call with the interpreter's lock released was heard only when the call
-// returned (a build_map ran on and replaced its map): Python's handler runs at each progress
-// step, and the KeyboardInterrupt it raises stops the work there (StopCheck).
-StopCheck stopOnInterrupt() {
-  return StopCheck([] {
-    py::gil_scoped_acquire locked;
-    return PyErr_CheckSignals() != 0;
-  });
 }
 
 // A map file opened for queries, with the model it needs.
@@ -297,7 +312,7 @@ struct Map {
 
   static Map load(const std::string& path, const std::string& model, const std::string& dtype, int threads) {
     py::gil_scoped_release unlocked;
-    const ThreadCountLease pools(threads);
+    const auto pools = leasePools(threads);
     Map map;
     map.opened = std::make_shared<MapLocalizer>(openMapLocalizer(path, modelLoader(model, dtype)));
     map.path = path;
@@ -311,6 +326,23 @@ struct Result {
   nlohmann::json answer;  // what `ffloc localize --json` prints
   std::optional<Pose> camera_to_world;
 };
+
+// The mapping images a query used, named as Python names files (pythonPath).
+py::list selectedNames(const Result& r) {
+  py::list names;
+  if (!r.answer.contains("selected")) return names;
+  for (const nlohmann::json& name : r.answer["selected"]) names.append(pythonPath(name.get<std::string>()));
+  return names;
+}
+
+// The answer's JSON with its file names as pythonPath gives them: through JSON text, a name that
+// is not UTF-8 lost its bytes to U+FFFD and no longer named the file.
+py::object answerDict(const Result& r) {
+  py::object answer = toPython(r.answer);
+  answer["name"] = pythonPath(r.answer["name"].get<std::string>());
+  if (r.answer.contains("selected")) answer["selected"] = selectedNames(r);
+  return answer;
+}
 
 // As the CLI refuses their flags: a setting the map's method ignores was taken silently.
 void refuseSettingsTheMapIgnores(const Map& map, const std::vector<std::string>& given) {
@@ -330,7 +362,7 @@ class PyLocalizer {
     const Intrinsics camera = intrinsicsFrom(intrinsics, distortion);
     const cv::Mat rgb = imageFrom(image, keep, name);
     py::gil_scoped_release unlocked;
-    const ThreadCountLease pools(map_.threads);
+    const auto pools = leasePools(map_.threads);
     const LocalizationResult result = map_.localizer().localize(rgb, camera, name, options_);
     Result out;
     out.answer = localizationJson(name, result, map_.localizer());
@@ -408,7 +440,7 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
   std::vector<int> inliers;
   {
     py::gil_scoped_release unlocked;
-    const ThreadCountLease pools(threads);
+    const auto pools = leasePools(threads);
     result = estimatePose(pairs, camera, pnp);
     if (result.ok())
       inliers = findInliers(pairs.pixels, pairs.points, camera, result.camera_to_world.inverse(), pnp.inlier_threshold_px);
@@ -457,11 +489,8 @@ PYBIND11_MODULE(_ffloc, m) {
       const std::string option = "MappingOptions::vlad";
       if (const size_t at = message.find(option); at != std::string::npos)
         message.replace(at, option.size(), "build_map(vlad=True)");
-      // Bytes that are not UTF-8 (a file's name) shown as escapes: PyErr_SetString raised a
-      // UnicodeDecodeError in place of the message.
-      const py::str text = py::reinterpret_steal<py::str>(
-          PyUnicode_DecodeUTF8(message.data(), static_cast<py::ssize_t>(message.size()), "backslashreplace"));
-      PyErr_SetObject(error.ptr(), text.ptr());
+      // PyErr_SetString raised a UnicodeDecodeError in place of a message naming such a file.
+      PyErr_SetObject(error.ptr(), readableText(message).ptr());
     } catch (const Stopped& e) {
       // Python's handler already raised the KeyboardInterrupt that stopped the work.
       if (!PyErr_Occurred()) PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
@@ -484,7 +513,7 @@ PYBIND11_MODULE(_ffloc, m) {
                                return f.depth ? py::object(pythonPath(f.depth->path.string())) : py::none();
                              })
       .def_property_readonly("split", [](const Frame& f) { return std::string(toString(f.split)); })
-      .def("__repr__", [](const Frame& f) { return "<ffloc.Frame " + f.name + " (" + toString(f.split) + ")>"; });
+      .def("__repr__", [](const Frame& f) { return readableText("<ffloc.Frame " + f.name + " (" + toString(f.split) + ")>"); });
 
   py::class_<Scene> scene_class(m, "Scene", "A dataset: posed frames with their split");
   refuseEmptyNew(scene_class, MadeBy::kLibrary, "ffloc.load_dataset(path) reads one");
@@ -504,7 +533,7 @@ PYBIND11_MODULE(_ffloc, m) {
       .def("query_indices", &Scene::queryIndices)
       .def("__len__", [](const Scene& s) { return s.frames.size(); })
       .def("__repr__", [](const Scene& s) {
-        return "<ffloc.Scene " + s.name + " (" + s.format + ", " + std::to_string(s.frames.size()) + " frames)>";
+        return readableText("<ffloc.Scene " + s.name + " (" + s.format + ", " + std::to_string(s.frames.size()) + " frames)>");
       });
 
   m.def("load_dataset", [](const py::handle& path, const std::string& format) { return sceneFrom(path, format); },
@@ -516,7 +545,7 @@ PYBIND11_MODULE(_ffloc, m) {
           cv::Mat rgb;
           {
             py::gil_scoped_release unlocked;
-            const ThreadCountLease pools(std::nullopt);
+            const auto pools = leasePools(std::nullopt);
             rgb = readImageRgb(path);
           }
           return imageArray(std::move(rgb));
@@ -569,7 +598,7 @@ PYBIND11_MODULE(_ffloc, m) {
                                return map.build_report ? py::object(reportDict(*map.build_report)) : py::none();
                              })
       .def("__len__", [](const Map& map) { return map.localizer().cameras().size(); })
-      .def("__repr__", [](const Map& map) { return "<ffloc.Map " + map.path + ": " + map.opened->description + ">"; });
+      .def("__repr__", [](const Map& map) { return readableText("<ffloc.Map " + map.path + ": " + map.opened->description + ">"); });
 
   m.def(
       "build_map",
@@ -603,7 +632,7 @@ PYBIND11_MODULE(_ffloc, m) {
         {
           py::gil_scoped_release unlocked;
           const StopCheck interruptible = stopOnInterrupt();
-          const ThreadCountLease pools(threads);
+          const auto pools = leasePools(threads);
           report = buildMap(scene, out, options, modelLoader(model_spec, precision));
         }
         Map map = Map::load(out, model_spec, precision, threads);
@@ -640,9 +669,9 @@ PYBIND11_MODULE(_ffloc, m) {
       .def_property_readonly("localized", [](const Result& r) { return r.answer["status"] == "localized"; })
       .def_property_readonly("reason", [](const Result& r) { return r.answer.value("reason", std::string()); })
       .def_property_readonly("inliers", [](const Result& r) { return r.answer["inliers"].get<int>(); })
-      .def_property_readonly("selected", [](const Result& r) { return r.answer["selected"].get<std::vector<std::string>>(); })
+      .def_property_readonly("selected", [](const Result& r) { return selectedNames(r); })
       .def_property_readonly("timings", [](const Result& r) { return toPython(r.answer["timings_ms"]); }, "milliseconds per stage")
-      .def("to_dict", [](const Result& r) { return toPython(r.answer); }, "What 'ffloc localize --json' prints")
+      .def("to_dict", [](const Result& r) { return answerDict(r); }, "What 'ffloc localize --json' prints")
       .def("__repr__", [](const Result& r) {
         return "<ffloc.Result " + r.answer["status"].get<std::string>() + ", " +
                std::to_string(r.answer["inliers"].get<int>()) + " inliers>";
@@ -701,10 +730,11 @@ PYBIND11_MODULE(_ffloc, m) {
         refuseUnknown(unused, "evaluate");
         if (const std::string problem = methodListProblem(methods); !problem.empty())
           throw InputError("methods: " + problem);
-        for (const auto& [key, value] : kwargs)
-          if (const std::string problem = settingNoMethodUsesProblem(methods, py::str(key).cast<std::string>());
-              !problem.empty())
-            throw InputError(problem);
+        for (const auto& [key, value] : kwargs) {
+          const std::string setting = py::str(key).cast<std::string>();
+          if (const std::string problem = settingNoMethodUsesProblem(methods, setting); !problem.empty())
+            throw InputError(setting + ": " + problem);
+        }
         const Scene scene = sceneFrom(dataset, format);
         MethodEvaluationOptions options;
         options.localize = localize;
@@ -726,7 +756,7 @@ PYBIND11_MODULE(_ffloc, m) {
         {
           py::gil_scoped_release unlocked;
           const StopCheck interruptible = stopOnInterrupt();
-          const ThreadCountLease pools(threads);
+          const auto pools = leasePools(threads);
           for (const std::string& method : methods) summaries.push_back(summarize(evaluateMethod(scene, method, options)));
         }
         return toPython(summaryJson(summaries));

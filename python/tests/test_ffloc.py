@@ -267,6 +267,10 @@ def test_paths_whose_bytes_are_not_utf8_work_as_python_gives_them(scene_dir, que
     with pytest.raises(ffloc.Error, match=r"caf\\xe9"):  # the bytes shown as escapes in the message
         ffloc.read_image(os.path.join(folder, b"missing.png"))
     # A uint8 array is uint8 whatever its byte order says: only the dtype's identity differed.
+    # Shown with escapes where people read them, and named as Python names the file in the answer.
+    assert "caf\\xe9" in repr(built)
+    assert os.fsencode(result.to_dict()["name"]) == os.fsencode(image)
+    assert set(result.selected) <= set(built.names)
     pixels = ffloc.read_image(query.image_path)
     marked = ffloc.Localizer(built).localize(pixels.view(np.dtype("u1").newbyteorder(">")), query.intrinsics)
     assert np.array_equal(marked.pose, ffloc.Localizer(built).localize(pixels, query.intrinsics).pose)

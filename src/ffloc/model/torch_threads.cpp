@@ -3,11 +3,11 @@
 #include <ATen/Parallel.h>
 #include <omp.h>
 
+#include <chrono>
 #include <condition_variable>
 #include <mutex>
-#include <stdexcept>
-#include <string>
 
+#include "ffloc/core/progress.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/model/cpu_gemm.h"
 
@@ -70,18 +70,33 @@ ThreadCountLease::ThreadCountLease(std::optional<int> requested) {
   ThreadCountLeases& leases = threadCountLeases();
   std::unique_lock<std::mutex> lock(leases.mutex);
   if (leases_held_on_this_thread > 0) {
-    // Waiting here would wait for this thread's own lease to end.
-    if (requested && threads != leases.threads)
-      throw std::logic_error("ThreadCountLease: this thread holds the pools at " + std::to_string(leases.threads) +
-                             " threads and asks for " + std::to_string(threads));
+    // Nested (a Python signal handler run by a call's check for Ctrl-C calls the library again):
+    // waiting would wait for this thread's own lease, so it runs at the count held.
     ++leases.holders;
     ++leases_held_on_this_thread;
     return;
   }
+  // Waits a tenth of a second at a time, asking this thread's StopCheck between: Ctrl-C in Python
+  // ended a wait behind another thread's long build only when that build did.
+  const auto waitUntil = [&](const auto& ready) {
+    while (!leases.released.wait_for(lock, std::chrono::milliseconds(100), ready)) {
+      lock.unlock();
+      stopIfRequested("waiting for the thread pools held by another thread");
+      lock.lock();
+    }
+  };
   for (;;) {
     if (requested && threads != leases.threads) {
       ++leases.waiting_to_resize;
-      leases.released.wait(lock, [&] { return leases.holders == 0 || threads == leases.threads; });
+      try {
+        waitUntil([&] { return leases.holders == 0 || threads == leases.threads; });
+      } catch (...) {
+        lock.lock();
+        --leases.waiting_to_resize;
+        lock.unlock();
+        leases.released.notify_all();
+        throw;
+      }
       --leases.waiting_to_resize;
       if (threads != leases.threads) {
         setTorchThreadCount(threads);
@@ -92,7 +107,7 @@ ThreadCountLease::ThreadCountLease(std::optional<int> requested) {
     }
     // Leases wait behind one that waits to resize: a stream of them would keep it waiting for ever.
     if (leases.waiting_to_resize == 0) break;
-    leases.released.wait(lock);
+    waitUntil([&] { return leases.waiting_to_resize == 0 || (requested && threads != leases.threads); });
   }
   ++leases.holders;
   ++leases_held_on_this_thread;

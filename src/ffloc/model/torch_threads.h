@@ -41,8 +41,9 @@ class SingleThreadedKernels {
 // pools' current count are held side by side; a lease of another count waits until none is held,
 // then resizes the pools. Resizing OpenCV's pool while another thread ran a loop in it crashed the
 // process, or left that loop waiting forever. Without a count (nullopt) a lease keeps the pools as
-// they are, for work that runs OpenCV's loops but chose no count (reading an image). A thread may
-// nest leases of its count or none; asking for another count while holding one is a logic_error.
+// they are, for work that runs OpenCV's loops but chose no count (reading an image). A lease
+// nested in one its thread holds runs at the count held, whatever it asks. A wait asks the
+// thread's StopCheck (core/progress.h) ten times a second, and ends with Stopped when told.
 class ThreadCountLease {
  public:
   explicit ThreadCountLease(std::optional<int> requested);

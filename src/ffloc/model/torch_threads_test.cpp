@@ -17,6 +17,7 @@
 #include <opencv2/core/utility.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
 #include "ffloc/core/threads.h"
 
 namespace ffloc {
@@ -141,8 +142,36 @@ TEST(ThreadCountLease, ALeaseOfAnotherCountWaitsForTheOneHeld) {
   EXPECT_TRUE(granted.load());
   EXPECT_THROW(ThreadCountLease(-1), InputError);
   const ThreadCountLease outer(2);
-  { const ThreadCountLease nested(std::nullopt), same(2); }  // would wait for `outer` if not its own thread's
-  EXPECT_THROW(ThreadCountLease(1), std::logic_error);
+  {
+    // Would wait for `outer` were it not this thread's: they run at the count it holds.
+    const ThreadCountLease nested(std::nullopt), same(2), other(1);
+    EXPECT_EQ(torchThreadCount(), 2);
+  }
+  setTorchThreadCount(0);
+}
+
+// Ctrl-C in Python during a wait behind another thread's long build was heard only when the
+// build ended: the wait asks the thread's StopCheck, and one that stops leaves nothing behind.
+TEST(ThreadCountLease, AWaitEndsWhenAStopIsAsked) {
+  auto held = std::make_unique<ThreadCountLease>(2);
+  int asked = 0;
+  bool stopped = false;
+  std::thread waiting([&] {
+    const StopCheck stop([&] { return ++asked >= 3; });
+    try {
+      const ThreadCountLease pools(1);
+    } catch (const Stopped&) {
+      stopped = true;
+    }
+  });
+  waiting.join();
+  EXPECT_TRUE(stopped);
+  EXPECT_EQ(asked, 3);
+  held.reset();
+  std::thread([] {  // not left behind a wait that ended
+    const ThreadCountLease pools(1);
+    EXPECT_EQ(torchThreadCount(), 1);
+  }).join();
   setTorchThreadCount(0);
 }
 
