@@ -280,6 +280,11 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
     EXPECT_TRUE(contains(over.output, "--json: '" + output.string() + "' is")) << over.output;
   }
   EXPECT_EQ(fs::file_size(map), map_size);
+  // A folder no file can be made in was found only after every query had run.
+  const CliRun proc = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--json", "/proc/r.json"});
+  EXPECT_EQ(proc.exit_code, 2) << proc.output;
+  EXPECT_TRUE(contains(proc.output, "--json: '/proc/r.json': folder '/proc' is not writable")) << proc.output;
+  EXPECT_FALSE(contains(proc.output, "recall")) << proc.output;
 }
 
 // `ffloc retrieval` refused the map `ffloc map` writes by default (classical), after loading a

@@ -262,8 +262,8 @@ void checkOutputPath(const std::string& flag, const std::string& path) {
     throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' " +
                      (error && error != std::errc::no_such_file_or_directory ? "cannot be reached: " + error.message()
                                                                              : std::string("does not exist")));
-  if (!canCreateFilesIn(folder))
-    throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' is not writable");
+  if (const std::string problem = folderWriteProblem(folder); !problem.empty())
+    throw InputError(flag + ": '" + path + "': folder '" + folder.string() + "' " + problem);
 }
 
 void checkOutputFolder(const std::string& flag, const std::string& path) {

@@ -175,9 +175,7 @@ void runRetrieval(const RetrievalArguments& args) {
     if (k == 0) throw InputError("--top-k: K must be positive");
   // The recall JSON given the map's path replaced the map, exit 0 (probe).
   refuseOutputOverInputs("--json", args.json_path, {{"the map (--map)", args.map_path}}, {args.dataset});
-  const std::filesystem::path json_folder = std::filesystem::path(args.json_path).parent_path();
-  if (!json_folder.empty() && !std::filesystem::is_directory(json_folder))
-    throwInputError(args.json_path, 0, "--json: folder " + json_folder.string() + " does not exist");
+  checkOutputPath("--json", args.json_path);  // before the run, as eval and localize check theirs
 
   const RankedMap map = parseLocalizationMethod(readMapHeader(args.map_path).method) == LocalizationMethod::kClassical
                             ? classicalRankedMap(args)

@@ -6,7 +6,6 @@
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
-#include <fstream>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/file_paths.h"
@@ -36,13 +35,16 @@ bool writesThrough(const std::filesystem::path& path) {
   return openDescriptorNamed(path) || isDeviceOrPipe(std::filesystem::status(path, error));
 }
 
-bool canCreateFilesIn(const std::filesystem::path& folder) {
+std::string folderWriteProblem(const std::filesystem::path& folder) {
   std::string probe = (folder / ".ffloc-write-test-XXXXXX").string();
   const int descriptor = ::mkstemp(probe.data());
-  if (descriptor < 0) return false;
+  if (descriptor < 0) return std::string("is not writable: ") + std::strerror(errno);
   ::close(descriptor);
-  ::unlink(probe.c_str());
-  return true;
+  // An append-only folder takes new files but no rename over them: writeTextFile's would fail.
+  if (::unlink(probe.c_str()) != 0)
+    return "keeps what is written in it (files cannot be removed or renamed there: " + std::string(std::strerror(errno)) +
+           "); " + probe + " is left";
+  return "";
 }
 
 void writeTextFile(const std::filesystem::path& named, const std::string& text) {
@@ -78,21 +80,27 @@ void writeTextFile(const std::filesystem::path& named, const std::string& text) 
   if (!std::filesystem::is_directory(folder)) throwInputError(path.string(), 0, "output folder does not exist");
   const std::filesystem::path temporary =
       folder / ("." + path.filename().string() + ".tmp-" + std::to_string(getpid()));
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    if (!out) throwInputError(temporary.string(), 0, "cannot create file");
-    out << text;
-    // What fits the stream's buffer reaches the disk only at close, whose failure (a full disk)
-    // would otherwise leave an empty file reported as written.
-    out.close();
-    if (out.fail()) {
-      std::filesystem::remove(temporary);
-      throwInputError(path.string(), 0, "write failed");
-    }
+  const int descriptor = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  if (descriptor < 0)
+    throwInputError(path.string(), 0, std::string("cannot make a file in its folder: ") + std::strerror(errno));
+  // Errors carry the system's reason (a full disk); the temporary file goes with them, its own
+  // removal failing (an append-only folder) left unsaid rather than hiding the reason.
+  std::error_code ignored;
+  try {
+    writeAll(descriptor, text, path.string());
+  } catch (...) {
+    ::close(descriptor);
+    std::filesystem::remove(temporary, ignored);
+    throw;
+  }
+  if (::close(descriptor) != 0) {
+    const int close_error = errno;
+    std::filesystem::remove(temporary, ignored);
+    throwInputError(path.string(), 0, std::string("write failed: ") + std::strerror(close_error));
   }
   std::filesystem::rename(temporary, path, error);
   if (error) {
-    std::filesystem::remove(temporary);
+    std::filesystem::remove(temporary, ignored);
     throwInputError(path.string(), 0, "cannot replace file: " + error.message());
   }
 }

@@ -15,9 +15,10 @@ void writeTextFile(const std::filesystem::path& path, const std::string& text);
 // process (/dev/stdout), a device or a pipe. Such an output has no folder to write beside it.
 bool writesThrough(const std::filesystem::path& path);
 
-// Whether writeTextFile can create its temporary file in `folder`: tried with a file made and
-// removed at once, as permission bits do not say it (root passes them in /proc, whose files no
-// one can create).
-bool canCreateFilesIn(const std::filesystem::path& folder);
+// What keeps writeTextFile from replacing a file in `folder` ("is not writable: ...", "keeps what
+// is written in it ..."), or "": tried with a file made and removed at once, as permission bits
+// do not say it (root passes them in /proc, whose files no one can make; an append-only folder
+// takes new files but no rename).
+std::string folderWriteProblem(const std::filesystem::path& folder);
 
 }  // namespace ffloc

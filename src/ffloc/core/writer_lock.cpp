@@ -20,6 +20,7 @@ std::filesystem::path writerLockFile(const std::filesystem::path& target) {
 }
 
 WriterLock::WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait) {
+  if (!target.has_filename()) throwInputError(target.string(), 0, "is a folder, not a file to write");
   const std::filesystem::path lock_file = writerLockFile(target);
   descriptor_ = ::open(lock_file.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0666);
   if (descriptor_ < 0) {
@@ -27,9 +28,7 @@ WriterLock::WriterLock(const std::filesystem::path& target, const std::function<
     std::error_code unreachable;
     if (!std::filesystem::is_directory(lock_file.parent_path(), unreachable))
       throwInputError(target.string(), 0, "output folder does not exist");
-    throwInputError(target.string(), 0,
-                    "cannot write in its folder: its lock file " + lock_file.filename().string() +
-                        " cannot be made: " + std::strerror(error));
+    throwInputError(target.string(), 0, std::string("cannot make files in its folder: ") + std::strerror(error));
   }
   if (::flock(descriptor_, LOCK_EX | LOCK_NB) == 0) return;
   // The constructor that throws runs no destructor: the descriptor is closed here.

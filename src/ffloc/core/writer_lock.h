@@ -15,8 +15,9 @@ std::filesystem::path writerLockFile(const std::filesystem::path& target);
 // lock file removed while another process waits on it would let a third one in beside it).
 // Waits while another process holds it, after calling `on_wait` (when given) once; an
 // exception from `on_wait` refuses to wait, and a StopCheck on this thread (Ctrl-C in Python)
-// ends the wait with Stopped. InputError naming `target` when the lock file cannot be made
-// (its folder missing or closed to new files), and the lock file when it cannot be locked.
+// ends the wait with Stopped. InputError naming `target` when the lock file cannot be made (a
+// folder for a target, its folder missing or closed to new files), and the lock file when it
+// cannot be locked.
 class WriterLock {
  public:
   WriterLock(const std::filesystem::path& target, const std::function<void()>& on_wait);

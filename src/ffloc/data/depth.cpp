@@ -74,10 +74,13 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
     throwInputError(file, 0, std::string("cannot decode depth image: ") + error.err);
   }
   if (stored.empty()) throwInputError(file, 0, "cannot decode depth image");
-  if (stored.channels() != 1)
-    throwInputError(file, 0, "depth image has " + std::to_string(stored.channels()) + " channels, expected 1");
+  // Bit depth first: a palette PNG decodes to three 8-bit channels, and its fault is the 8 bits.
   if (stored.depth() == CV_8U || stored.depth() == CV_8S)
     throwInputError(file, 0, "depth image is 8-bit; expected a 16-bit PNG or a 32-bit float TIFF");
+  // The decoder gives grey with alpha, or colour with alpha, as three channels.
+  if (stored.channels() != 1)
+    throwInputError(file, 0, "depth image has colour or alpha channels (decoded as " +
+                                 std::to_string(stored.channels()) + "); expected one grey channel");
   if (stored.cols != camera.width || stored.rows != camera.height)
     throwInputError(file, 0,
                     "depth image is " + std::to_string(stored.cols) + "x" + std::to_string(stored.rows) + " but " +
