@@ -608,6 +608,8 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
       {{"--methods", "classical,oracle-depth", "--features", "500"},
        "--features: none of the methods evaluated (classical, oracle-depth) uses it"},
       {{"--methods", "fastforward", "--no-pose-guided"}, "--no-pose-guided: none of the methods evaluated (fastforward) uses it"},
+      {{"--methods", "classical", "--stride", "2"}, "--stride: only oracle-depth uses it, and --methods does not run it"},
+      {{"--methods", "oracle-depth", "--no-depth"}, "--no-depth: only classical uses it, and --methods does not run it"},
       // Root passes every permission test in /proc, where no file can be made: the JSON failed after
       // every query had run.
       {{"--methods", "oracle-depth", "--json", "/proc/ffloc-r.json"}, "--json: '/proc/ffloc-r.json': folder '/proc' is not writable"},

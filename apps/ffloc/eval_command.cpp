@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <set>
 #include <sstream>
@@ -51,6 +52,7 @@ struct EvalArguments {
 #endif
   std::string map_path;
   std::vector<std::string> method_flags_given;
+  std::vector<std::string> evaluation_flags_given;
   std::string poses_path, ply_path;
   bool no_depth = false;
   std::string protocol;
@@ -74,6 +76,17 @@ const LoadedModel& sharedModel(const EvalArguments& args) {
   return *model;
 }
 #endif
+
+// The flags of one evaluation method run in memory, with it: taken without a word when it does not
+// run (--stride with classical alone; --no-depth beside a saved map, built with its points already).
+const std::map<std::string, std::string>& evaluationMethodOfFlag() {
+  static const std::map<std::string, std::string> method_of_flag = {{"--outliers", "oracle-depth"},
+                                                                    {"--noise-px", "oracle-depth"},
+                                                                    {"--point-noise", "oracle-depth"},
+                                                                    {"--stride", "oracle-depth"},
+                                                                    {"--no-depth", "classical"}};
+  return method_of_flag;
+}
 
 // The output files a run was asked for: (flag, path).
 std::vector<std::pair<std::string, std::string>> outputsAsked(const EvalArguments& args) {
@@ -159,6 +172,11 @@ int runEval(const EvalArguments& args) {
     if (const std::string problem = settingNoMethodUsesProblem(evaluated, methodSettingOfFlag().at(flag));
         !problem.empty())
       throw InputError(flag + ": " + problem);
+  for (const std::string& flag : args.evaluation_flags_given) {
+    const std::string& method = evaluationMethodOfFlag().at(flag);
+    if (std::find(methods.begin(), methods.end(), method) == methods.end())
+      throw InputError(flag + ": only " + method + " uses it, and --methods does not run it");
+  }
   for (size_t i = 0; i < args.datasets.size(); ++i)
     for (size_t j = 0; j < i; ++j)
       if (sameFolderKey(args.datasets[i]) == sameFolderKey(args.datasets[j]))
@@ -398,6 +416,8 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
     cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, cmd, &run] {
     args->method_flags_given = methodFlagsGiven(*cmd);
+    for (const auto& [flag, method] : evaluationMethodOfFlag())
+      if (cmd->count(flag) > 0) args->evaluation_flags_given.push_back(flag);
     run = [args] { return runEval(*args); };
   });
 }
