@@ -165,6 +165,8 @@ py::str readableText(const std::string& text) {
   return py::reinterpret_steal<py::str>(decoded);
 }
 
+// A str, bytes or os.PathLike argument; InputError naming `argument` for anything else (None gave
+// Python's own TypeError, naming no argument).
 std::string pathArgument(const py::handle& value, const std::string& argument, const std::string& expected) {
   if (!py::isinstance<py::str>(value) && !py::isinstance<py::bytes>(value) && !py::hasattr(value, "__fspath__"))
     throw InputError(argument + ": expected " + expected + ", got " + py::str(py::type::of(value).attr("__name__")).cast<std::string>());
@@ -293,8 +295,6 @@ void refuseEmptyNew(py::class_<Class>& bound, MadeBy made_by, const std::string&
   });
 }
 
-// A str or os.PathLike argument; InputError naming `argument` for anything else (None gave
-// Python's own TypeError, naming no argument).
 Scene sceneFrom(const py::handle& value, const std::string& format) {
   if (py::isinstance<Scene>(value)) return value.cast<Scene>();
   const std::string path = pathArgument(value, "dataset", "a folder path or an ffloc.Scene");
