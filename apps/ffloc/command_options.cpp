@@ -63,9 +63,9 @@ const std::map<std::string, std::string>& methodSettingOfFlag() {
   return setting_of_flag;
 }
 
-std::vector<std::string> methodFlagsGiven(const CLI::App& command) {
+std::vector<std::string> flagsGiven(const CLI::App& command, const std::map<std::string, std::string>& flags) {
   std::vector<std::string> given;
-  for (const auto& [flag, setting] : methodSettingOfFlag())
+  for (const auto& [flag, meaning] : flags)
     if (const CLI::Option* option = command.get_option_no_throw(flag); option != nullptr && option->count() > 0)
       given.push_back(flag);
   return given;

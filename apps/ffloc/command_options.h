@@ -35,10 +35,12 @@ void addQueryOptions(CLI::App& command, QueryArguments& args);
 LocalizeOptions localizeOptions(const QueryArguments& args);
 
 // The flags of settings one localization method alone uses (methodUsesSetting), with the
-// setting each sets, and those of them given on `command`'s line: a flag of a method that does
-// not run was ignored without a word (a model path that does not exist, on a classical map).
+// setting each sets: a flag of a method that does not run was ignored without a word (a model
+// path that does not exist, on a classical map).
 const std::map<std::string, std::string>& methodSettingOfFlag();
-std::vector<std::string> methodFlagsGiven(const CLI::App& command);
+// The flags among the keys of `flags` given on `command`'s line; one the command lacks (a build
+// without libtorch has no --model) is not given.
+std::vector<std::string> flagsGiven(const CLI::App& command, const std::map<std::string, std::string>& flags);
 
 // Every --threads flag: 0 (all hardware threads) to kMaxThreads (core/threads.h), checked while
 // the command line is parsed.

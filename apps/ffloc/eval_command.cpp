@@ -415,9 +415,8 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
   for (const char* path_flag : {"--map", "--json", "--csv", "--markdown", "--html", "--poses", "--ply"})
     cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, cmd, &run] {
-    args->method_flags_given = methodFlagsGiven(*cmd);
-    for (const auto& [flag, method] : evaluationMethodOfFlag())
-      if (cmd->count(flag) > 0) args->evaluation_flags_given.push_back(flag);
+    args->method_flags_given = flagsGiven(*cmd, methodSettingOfFlag());
+    args->evaluation_flags_given = flagsGiven(*cmd, evaluationMethodOfFlag());
     run = [args] { return runEval(*args); };
   });
 }

@@ -343,7 +343,7 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
   for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"})
     cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, cmd, &run] {
-    args->flags_given = methodFlagsGiven(*cmd);
+    args->flags_given = flagsGiven(*cmd, methodSettingOfFlag());
     run = [args] { return runLocalize(*args); };
   });
 }
