@@ -162,6 +162,20 @@ TEST_F(Cli, CudaOnACpuOnlyBuildIsRefusedNamingTheFlag) {
       << run.output;
   EXPECT_FALSE(contains(run.output, "Exception raised from")) << run.output;
   EXPECT_FALSE(fs::exists(dir_ / "run"));
+
+  // A config written for a GPU machine: refused naming its field, and runs elsewhere with
+  // --device cpu (the file alone was refused before the flag could override it).
+  writeText(dir_ / "gpu.json", R"({"device": "cuda", "steps": 1, "warmup_steps": 0})");
+  const CliRun from_file = runCli({"train", "--config", (dir_ / "gpu.json").string(), "--data",
+                                   (dir_ / "data").string(), "--out", (dir_ / "run").string()});
+  EXPECT_EQ(from_file.exit_code, 2) << from_file.output;
+  EXPECT_TRUE(contains(from_file.output, "gpu.json with the command line: field 'device': cuda, but"))
+      << from_file.output;
+  const CliRun overridden = runCli({"train", "--config", (dir_ / "gpu.json").string(), "--device", "cpu", "--data",
+                                    (dir_ / "data").string(), "--out", (dir_ / "run").string()});
+  EXPECT_EQ(overridden.exit_code, 2) << overridden.output;
+  EXPECT_FALSE(contains(overridden.output, "device")) << overridden.output;
+  EXPECT_TRUE(contains(overridden.output, "data: unknown dataset format")) << overridden.output;
 }
 
 // long_side 100000 grew to 24 GB before the kernel killed the run: refused at the config check,

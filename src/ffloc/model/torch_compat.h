@@ -15,6 +15,7 @@
 #include "ffloc/model/softmax_kernel.h"
 
 #include <cmath>
+#include <optional>
 #include <vector>
 
 #if TORCH_VERSION_MAJOR > 2 || (TORCH_VERSION_MAJOR == 2 && TORCH_VERSION_MINOR >= 1)
@@ -26,14 +27,21 @@
 
 namespace ffloc::torch_compat {
 
+// c10::optional is std::optional from PyTorch 2.5 on, and newer headers may not declare
+// c10::nullopt; 1.13's c10::optional takes only c10::nullopt.
+#if TORCH_VERSION_MAJOR > 2 || (TORCH_VERSION_MAJOR == 2 && TORCH_VERSION_MINOR >= 5)
+inline constexpr auto kNoValue = std::nullopt;
+#else
+inline constexpr auto kNoValue = c10::nullopt;
+#endif
+
 // Bilinear resize to exactly `height` x `width` with align_corners=True. With align_corners the
 // scale factors play no part in the sampling positions, so leaving them unset is exact. Both
 // optional scales are passed explicitly: in 2.x a shorter call is ambiguous with the vec
 // overload.
 inline at::Tensor resizeBilinearAlignCorners(const at::Tensor& input, int64_t height, int64_t width) {
   const std::vector<int64_t> size = {height, width};
-  return at::upsample_bilinear2d(input, at::IntArrayRef(size), /*align_corners=*/true, c10::nullopt,
-                                 c10::nullopt);
+  return at::upsample_bilinear2d(input, at::IntArrayRef(size), /*align_corners=*/true, kNoValue, kNoValue);
 }
 
 // softmax(q k^T * head_dim^-0.5) v for (B, heads, N, head_dim) tensors. On CUDA with PyTorch

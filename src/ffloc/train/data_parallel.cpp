@@ -7,7 +7,9 @@
 #include <ATen/ops/full.h>
 #include <ATen/ops/zeros.h>
 #include <ATen/ops/zeros_like.h>
+#ifdef FFLOC_WITH_GLOO
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
+#endif
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
 #ifdef FFLOC_WITH_NCCL
 #include <torch/csrc/distributed/c10d/ProcessGroupNCCL.hpp>
@@ -41,6 +43,7 @@ bool isLoopback(const std::string& address) {
   return address == "localhost" || address.rfind("127.", 0) == 0 || address == "::1";
 }
 
+#ifdef FFLOC_WITH_GLOO
 // Gloo binds to the interface torch's launcher would use: GLOO_SOCKET_IFNAME when set, loopback
 // for a run on one machine, else the address this host's name resolves to.
 std::shared_ptr<::gloo::transport::Device> glooDevice(const DistributedEnvironment& environment) {
@@ -50,6 +53,7 @@ std::shared_ptr<::gloo::transport::Device> glooDevice(const DistributedEnvironme
   if (isLoopback(environment.master_addr)) return c10d::ProcessGroupGloo::createDeviceForHostname("127.0.0.1");
   return c10d::ProcessGroupGloo::createDefaultDevice();
 }
+#endif
 
 }  // namespace
 
@@ -138,12 +142,18 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
       throw InputError("device 'cuda': this build's libtorch has no NCCL; train on cpu or rebuild against a CUDA libtorch");
 #endif
     } else {
+#ifdef FFLOC_WITH_GLOO
       // libtorch 1.13's gloo collectives take the group's timeout, not their options'.
       auto options = c10d::ProcessGroupGloo::Options::create(timeout);
       options->devices.push_back(glooDevice(environment));
       backend_->bind(
           c10::make_intrusive<c10d::ProcessGroupGloo>(backend_->store, environment.rank, environment.world_size, options),
           timeout);
+#else
+      throw InputError("device 'cpu': this build found no gloo headers beside its libtorch (PyTorch's pip wheels ship "
+                       "none), so several CPU ranks cannot train together; train on cuda, or build against a libtorch "
+                       "with them (Debian's libtorch-dev)");
+#endif
     }
   } catch (const InputError&) {
     throw;

@@ -129,6 +129,15 @@ const std::map<std::string, FieldBinding>& fieldBindings() {
 }  // namespace
 
 std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
+  if (auto found = settingsProblem()) return found;
+  // Here, before any tensor: libtorch's own refusal is a stack trace from deep inside the run.
+  if (device == "cuda" && !torch::cuda::is_available()) {
+    return TrainingConfigProblem{"device", "cuda, but this libtorch was built without CUDA or sees no GPU; use cpu"};
+  }
+  return std::nullopt;
+}
+
+std::optional<TrainingConfigProblem> TrainingConfig::settingsProblem() const {
   std::optional<TrainingConfigProblem> first;
   const auto fail = [&](const std::string& field, const std::string& what) {
     if (!first) first = TrainingConfigProblem{field, what};
@@ -191,10 +200,6 @@ std::optional<TrainingConfigProblem> TrainingConfig::problem() const {
   if (prefetch_samples < 1 || prefetch_samples > 1024) fail("prefetch_samples", "must be in [1, 1024]");
   if (const std::string problem = threadCountProblem(threads); !problem.empty()) fail("threads", problem);
   if (device != "cpu" && device != "cuda") fail("device", "must be cpu or cuda");
-  // Here, before any tensor: libtorch's own refusal is a stack trace from deep inside the run.
-  if (device == "cuda" && !torch::cuda::is_available()) {
-    fail("device", "cuda, but this libtorch was built without CUDA or sees no GPU; use cpu");
-  }
   if (precision != "fp32" && precision != "bf16") fail("precision", "must be fp32 or bf16");
   if (log_every < 1) fail("log_every", "must be positive");
   if (checkpoint_every < 1) fail("checkpoint_every", "must be positive");
@@ -227,7 +232,7 @@ TrainingConfig trainingConfigFromJson(const nlohmann::json& json, const std::str
       throwInputError(origin, 0, "field '" + key + "': " + wrongType(value));
     }
   }
-  config.validate(origin);
+  if (const auto found = config.settingsProblem()) throw TrainingConfigError(origin, *found);
   return config;
 }
 

@@ -102,9 +102,12 @@ struct TrainingConfig {
   int64_t validation_every = 0;  // 0: no validation
   int validation_samples = 8;
 
-  // The first value that cannot make a run, if any; a caller that sets fields from elsewhere (a
-  // command line) may name their source instead of the field.
+  // The first value that cannot make a run on this machine, if any; a caller that sets fields
+  // from elsewhere (a command line) may name their source instead of the field.
   std::optional<TrainingConfigProblem> problem() const;
+  // problem() but for what depends on the machine (a GPU for device cuda): a config file is
+  // read with this, so that one naming cuda can run elsewhere with device overridden.
+  std::optional<TrainingConfigProblem> settingsProblem() const;
   // TrainingConfigError for problem().
   void validate(const std::string& origin = "training config") const;
 };
