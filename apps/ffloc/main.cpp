@@ -5,9 +5,11 @@
 #include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/allocator.h"
+#include "ffloc/core/crash_report.h"
 #include "ffloc/core/error.h"
 
 int main(int argc, char** argv) {
+  ffloc::installCrashReport("ffloc");
   CLI::App app{"ffloc: visual localization against posed images (classical and FastForward) in C++.\n"
                "Run 'ffloc <command> --help' for the options of each command."};
   app.require_subcommand(1);
