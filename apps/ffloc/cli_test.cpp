@@ -18,6 +18,7 @@
 #include <torch/cuda.h>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/testing/child_process.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/testing/exif_jpeg.h"
 #include "ffloc/train/training_config.h"
@@ -38,25 +39,12 @@ CliRun runCli(const std::vector<std::string>& arguments) {
   std::vector<char*> argv;
   for (std::string& argument : all) argv.push_back(argument.data());
   argv.push_back(nullptr);
-  int pipe_fds[2];
-  if (pipe(pipe_fds) != 0) return {};
-  const pid_t pid = fork();
-  if (pid == 0) {
-    dup2(pipe_fds[1], 1);
-    dup2(pipe_fds[1], 2);
-    close(pipe_fds[0]);
+  const testing::ChildOutput child = testing::runInChild([&argv] {
     execv(argv[0], argv.data());
     _exit(127);
-  }
-  close(pipe_fds[1]);
-  CliRun run;
-  char buffer[4096];
-  for (ssize_t got; (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;) run.output.append(buffer, got);
-  close(pipe_fds[0]);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  run.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-  return run;
+  });
+  if (child.status == -1) return {};
+  return {WIFEXITED(child.status) ? WEXITSTATUS(child.status) : 128 + WTERMSIG(child.status), child.output};
 }
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
