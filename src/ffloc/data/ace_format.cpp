@@ -93,7 +93,8 @@ Scene readAceLayout(const fs::path& dir) {
       frame.name = frameName(image, dir);
       const cv::Size size = readImageSize(image);
       frame.intrinsics = readCalibration(requireCompanion(calibrations, stem, root / "calibration", image), size);
-      const fs::path& pose_file = requireCompanion(poses, stem, root / "poses", image);
+      // A copy: bound by reference beside temporary arguments, GCC 13 warns of a dangling one.
+      const fs::path pose_file = requireCompanion(poses, stem, root / "poses", image);
       const MatrixFile pose = readMatrixFile(pose_file, 4, 4);
       frame.camera_to_world = validatedPose(pose.values, pose_file, pose.row_lines.back());
       if (const auto depth = depths.find(stem); depth != depths.end()) frame.depth = millimetreDepth(depth->second);

@@ -95,7 +95,8 @@ int64_t headDivisor(const TensorArchive& archive, int64_t dim, int64_t head_dim,
 
 Dust3rConfig inferDust3rConfig(const TensorArchive& archive, const Dust3rConfigInference& options) {
   Dust3rConfig config;
-  const TensorView& patch = tensorOfRank(archive, "patch_embed.proj.weight", 4);
+  // A copy: bound by reference beside temporary arguments, GCC 13 warns of a dangling one.
+  const TensorView patch = tensorOfRank(archive, "patch_embed.proj.weight", 4);
   config.enc_dim = patch.shape[0];
   config.patch_size = patch.shape[2];
   config.enc_depth = countBlocks(archive, "enc_blocks.");
