@@ -528,9 +528,11 @@ TEST_F(ConnectionTest, ThreadCountsBeyondTheirBoundsAreRefusedAndTheBoundsStopPr
   const auto health = client.Get("/health");
   ASSERT_TRUE(health);
   EXPECT_EQ(health->status, 200);
+  // A bound against a hang, not a speed target: 32,000 threads once ignored SIGTERM; at 4096 a
+  // stop passed a 5 s bound idle and failed it on a loaded 2-core VM (the test took 9 s there).
   const auto stop_at = std::chrono::steady_clock::now();
   stop();
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stop_at).count(), 5.0);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - stop_at).count(), 60.0);
 }
 
 }  // namespace
