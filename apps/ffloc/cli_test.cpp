@@ -302,7 +302,12 @@ TEST_F(Cli, RetrievalMeasuresAClassicalMapAsItLocalizes) {
   const nlohmann::json recall = nlohmann::json::parse(in);
   EXPECT_EQ(recall["retrieval"], "vlad");
   EXPECT_EQ(recall["recall"][1]["retrieval"], 1.0);  // every mapping image within K = 60
+  EXPECT_TRUE(contains(run.output, "--top-k 60 is at least the map's 6 images")) << run.output;
+  EXPECT_FALSE(contains(run.output, "--top-k 1 is")) << run.output;
   EXPECT_GT(recall["recall"][0]["retrieval"].get<double>(), 0.5) << recall.dump();
+  const CliRun twice = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--top-k", "5,1,5"});
+  EXPECT_EQ(twice.exit_code, 2) << twice.output;
+  EXPECT_TRUE(contains(twice.output, "--top-k: 5 given twice")) << twice.output;
   const CliRun encoder = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--retrieval", "encoder"});
   EXPECT_EQ(encoder.exit_code, 2) << encoder.output;
   EXPECT_TRUE(contains(encoder.output, "--retrieval: applies to FastForward maps")) << encoder.output;

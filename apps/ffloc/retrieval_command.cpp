@@ -171,8 +171,14 @@ void printTable(const RetrievalRecall& result, size_t queries, size_t mapping) {
 
 void runRetrieval(const RetrievalArguments& args) {
   if (args.top_k.empty()) throw InputError("--top-k: no K given");
-  for (size_t k : args.top_k)
-    if (k == 0) throw InputError("--top-k: K must be positive");
+  for (size_t i = 0; i < args.top_k.size(); ++i) {
+    if (args.top_k[i] == 0) throw InputError("--top-k: K must be positive");
+    // A K given twice printed its row twice.
+    if (std::find(args.top_k.begin(), args.top_k.begin() + static_cast<std::ptrdiff_t>(i), args.top_k[i]) !=
+        args.top_k.begin() + static_cast<std::ptrdiff_t>(i)) {
+      throw InputError("--top-k: " + std::to_string(args.top_k[i]) + " given twice");
+    }
+  }
   // The recall JSON given the map's path replaced the map, exit 0 (probe).
   refuseOutputOverInputs("--json", args.json_path, {{"the map (--map)", args.map_path}}, {args.dataset});
   checkOutputPath("--json", args.json_path);  // before the run, as eval and localize check theirs
@@ -181,6 +187,13 @@ void runRetrieval(const RetrievalArguments& args) {
                             ? classicalRankedMap(args)
                             : fastForwardRankedMap(args);
   if (map.names.empty()) throwInputError(args.map_path, 0, "map holds no images");
+  // Such a K retrieves every image: its recall is 1 whatever the descriptors.
+  for (size_t k : args.top_k) {
+    if (k >= map.names.size()) {
+      std::cerr << "note: --top-k " << k << " is at least the map's " << map.names.size()
+                << " images: every image is retrieved, so its recall is 1 by construction\n";
+    }
+  }
   const Scene scene = loadDataset(args.dataset, args.format);
   requireSplits(scene);
   checkMapAgainstDataset(map, args.map_path, scene);
