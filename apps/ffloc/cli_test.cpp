@@ -139,6 +139,18 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
   EXPECT_TRUE(contains(help.output, "--input")) << help.output;
 }
 
+// A bad random:<preset> given to convert was blamed on --model, a flag convert does not have.
+TEST_F(Cli, ConvertNamesItsInputFlag) {
+  for (const auto& [input, expected] : std::vector<std::pair<std::string, std::string>>{
+           {"random:bogus", "error: --input: 'random:bogus': unknown preset 'bogus'"},
+           {"random:tiny:x", "error: --input: 'random:tiny:x': seed must be an integer"}}) {
+    const CliRun run = runCli({"convert", "--input", input, "--output", (dir_ / "x.safetensors").string()});
+    EXPECT_EQ(run.exit_code, 2) << run.output;
+    EXPECT_TRUE(contains(run.output, expected)) << run.output;
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "x.safetensors"));
+}
+
 // A libtorch stack trace from deep inside the run, exit 3, before.
 TEST_F(Cli, CudaOnACpuOnlyBuildIsRefusedNamingTheFlag) {
   if (torch::cuda::is_available()) GTEST_SKIP() << "this libtorch has CUDA and sees a GPU";

@@ -189,9 +189,31 @@ CommandConfig effectiveConfig(const TrainArguments& args, const DistributedEnvir
   return command;
 }
 
+// The run folder's entries, each as the run writes it (or absent): one of another kind ended the
+// run after its training in an internal error (a file named checkpoints) or was never written, in
+// silence (a folder named config.json).
+void requireEntryKind(const fs::path& path, fs::file_type kind) {
+  std::error_code error;
+  const fs::file_status status = fs::symlink_status(path, error);
+  if (!fs::exists(status)) return;
+  if (status.type() == kind || (fs::is_symlink(status) && fs::status(path, error).type() == kind)) return;
+  throwInputError(path.string(), 0, std::string("exists and is not ") +
+                                        (kind == fs::file_type::directory ? "a folder" : "a file") +
+                                        "; the run writes it there: move it away or choose another --out");
+}
+
+// Rows after the header: the steps an earlier run logged.
+bool logHasRows(const fs::path& log_path) {
+  std::ifstream log(log_path);
+  std::string line;
+  return std::getline(log, line) && std::getline(log, line) && !line.empty();
+}
+
 // --out, before anything is read from it or written: the file system's own errors ("cannot
-// create directories: Not a directory") named nothing and ended as internal errors.
-void checkRunFolder(const fs::path& run_dir) {
+// create directories: Not a directory") named nothing and ended as internal errors. A new run
+// into a folder holding an earlier one's checkpoints or logged steps is refused: without
+// `latest` (a run killed before its first one was named) it deleted them and rewrote the log.
+void checkRunFolder(const fs::path& run_dir, bool resume) {
   std::error_code error;
   const fs::file_status status = fs::status(run_dir, error);
   if (fs::exists(status) && !fs::is_directory(status)) {
@@ -199,6 +221,31 @@ void checkRunFolder(const fs::path& run_dir) {
   }
   if (error && error != std::errc::no_such_file_or_directory) {
     throw InputError("--out: '" + run_dir.string() + "': " + error.message());
+  }
+  if (!fs::exists(status)) return;
+  const fs::path checkpoints = run_dir / "checkpoints";
+  requireEntryKind(checkpoints, fs::file_type::directory);
+  requireEntryKind(checkpoints / "latest", fs::file_type::regular);
+  requireEntryKind(run_dir / "config.json", fs::file_type::regular);
+  requireEntryKind(run_dir / "log.csv", fs::file_type::regular);
+  std::string newest_step;
+  for (fs::directory_iterator entry(checkpoints, error), end; !error && entry != end; entry.increment(error)) {
+    const std::string name = entry->path().filename().string();
+    if (name.rfind("step_", 0) == 0 && name.find('.') == std::string::npos && fs::is_directory(entry->path()))
+      newest_step = std::max(newest_step, name);
+  }
+  const bool named = fs::exists(checkpoints / "latest");
+  if (resume && !named && !newest_step.empty()) {
+    throwInputError((checkpoints / "latest").string(), 0,
+                    "missing, so no checkpoint is named to resume from, but " + newest_step +
+                        " is there (a run stopped before naming its first checkpoint); to resume from it, "
+                        "write its name into that file");
+  }
+  if (!resume && (named || !newest_step.empty() || logHasRows(run_dir / "log.csv"))) {
+    throwInputError(run_dir.string(), 0,
+                    std::string("already holds a training run (") +
+                        (named || !newest_step.empty() ? "checkpoints" : "logged steps in log.csv") +
+                        "); pass --resume to continue it, or choose another --out");
   }
 }
 
@@ -270,7 +317,7 @@ void runTrain(const TrainArguments& args) {
   const CommandConfig command = effectiveConfig(args, environment);
   const TrainingConfig& config = command.config;
   const fs::path run_dir = args.out;
-  checkRunFolder(run_dir);
+  checkRunFolder(run_dir, args.resume);
   if (const auto checkpoint = args.resume ? latestTrainingCheckpoint(run_dir) : std::nullopt) {
     if (const auto problem = resumeProblem(*checkpoint, config)) command.refuse(*problem);
   } else if (const std::string problem = modelSpecProblem(config.model); !problem.empty()) {
@@ -283,9 +330,6 @@ void runTrain(const TrainArguments& args) {
   requireDistinctData(args.validation_data, "--val-data");
   std::vector<Scene> scenes;
   for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
-  if (!args.resume && latestTrainingCheckpoint(run_dir)) {
-    throwInputError(run_dir.string(), 0, "already holds a training run; pass --resume to continue it");
-  }
   const fs::path lock_target = run_dir / "run";
   // Two runs resuming into one folder at once both wrote its checkpoints and its log.
   std::optional<WriterLock> run_lock;
@@ -300,6 +344,11 @@ void runTrain(const TrainArguments& args) {
   }
   std::vector<Scene> validation_scenes;
   for (const std::string& spec : args.validation_data) validation_scenes.push_back(loadTrainingData(spec));
+  // Datasets that would never be sampled were taken without a word, a split too small among them.
+  if (!args.validation_data.empty() && config.validation_every == 0) {
+    throw InputError("--val-data: validation is off (validation_every is 0); set validation_every in the config to "
+                     "validate on these datasets");
+  }
   std::unique_ptr<DataParallel> parallel;
   if (environment.distributed()) {
     if (!args.quiet)
@@ -333,9 +382,7 @@ void runTrain(const TrainArguments& args) {
     }
     return;
   }
-  {
-    std::ofstream(run_dir / "config.json") << toJson(config).dump(2) << "\n";
-  }
+  writeTextFile(run_dir / "config.json", toJson(config).dump(2) + "\n");
   const fs::path log_path = run_dir / "log.csv";
   // A log without even its header (a run killed before its first row) is started again.
   const bool new_log = !args.resume || !fs::exists(log_path) || fs::file_size(log_path) == 0;

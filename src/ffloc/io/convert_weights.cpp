@@ -4,6 +4,7 @@
 #include <deque>
 #include <map>
 #include <tuple>
+#include <utility>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
@@ -66,7 +67,13 @@ ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
   if (options.float_dtype) {
     for (TensorView& view : views) {
       if (!isFloatingPoint(view.dtype) || view.dtype == *options.float_dtype) continue;
-      const std::vector<uint8_t>& bytes = casts.emplace_back(castFloatTensor(view, *options.float_dtype));
+      std::vector<uint8_t> cast;
+      try {
+        cast = castFloatTensor(view, *options.float_dtype);
+      } catch (const InputError& e) {
+        throwInputError(input.string(), 0, e.what());  // the tensor's error named no file
+      }
+      const std::vector<uint8_t>& bytes = casts.emplace_back(std::move(cast));
       view.dtype = *options.float_dtype;
       view.data = bytes.data();
       view.nbytes = bytes.size();

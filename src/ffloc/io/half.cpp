@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
+#include <sstream>
 
 #include "ffloc/core/error.h"
 
@@ -119,6 +121,20 @@ std::vector<uint8_t> castFloatTensor(const TensorView& view, DType target) {
   }
   if (target == view.dtype) return std::vector<uint8_t>(view.data, view.data + view.nbytes);
   const size_t count = static_cast<size_t>(view.numel());
+  if (view.dtype == DType::kF64) {
+    // Every narrower type goes through float: a finite double beyond float's range became inf
+    // there, past the F16 test below, and was written as inf without a word.
+    for (size_t i = 0; i < count; ++i) {
+      double element;
+      std::memcpy(&element, view.data + 8 * i, sizeof(element));
+      if (std::isfinite(element) && std::abs(element) > std::numeric_limits<float>::max()) {
+        std::ostringstream value;
+        value << element;
+        throw InputError("tensor '" + view.name + "': value " + value.str() + " at element " + std::to_string(i) +
+                         " is beyond the F32 range (3.4e38)");
+      }
+    }
+  }
   std::vector<uint8_t> bytes(count * elementSize(target));
   if (view.dtype == DType::kF64 && target == DType::kF32) {
     // Straight from double, avoiding a second rounding through an intermediate.

@@ -98,6 +98,25 @@ TEST(Half, ConvertsTensors) {
   too_large.nbytes = 4;
   EXPECT_THROW(castFloatTensor(too_large, DType::kF16), InputError);
   EXPECT_EQ(castFloatTensor(too_large, DType::kBF16).size(), 2u);
+
+  // A double beyond float's range was written as inf by every narrower cast.
+  const std::vector<double> huge = {1.0, 1e300};
+  TensorView too_large_double;
+  too_large_double.name = "huge";
+  too_large_double.dtype = DType::kF64;
+  too_large_double.shape = {2};
+  too_large_double.data = reinterpret_cast<const uint8_t*>(huge.data());
+  too_large_double.nbytes = 16;
+  for (const DType target : {DType::kF32, DType::kF16, DType::kBF16}) {
+    try {
+      castFloatTensor(too_large_double, target);
+      ADD_FAILURE() << toString(target) << ": 1e300 accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("tensor 'huge': value 1e+300 at element 1 is beyond the F32 range"),
+                std::string::npos)
+          << e.what();
+    }
+  }
 }
 
 }  // namespace

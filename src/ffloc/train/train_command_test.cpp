@@ -248,6 +248,73 @@ TEST_F(TrainCommandInput, CheckpointsFollowTheirOwnIntervalAndAResumedLogHoldsEa
   EXPECT_EQ(steps, (std::vector<long long>{4, 5, 6})) << "each step once, in order";
 }
 
+// Found by an outside probe: a run folder whose first checkpoint was never named (no `latest`)
+// was taken by a new run, which deleted the earlier checkpoints and rewrote the log; so was a
+// folder holding only a log of steps. A file named checkpoints ended the run after its training
+// in an internal error; a folder named config.json kept the settings from being written, silently.
+TEST_F(TrainCommandInput, AnEarlierRunsCheckpointsAndLogAreNeverTakenByANewRun) {
+  const std::string two_steps = config(toJson(settingsFor(2)).dump());
+  const fs::path run = root_ / "run";
+  ASSERT_EQ(train("--config " + two_steps + " --out " + run.string()), 0) << output();
+  fs::remove(run / "checkpoints" / "latest");
+  const auto log_before = fs::file_size(run / "log.csv");
+  EXPECT_EQ(train("--config " + two_steps + " --out " + run.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + run.string() + ": already holds a training run (checkpoints); pass --resume"))
+      << output();
+  EXPECT_EQ(train("--config " + two_steps + " --out " + run.string() + " --resume"), 2) << output();
+  EXPECT_TRUE(contains((run / "checkpoints" / "latest").string() + ": missing, so no checkpoint is named to resume "
+                       "from, but step_00000002 is there")) << output();
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000002" / "model.safetensors"));
+  EXPECT_EQ(fs::file_size(run / "log.csv"), log_before);
+
+  fs::remove_all(run / "checkpoints");
+  fs::remove(run / "config.json");
+  EXPECT_EQ(train("--config " + two_steps + " --out " + run.string()), 2) << output();
+  EXPECT_TRUE(contains("already holds a training run (logged steps in log.csv)")) << output();
+  EXPECT_EQ(fs::file_size(run / "log.csv"), log_before);
+  // A log of its header alone holds nothing: a run refused after writing it may start again.
+  {
+    std::ifstream in(run / "log.csv");
+    std::string header;
+    std::getline(in, header);
+    std::ofstream(run / "log.csv", std::ios::trunc) << header << "\n";
+  }
+  EXPECT_EQ(train("--config " + two_steps + " --out " + run.string()), 0) << output();
+
+  const fs::path odd = root_ / "odd";
+  fs::create_directories(odd);
+  std::ofstream(odd / "checkpoints") << "x\n";
+  EXPECT_EQ(train("--config " + two_steps + " --out " + odd.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + (odd / "checkpoints").string() + ": exists and is not a folder")) << output();
+  fs::remove(odd / "checkpoints");
+  fs::create_directories(odd / "config.json");
+  EXPECT_EQ(train("--config " + two_steps + " --out " + odd.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + (odd / "config.json").string() + ": exists and is not a file")) << output();
+  EXPECT_FALSE(fs::exists(odd / "log.csv"));
+}
+
+// Validation datasets were read and never sampled under validation_every 0, without a word; a
+// validation split too small for a sample was blamed on the training data, naming no folder.
+TEST_F(TrainCommandInput, ValidationDataIsRefusedWhenValidationIsOffAndNamedWhenItFails) {
+  const std::string scene = testing::smallScene().root.string();
+  EXPECT_EQ(train("--config " + config(toJson(settingsFor(1)).dump()) + " --out " + (root_ / "a").string() +
+                  " --val-data " + scene),
+            2)
+      << output();
+  EXPECT_TRUE(contains("error: --val-data: validation is off (validation_every is 0)")) << output();
+  EXPECT_FALSE(fs::exists(root_ / "a"));
+  TrainingConfig validating = settingsFor(1);
+  validating.validation_every = 1;
+  validating.validation_samples = 1;
+  // The query split alone has too few frames for a query and its mapping frames.
+  EXPECT_EQ(train("--config " + config(toJson(validating).dump()) + " --out " + (root_ / "b").string() +
+                  " --val-data " + scene + "@query"),
+            2)
+      << output();
+  EXPECT_TRUE(contains("error: validation data (" + scene)) << output();
+  EXPECT_FALSE(contains("training data")) << output();
+}
+
 // Found by an outside probe: two resumes into one run folder at once both wrote it, and an
 // optimizer state copied in from another run (another seed, the same step) was taken.
 TEST_F(TrainCommandInput, ARunFolderInUseAndAnotherRunsOptimizerStateAreRefused) {

@@ -204,7 +204,7 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   if (!validation_scenes.empty()) {
     SampleOptions validation = samples;
     validation.colour_jitter = 0;
-    validation_sampler_ = std::make_unique<TrainingSampler>(std::move(validation_scenes), validation);
+    validation_sampler_ = std::make_unique<TrainingSampler>(std::move(validation_scenes), validation, "validation data");
   }
 }
 

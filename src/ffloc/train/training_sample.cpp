@@ -50,8 +50,8 @@ Eigen::Vector3d normalizedPoint(const Frame& frame, const SceneNormalization& no
 
 }  // namespace
 
-TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options)
-    : scenes_(std::move(scenes)), options_(options) {
+TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options, std::string name)
+    : scenes_(std::move(scenes)), options_(options), name_(std::move(name)) {
   size_t total = 0;
   for (const Scene& scene : scenes_) {
     std::vector<size_t> with_depth;
@@ -67,7 +67,13 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
     total += with_depth.size();
     frames_with_depth_.push_back(std::move(with_depth));
   }
-  if (total == 0) throwInputError("training data", 0, "no frame with depth in any training scene");
+  if (total == 0) throwInputError(source(), 0, "no frame with depth in any of its scenes");
+}
+
+std::string TrainingSampler::source() const {
+  std::string folders;
+  for (const Scene& scene : scenes_) folders += (folders.empty() ? "" : ", ") + scene.root.string();
+  return folders.empty() ? name_ : name_ + " (" + folders + ")";
 }
 
 const TrainingSampler::PreparedFrame& TrainingSampler::prepared(size_t scene, size_t frame) {
@@ -130,7 +136,7 @@ TrainingSample TrainingSampler::sample(uint64_t seed, int64_t map_tokens) {
     if (frames_with_depth_[s].size() > static_cast<size_t>(options_.mapping_frames)) usable_scenes.push_back(s);
   }
   if (usable_scenes.empty()) {
-    throwInputError("training data", 0, "no scene has more than " + std::to_string(options_.mapping_frames) +
+    throwInputError(source(), 0, "no scene has more than " + std::to_string(options_.mapping_frames) +
                                             " frames with depth (query + mapping frames)");
   }
   for (int attempt = 0; attempt < options_.max_attempts; ++attempt) {
@@ -214,7 +220,7 @@ TrainingSample TrainingSampler::sample(uint64_t seed, int64_t map_tokens) {
     }
     return out;
   }
-  throwInputError("training data", 0, "no query with " + std::to_string(options_.mapping_frames) +
+  throwInputError(source(), 0, "no query with " + std::to_string(options_.mapping_frames) +
                                           " mapping frames of overlap in [" + std::to_string(options_.min_overlap) +
                                           ", " + std::to_string(options_.max_overlap) + "] after " +
                                           std::to_string(options_.max_attempts) + " tries");

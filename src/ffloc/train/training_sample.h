@@ -60,8 +60,9 @@ struct TrainingSample {
 // first needed.
 class TrainingSampler {
  public:
-  // InputError when no scene has a frame with depth, or a frame has lens distortion.
-  TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options);
+  // InputError when no scene has a frame with depth, or a frame has lens distortion. `name`
+  // ("training data", "validation data") and the scenes' folders begin the errors of its draws.
+  TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options, std::string name = "training data");
 
   // The sample of `seed` with `map_tokens` map tokens (at most all of the mapping images'). Safe to
   // call from several threads. InputError naming the scene when no query with K overlapping
@@ -74,6 +75,9 @@ class TrainingSampler {
   const std::vector<Scene>& scenes() const { return scenes_; }
 
  private:
+  // "training data (a, b)": what the sampler draws from, for its errors.
+  std::string source() const;
+
   struct PreparedFrame {
     cv::Mat rgb;          // preprocessed uint8 RGB
     Frame frame;          // intrinsics of the preprocessed image
@@ -84,6 +88,7 @@ class TrainingSampler {
 
   std::vector<Scene> scenes_;
   SampleOptions options_;
+  std::string name_;
   std::vector<std::vector<size_t>> frames_with_depth_;
   std::mutex cache_mutex_;  // guards the two caches
   std::map<std::pair<size_t, size_t>, std::unique_ptr<PreparedFrame>> prepared_;
