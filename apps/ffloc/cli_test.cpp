@@ -139,6 +139,17 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
   EXPECT_TRUE(contains(help.output, "--input")) << help.output;
 }
 
+// "--data ," gave no values and CLI11 went on to read the next flags as dataset paths.
+TEST_F(Cli, AListOfCommasAloneIsRefusedNamingItsFlag) {
+  for (const auto& [arguments, expected] : std::vector<std::pair<std::vector<std::string>, std::string>>{
+           {{"eval", "--dataset", ",", "--methods", "classical"}, "error: --dataset: ',' holds no value"},
+           {{"train", "--out", (dir_ / "run").string(), "--data", ",,", "--steps", "1"}, "error: --data: ',,' holds no value"}}) {
+    const CliRun run = runCli(arguments);
+    EXPECT_EQ(run.exit_code, 2) << run.output;
+    EXPECT_TRUE(contains(run.output, expected)) << run.output;
+  }
+}
+
 // A bad random:<preset> given to convert was blamed on --model, a flag convert does not have.
 TEST_F(Cli, ConvertNamesItsInputFlag) {
   for (const auto& [input, expected] : std::vector<std::pair<std::string, std::string>>{

@@ -45,6 +45,16 @@ int main(int argc, char** argv) {
       std::cerr << "error: unknown command '" << argv[1] << "' (commands: " << commands << ")\n";
       return 2;
     }
+    // CLI11 split "--data ," into no values and went on to take the next flags as paths
+    // ("/tmp/--methods: dataset folder not found", or "--out is required" with --out given).
+    for (size_t i = 0; i + 1 < command_arguments.size(); ++i) {
+      const std::string& value = command_arguments[i + 1];
+      if (command_arguments[i].rfind("--", 0) == 0 && !value.empty() &&
+          value.find_first_not_of(',') == std::string::npos) {
+        std::cerr << "error: " << command_arguments[i] << ": '" << value << "' holds no value\n";
+        return 2;
+      }
+    }
     const std::string one_dash = ffloc::cli::oneDashOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
     if (!one_dash.empty()) {
       std::cerr << "error: " << one_dash << "\n";
