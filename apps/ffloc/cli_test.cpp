@@ -143,6 +143,7 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
 TEST_F(Cli, AListOfCommasAloneIsRefusedNamingItsFlag) {
   for (const auto& [arguments, expected] : std::vector<std::pair<std::vector<std::string>, std::string>>{
            {{"eval", "--dataset", ",", "--methods", "classical"}, "error: --dataset: ',' holds no value"},
+           {{"eval", "--dataset=,", "--methods", "classical"}, "error: --dataset: ',' holds no value"},
            {{"train", "--out", (dir_ / "run").string(), "--data", ",,", "--steps", "1"}, "error: --data: ',,' holds no value"}}) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << run.output;

@@ -47,11 +47,16 @@ int main(int argc, char** argv) {
     }
     // CLI11 split "--data ," into no values and went on to take the next flags as paths
     // ("/tmp/--methods: dataset folder not found", or "--out is required" with --out given).
-    for (size_t i = 0; i + 1 < command_arguments.size(); ++i) {
-      const std::string& value = command_arguments[i + 1];
-      if (command_arguments[i].rfind("--", 0) == 0 && !value.empty() &&
-          value.find_first_not_of(',') == std::string::npos) {
-        std::cerr << "error: " << command_arguments[i] << ": '" << value << "' holds no value\n";
+    for (size_t i = 0; i < command_arguments.size(); ++i) {
+      const std::string& argument = command_arguments[i];
+      if (argument.rfind("--", 0) != 0) continue;
+      const size_t equals = argument.find('=');
+      const std::string flag = argument.substr(0, equals);
+      const std::string value = equals != std::string::npos ? argument.substr(equals + 1)
+                                : i + 1 < command_arguments.size() ? command_arguments[i + 1]
+                                                                    : std::string();
+      if (!value.empty() && value.find_first_not_of(',') == std::string::npos) {
+        std::cerr << "error: " << flag << ": '" << value << "' holds no value\n";
         return 2;
       }
     }
