@@ -625,7 +625,7 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
   const std::string data = manifestDataset(dir_ / "data", "q.png").string();
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {{"--methods", ""}, "--methods: names no method"},
-      {{"--methods", ","}, "--methods: names no method"},
+      {{"--methods", ","}, "--methods: ',' holds no value"},
       {{"--methods", "oracle-depth,classical,oracle-depth"}, "--methods: 'oracle-depth' is given twice"},
       {{"--methods", "oracle-depth", "--outliers", "nan"}, "--outliers: must be in [0, 1]"},
       {{"--methods", "oracle-depth", "--noise-px", "-1"}, "--noise-px: must be a finite number of pixels, 0 or more"},

@@ -115,6 +115,8 @@ TEST(TrainingConfig, RefusesNonFiniteAndAbsurdHyperParameters) {
   EXPECT_EQ(field([&](TrainingConfig& c) { c.learning_rate = infinity; }), "learning_rate");
   EXPECT_EQ(field([](TrainingConfig& c) { c.learning_rate = std::nan(""); }), "learning_rate");
   EXPECT_EQ(field([](TrainingConfig& c) { c.alpha = 1e300; }), "alpha");
+  EXPECT_EQ(field([](TrainingConfig& c) { c.min_map_tokens = 0; }), "min_map_tokens");  // named max_map_tokens
+  EXPECT_EQ(field([](TrainingConfig& c) { c.max_map_tokens = c.min_map_tokens - 1; }), "max_map_tokens");
   EXPECT_EQ(field([](TrainingConfig& c) { c.weight_decay = 1e300; }), "weight_decay");
   EXPECT_EQ(field([](TrainingConfig& c) { c.adam_epsilon = 1e300; }), "adam_epsilon");
   EXPECT_EQ(field([](TrainingConfig& c) { c.adam_epsilon = 1e-300; }), "adam_epsilon");

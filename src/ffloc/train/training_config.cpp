@@ -147,7 +147,7 @@ std::optional<TrainingConfigProblem> TrainingConfig::settingsProblem() const {
   // the fourth power of the long side; 2048 is four times DUSt3R's 512.
   if (mapping_frames < 1 || mapping_frames > 64) fail("mapping_frames", "must be in [1, 64]");
   if (min_map_tokens < 1 || max_map_tokens < min_map_tokens) {
-    fail("max_map_tokens", "need 1 <= min_map_tokens <= max_map_tokens");
+    fail(min_map_tokens < 1 ? "min_map_tokens" : "max_map_tokens", "need 1 <= min_map_tokens <= max_map_tokens");
   }
   if (max_map_tokens > 100000) fail("max_map_tokens", "must be at most 100000");
   if (!(min_overlap >= 0 && min_overlap <= max_overlap && max_overlap <= 1)) {
