@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <limits>
+#include <string>
+#include <vector>
 
 #include "ffloc/core/error.h"
 
@@ -58,14 +60,21 @@ TEST(Half, NarrowingPicksTheNearestHalf) {
   }
 }
 
+// A one-dimensional view of `values`, read as `dtype`.
+template <typename T>
+TensorView viewOf(const std::vector<T>& values, DType dtype, const std::string& name) {
+  TensorView view;
+  view.name = name;
+  view.dtype = dtype;
+  view.shape = {static_cast<int64_t>(values.size())};
+  view.data = reinterpret_cast<const uint8_t*>(values.data());
+  view.nbytes = values.size() * sizeof(T);
+  return view;
+}
+
 TEST(Half, ConvertsTensors) {
   const std::vector<uint16_t> halves = {floatToHalf(0.5f), floatToHalf(-4.0f)};
-  TensorView view;
-  view.name = "h";
-  view.dtype = DType::kF16;
-  view.shape = {2};
-  view.data = reinterpret_cast<const uint8_t*>(halves.data());
-  view.nbytes = 4;
+  const TensorView view = viewOf(halves, DType::kF16, "h");
   EXPECT_EQ(toFloat32(view), (std::vector<float>{0.5f, -4.0f}));
 
   const std::vector<uint8_t> bf16 = castFloatTensor(view, DType::kBF16);
@@ -91,22 +100,13 @@ TEST(Half, ConvertsTensors) {
   EXPECT_THROW(castFloatTensor(view, DType::kI32), InputError);
 
   const std::vector<float> large = {1e5f};
-  TensorView too_large;
-  too_large.name = "big";
-  too_large.shape = {1};
-  too_large.data = reinterpret_cast<const uint8_t*>(large.data());
-  too_large.nbytes = 4;
+  const TensorView too_large = viewOf(large, DType::kF32, "big");
   EXPECT_THROW(castFloatTensor(too_large, DType::kF16), InputError);
   EXPECT_EQ(castFloatTensor(too_large, DType::kBF16).size(), 2u);
 
   // A double beyond float's range was written as inf by every narrower cast.
   const std::vector<double> huge = {1.0, 1e300};
-  TensorView too_large_double;
-  too_large_double.name = "huge";
-  too_large_double.dtype = DType::kF64;
-  too_large_double.shape = {2};
-  too_large_double.data = reinterpret_cast<const uint8_t*>(huge.data());
-  too_large_double.nbytes = 16;
+  const TensorView too_large_double = viewOf(huge, DType::kF64, "huge");
   for (const DType target : {DType::kF32, DType::kF16, DType::kBF16}) {
     try {
       castFloatTensor(too_large_double, target);
