@@ -163,8 +163,15 @@ struct CommandConfig {
 };
 
 CommandConfig effectiveConfig(const TrainArguments& args, const DistributedEnvironment& environment) {
-  CommandConfig command{args.config.empty() ? TrainingConfig{} : readTrainingConfig(args.config), {},
-                        args.config.empty() ? "command line" : args.config + " with the command line"};
+  // --resume without --config continues with the run's own settings: the defaults it took before
+  // were refused as soon as the run had changed one that the optimisation depends on.
+  std::string config_file = args.config;
+  if (const fs::path run_config = fs::path(args.out) / "config.json";
+      config_file.empty() && args.resume && fs::is_regular_file(run_config)) {
+    config_file = run_config.string();
+  }
+  CommandConfig command{config_file.empty() ? TrainingConfig{} : readTrainingConfig(config_file), {},
+                        config_file.empty() ? "command line" : config_file + " with the command line"};
   TrainingConfig& config = command.config;
   const auto overrideWith = [&](auto& field, const auto& value, const std::string& name, const std::string& flag) {
     if (!value) return;

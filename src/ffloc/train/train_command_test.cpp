@@ -293,6 +293,19 @@ TEST_F(TrainCommandInput, AnEarlierRunsCheckpointsAndLogAreNeverTakenByANewRun) 
   EXPECT_FALSE(fs::exists(odd / "log.csv"));
 }
 
+// --resume without --config took the defaults, which a run of other settings refused
+// ("warmup_steps ... got 50, the default"): the run's own config.json is the base now.
+TEST_F(TrainCommandInput, AResumeWithoutAConfigContinuesWithTheRunsOwnSettings) {
+  const fs::path run = root_ / "run";
+  ASSERT_EQ(train("--config " + config(toJson(settingsFor(2)).dump()) + " --out " + run.string()), 0) << output();
+  ASSERT_EQ(train("--out " + run.string() + " --resume --steps 3"), 0) << output();
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000003" / "model.safetensors")) << output();
+  // A flag still overrides them, and a change the optimisation depends on is still refused.
+  EXPECT_EQ(train("--out " + run.string() + " --resume --steps 4 --lr 0.5"), 2) << output();
+  EXPECT_TRUE(contains("field 'learning_rate': the checkpoint was trained with 0.001, the resumed run asks for 0.5"))
+      << output();
+}
+
 // Validation datasets were read and never sampled under validation_every 0, without a word; a
 // validation split too small for a sample was blamed on the training data, naming no folder.
 TEST_F(TrainCommandInput, ValidationDataIsRefusedWhenValidationIsOffAndNamedWhenItFails) {
