@@ -161,6 +161,9 @@ TEST_F(Cli, ConvertNamesItsInputFlag) {
     EXPECT_TRUE(contains(run.output, expected)) << run.output;
   }
   EXPECT_FALSE(fs::exists(dir_ / "x.safetensors"));
+  const CliRun empty = runCli({"convert", "--input", "random:tiny", "--output", ""});
+  EXPECT_EQ(empty.exit_code, 2) << empty.output;
+  EXPECT_TRUE(contains(empty.output, "--output: the path is empty")) << empty.output;
 }
 
 // A libtorch stack trace from deep inside the run, exit 3, before.

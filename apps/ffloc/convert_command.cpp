@@ -3,6 +3,7 @@
 #include <optional>
 #include <string>
 
+#include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/error.h"
 #include "ffloc/io/convert_weights.h"
@@ -58,8 +59,10 @@ void registerConvertCommand(CLI::App& app, CommandRun& run) {
       "stored once, metadata format=pt and source=<input file>.");
   cmd->add_option("--input", args->input,
                   "Checkpoint (.pth) or safetensors file to read, or random:<preset>[:<seed>] to write a fresh model")
-      ->required();
-  cmd->add_option("--output", args->output, "safetensors file to write (atomically)")->required();
+      ->required()
+      ->check(nonEmptyPath());
+  // An empty --output said "error: : cannot rename the temporary file into place".
+  cmd->add_option("--output", args->output, "safetensors file to write (atomically)")->required()->check(nonEmptyPath());
   cmd->add_option("--dtype", args->dtype,
                   "Store floating-point tensors as f32, f16, bf16 or f64 (default: keep each tensor's "
                   "dtype); integer tensors are never cast");
