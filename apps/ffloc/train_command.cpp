@@ -209,6 +209,10 @@ void requireEntryKind(const fs::path& path, fs::file_type kind) {
                                         "; the run writes it there: move it away or choose another --out");
 }
 
+// What the run's lock protects: two runs resuming into one folder at once both wrote its
+// checkpoints and its log.
+fs::path runLockTarget(const fs::path& run_dir) { return run_dir / "run"; }
+
 // Rows after the header: the steps an earlier run logged.
 bool logHasRows(const fs::path& log_path) {
   std::ifstream log(log_path);
@@ -235,6 +239,7 @@ void checkRunFolder(const fs::path& run_dir, bool resume) {
   requireEntryKind(checkpoints / "latest", fs::file_type::regular);
   requireEntryKind(run_dir / "config.json", fs::file_type::regular);
   requireEntryKind(run_dir / "log.csv", fs::file_type::regular);
+  requireEntryKind(writerLockFile(runLockTarget(run_dir)), fs::file_type::regular);
   std::string newest_step;
   for (fs::directory_iterator entry(checkpoints, error), end; !error && entry != end; entry.increment(error)) {
     const std::string name = entry->path().filename().string();
@@ -337,8 +342,7 @@ void runTrain(const TrainArguments& args) {
   requireDistinctData(args.validation_data, "--val-data");
   std::vector<Scene> scenes;
   for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
-  const fs::path lock_target = run_dir / "run";
-  // Two runs resuming into one folder at once both wrote its checkpoints and its log.
+  const fs::path lock_target = runLockTarget(run_dir);
   std::optional<WriterLock> run_lock;
   const RemoveNewFolderOnError cleanup(run_dir, writerLockFile(lock_target).filename(), lead);
   std::error_code error;

@@ -291,6 +291,10 @@ TEST_F(TrainCommandInput, AnEarlierRunsCheckpointsAndLogAreNeverTakenByANewRun) 
   EXPECT_EQ(train("--config " + two_steps + " --out " + odd.string()), 2) << output();
   EXPECT_TRUE(contains("error: " + (odd / "config.json").string() + ": exists and is not a file")) << output();
   EXPECT_FALSE(fs::exists(odd / "log.csv"));
+  fs::remove(odd / "config.json");
+  fs::create_directories(odd / ".run.lock");  // the message named odd/run, which is not there
+  EXPECT_EQ(train("--config " + two_steps + " --out " + odd.string()), 2) << output();
+  EXPECT_TRUE(contains("error: " + (odd / ".run.lock").string() + ": exists and is not a file")) << output();
 }
 
 // --resume without --config took the defaults, which a run of other settings refused
