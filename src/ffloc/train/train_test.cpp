@@ -6,6 +6,8 @@
 #include <ATen/ops/zeros.h>
 #include <gtest/gtest.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include <cmath>
 #include <cstdlib>
 #include <cstdio>
@@ -319,6 +321,16 @@ TEST(TrainingSampler, ReportsImpossibleOverlapRequests) {
   TrainingSampler sampler({smallScene()}, sampleOptions(config, 16));
   EXPECT_TRUE(contains(errorOf([&] { sampler.sample(1, 80); }), "overlap in"));
   EXPECT_TRUE(contains(errorOf([] { TrainingSampler({Scene{}}, SampleOptions{}); }), "no frame with depth"));
+}
+
+// A scene whose depth files held only zeros was skipped by every draw while the others trained.
+TEST(TrainingSampler, RefusesASceneWhoseDepthHoldsNoValidValue) {
+  const Scene blank = testing::renderTestScene(8, 64, 48, 6, 1);
+  for (const Frame& frame : blank.frames) {
+    if (frame.depth) cv::imwrite(frame.depth->path.string(), cv::Mat1f::zeros(48, 64));
+  }
+  const std::string error = errorOf([&] { TrainingSampler({smallScene(), blank}, SampleOptions{}); });
+  EXPECT_TRUE(contains(error, blank.root.string() + ": the depth of its frames holds no valid value (read: ")) << error;
 }
 
 // Settings for fitting one sample quickly: a high learning rate, no weight decay.

@@ -64,6 +64,21 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
       }
       with_depth.push_back(i);
     }
+    // A scene whose depth holds no valid value was skipped by every draw, without a word, while
+    // other scenes trained: three frames across it are read now.
+    if (!with_depth.empty()) {
+      bool any_valid = false;
+      std::string read;
+      for (const size_t i : {with_depth.front(), with_depth[with_depth.size() / 2], with_depth.back()}) {
+        const cv::Mat1f depth = readDepthMetres(scene.frames[i]);
+        any_valid = any_valid || cv::countNonZero(depth > 0) > 0;
+        read += (read.empty() ? "" : ", ") + scene.frames[i].name;
+      }
+      if (!any_valid) {
+        throwInputError(scene.root.string(), 0, "the depth of its frames holds no valid value (read: " + read +
+                                                    "); training needs depth");
+      }
+    }
     total += with_depth.size();
     frames_with_depth_.push_back(std::move(with_depth));
   }
