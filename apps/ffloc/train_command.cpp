@@ -438,7 +438,11 @@ void runTrain(const TrainArguments& args) {
   double window_step = 0, window_wait = 0, window_allreduce = 0, window_optimizer = 0;
   while (trainer.stepsDone() < config.steps) {
     const TrainingStepStats stats = trainStep();
-    if (stats.stop_requested && !args.quiet) {
+    // Ranks agree on a stop inside the next step; a run of one rank stops after the step that
+    // spent its budget rather than running one more.
+    const bool stop = stats.stop_requested || (!environment.distributed() && args.max_seconds > 0 &&
+                                               secondsSince(started) > args.max_seconds);
+    if (stop && !args.quiet) {
       std::cerr << "time budget of " << args.max_seconds << " s spent at step " << stats.step << "\n";
     }
     ++window_steps;
@@ -447,7 +451,7 @@ void runTrain(const TrainArguments& args) {
     window_wait += stats.data_wait_seconds;
     window_allreduce += stats.allreduce_seconds;
     window_optimizer += stats.optimizer_seconds;
-    const bool log_now = stats.step % config.log_every == 0 || stats.step == config.steps || stats.stop_requested;
+    const bool log_now = stats.step % config.log_every == 0 || stats.step == config.steps || stop;
     const bool validate_now = config.validation_every > 0 && stats.step % config.validation_every == 0;
     // Checkpoints are not tied to log steps: checkpoint_every 3 with log_every 5 wrote only every
     // 15th step's.
@@ -496,7 +500,7 @@ void runTrain(const TrainArguments& args) {
       window_allreduce = 0;
       window_optimizer = 0;
     }
-    if (stats.stop_requested) break;
+    if (stop) break;
     if (stats.step % config.checkpoint_every == 0 && stats.step != config.steps) trainer.saveCheckpoint();
   }
   const fs::path folder = trainer.saveCheckpoint();

@@ -310,6 +310,18 @@ TEST_F(TrainCommandInput, AResumeWithoutAConfigContinuesWithTheRunsOwnSettings) 
       << output();
 }
 
+// A run of one rank ran one more step after the one that spent its --max-seconds (found by an
+// outside probe: a budget of 0.001 s trained two steps).
+TEST_F(TrainCommandInput, OneRankStopsAfterTheStepThatSpentTheBudget) {
+  const fs::path run = root_ / "run";
+  ASSERT_EQ(train("--config " + config(toJson(settingsFor(5)).dump()) + " --out " + run.string() +
+                  " --max-seconds 0.001"),
+            0)
+      << output();
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000001" / "model.safetensors")) << output();
+  EXPECT_FALSE(fs::exists(run / "checkpoints" / "step_00000002")) << output();
+}
+
 // Validation datasets were read and never sampled under validation_every 0, without a word; a
 // validation split too small for a sample was blamed on the training data, naming no folder.
 TEST_F(TrainCommandInput, ValidationDataIsRefusedWhenValidationIsOffAndNamedWhenItFails) {
