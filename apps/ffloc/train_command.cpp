@@ -90,19 +90,39 @@ Scene loadTrainingData(const std::string& spec) {
 // Refuses a dataset given twice (`--data a,a`, or `a` beside `a@mapping`), which would pool its
 // frames twice and weigh them double without a word. One dataset's two splits, DIR@mapping and
 // DIR@query, are distinct frames and may be pooled.
+// The dataset folder of a DIR[@split] spec and the split ("" for all its frames).
+std::pair<fs::path, std::string> datasetParts(const std::string& spec) {
+  const size_t at = spec.rfind('@');
+  const std::string dir = at == std::string::npos ? spec : spec.substr(0, at);
+  return {sameFolderKey(dir), at == std::string::npos ? std::string() : spec.substr(at + 1)};
+}
+
+// Whether two specs share frames: one folder, and all of it or the same split.
+bool shareFrames(const std::string& a, const std::string& b) {
+  const auto [dir, split] = datasetParts(a);
+  const auto [other_dir, other_split] = datasetParts(b);
+  return dir == other_dir && (split.empty() || other_split.empty() || split == other_split);
+}
+
 void requireDistinctData(const std::vector<std::string>& specs, const std::string& flag) {
-  const auto parts = [](const std::string& spec) {
-    const size_t at = spec.rfind('@');
-    const std::string dir = at == std::string::npos ? spec : spec.substr(0, at);
-    return std::make_pair(sameFolderKey(dir), at == std::string::npos ? std::string() : spec.substr(at + 1));
-  };
   for (size_t i = 0; i < specs.size(); ++i) {
     for (size_t j = 0; j < i; ++j) {
-      const auto [dir, split] = parts(specs[i]);
-      const auto [earlier_dir, earlier_split] = parts(specs[j]);
-      if (dir == earlier_dir && (split.empty() || earlier_split.empty() || split == earlier_split)) {
-        throwInputError(flag, 0, "'" + specs[j] + "' and '" + specs[i] + "' are the same frames of " + dir.string() +
+      if (shareFrames(specs[i], specs[j])) {
+        throwInputError(flag, 0, "'" + specs[j] + "' and '" + specs[i] + "' are the same frames of " +
+                                     datasetParts(specs[i]).first.string() +
                                      "; give each dataset once (DIR@mapping and DIR@query may be pooled)");
+      }
+    }
+  }
+}
+
+// Validation on frames the run trains on measured nothing held out, without a word.
+void requireHeldOut(const std::vector<std::string>& validation, const std::vector<std::string>& training) {
+  for (const std::string& held_out : validation) {
+    for (const std::string& trained : training) {
+      if (shareFrames(held_out, trained)) {
+        throw InputError("--val-data: '" + held_out + "' shares frames with '" + trained +
+                         "' of --data, so validation would not be held out (DIR@query beside DIR@mapping is)");
       }
     }
   }
@@ -340,6 +360,7 @@ void runTrain(const TrainArguments& args) {
 
   requireDistinctData(args.data, "--data");
   requireDistinctData(args.validation_data, "--val-data");
+  requireHeldOut(args.validation_data, args.data);
   std::vector<Scene> scenes;
   for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
   const fs::path lock_target = runLockTarget(run_dir);

@@ -323,11 +323,14 @@ TEST_F(TrainCommandInput, OneRankStopsAfterTheStepThatSpentTheBudget) {
 }
 
 // Validation datasets were read and never sampled under validation_every 0, without a word; a
-// validation split too small for a sample was blamed on the training data, naming no folder.
-TEST_F(TrainCommandInput, ValidationDataIsRefusedWhenValidationIsOffAndNamedWhenItFails) {
-  const std::string scene = testing::smallScene().root.string();
+// validation set too small for a sample was blamed on the training data, naming no folder; one
+// sharing frames with the training data was taken as held out.
+TEST_F(TrainCommandInput, ValidationDataIsRefusedWhenValidationIsOffOrNotHeldOutAndNamedWhenItFails) {
+  const std::string trained = testing::smallScene().root.string();
+  // Three frames: too few for a query and its five mapping frames.
+  const std::string small = testing::renderTestScene(9, 64, 48, 2, 1).root.string();
   EXPECT_EQ(train("--config " + config(toJson(settingsFor(1)).dump()) + " --out " + (root_ / "a").string() +
-                  " --val-data " + scene),
+                  " --val-data " + small),
             2)
       << output();
   EXPECT_TRUE(contains("error: --val-data: validation is off (validation_every is 0)")) << output();
@@ -335,12 +338,17 @@ TEST_F(TrainCommandInput, ValidationDataIsRefusedWhenValidationIsOffAndNamedWhen
   TrainingConfig validating = settingsFor(1);
   validating.validation_every = 1;
   validating.validation_samples = 1;
-  // The query split alone has too few frames for a query and its mapping frames.
-  EXPECT_EQ(train("--config " + config(toJson(validating).dump()) + " --out " + (root_ / "b").string() +
-                  " --val-data " + scene + "@query"),
+  const std::string validating_config = config(toJson(validating).dump());
+  EXPECT_EQ(train("--config " + validating_config + " --out " + (root_ / "b").string() + " --val-data " + trained +
+                  "@query"),
             2)
       << output();
-  EXPECT_TRUE(contains("error: validation data (" + scene)) << output();
+  EXPECT_TRUE(contains("error: --val-data: '" + trained + "@query' shares frames with '" + trained +
+                       "' of --data, so validation would not be held out"))
+      << output();
+  EXPECT_EQ(train("--config " + validating_config + " --out " + (root_ / "c").string() + " --val-data " + small), 2)
+      << output();
+  EXPECT_TRUE(contains("error: validation data (" + small)) << output();
   EXPECT_FALSE(contains("training data")) << output();
 }
 
