@@ -39,11 +39,11 @@ int integerVariable(const char* name, int fallback, int minimum, int maximum) {
   return static_cast<int>(value);
 }
 
+#ifdef FFLOC_WITH_GLOO
 bool isLoopback(const std::string& address) {
   return address == "localhost" || address.rfind("127.", 0) == 0 || address == "::1";
 }
 
-#ifdef FFLOC_WITH_GLOO
 // Gloo binds to the interface torch's launcher would use: GLOO_SOCKET_IFNAME when set, loopback
 // for a run on one machine, else the address this host's name resolves to.
 std::shared_ptr<::gloo::transport::Device> glooDevice(const DistributedEnvironment& environment) {
