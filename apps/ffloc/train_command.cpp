@@ -260,12 +260,8 @@ void checkRunFolder(const fs::path& run_dir, bool resume) {
   requireEntryKind(run_dir / "config.json", fs::file_type::regular);
   requireEntryKind(run_dir / "log.csv", fs::file_type::regular);
   requireEntryKind(writerLockFile(runLockTarget(run_dir)), fs::file_type::regular);
-  std::string newest_step;
-  for (fs::directory_iterator entry(checkpoints, error), end; !error && entry != end; entry.increment(error)) {
-    const std::string name = entry->path().filename().string();
-    if (name.rfind("step_", 0) == 0 && name.find('.') == std::string::npos && fs::is_directory(entry->path()))
-      newest_step = std::max(newest_step, name);
-  }
+  const std::vector<fs::path> folders = trainingCheckpointFolders(run_dir);
+  const std::string newest_step = folders.empty() ? std::string() : folders.back().filename().string();
   const bool named = fs::exists(checkpoints / "latest");
   if (resume && !named && !newest_step.empty()) {
     throwInputError((checkpoints / "latest").string(), 0,

@@ -62,15 +62,8 @@ std::string readLatestName(const fs::path& latest) {
 }
 
 // Keeps the newest `keep_last` complete checkpoint folders and `keep` whatever its age.
-void pruneCheckpoints(const fs::path& root, const fs::path& keep, int keep_last) {
-  std::vector<fs::path> existing;
-  for (const auto& entry : fs::directory_iterator(root)) {
-    const std::string name = entry.path().filename().string();
-    if (entry.is_directory() && name.rfind("step_", 0) == 0 && name.find('.') == std::string::npos) {
-      existing.push_back(entry.path());
-    }
-  }
-  std::sort(existing.begin(), existing.end());
+void pruneCheckpoints(const fs::path& run_dir, const fs::path& keep, int keep_last) {
+  const std::vector<fs::path> existing = trainingCheckpointFolders(run_dir);
   for (size_t i = 0; i + static_cast<size_t>(keep_last) < existing.size(); ++i) {
     if (existing[i] != keep) fs::remove_all(existing[i]);
   }
@@ -88,7 +81,7 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   // The checkpoint `latest` names is the state this run was resumed from, so it already holds
   // this step; rewriting it would leave `latest` naming a missing folder for a moment.
   if (fs::is_directory(folder) && readLatestName(root / "latest") == folderName(step)) {
-    pruneCheckpoints(root, folder, keep_last);
+    pruneCheckpoints(run_dir, folder, keep_last);
     return folder;
   }
   fs::remove_all(partial);
@@ -106,8 +99,22 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   fs::rename(partial, folder);
   fs::remove_all(replaced);
   writeTextAtomically(root / "latest", folderName(step) + "\n");
-  pruneCheckpoints(root, folder, keep_last);
+  pruneCheckpoints(run_dir, folder, keep_last);
   return folder;
+}
+
+std::vector<fs::path> trainingCheckpointFolders(const fs::path& run_dir) {
+  std::vector<fs::path> folders;
+  std::error_code error;
+  for (fs::directory_iterator entry(run_dir / "checkpoints", error), end; !error && entry != end;
+       entry.increment(error)) {
+    const std::string name = entry->path().filename().string();
+    if (entry->is_directory() && name.rfind("step_", 0) == 0 && name.find('.') == std::string::npos) {
+      folders.push_back(entry->path());
+    }
+  }
+  std::sort(folders.begin(), folders.end());
+  return folders;
 }
 
 std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) {

@@ -3,6 +3,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <optional>
+#include <vector>
 #include <string>
 
 #include "ffloc/model/fastforward_model.h"
@@ -33,6 +34,10 @@ struct CheckpointInfo {
 std::filesystem::path writeTrainingCheckpoint(const std::filesystem::path& run_dir, FastForwardModel& model,
                                               const AdamW& optimizer, const TrainingConfig& config,
                                               int keep_last, int world_size = 1);
+
+// The checkpoint folders under <run_dir>/checkpoints (step_<n>, not the .partial or .replaced
+// ones of a write under way), oldest first; empty when there are none.
+std::vector<std::filesystem::path> trainingCheckpointFolders(const std::filesystem::path& run_dir);
 
 // The checkpoint `latest` names; nullopt when run_dir has none. InputError naming the file for a
 // broken `latest`, a missing folder or unreadable or damaged metadata.
