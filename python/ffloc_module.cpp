@@ -352,6 +352,18 @@ void refuseSettingsTheMapIgnores(const Map& map, const std::vector<std::string>&
       throw InputError(field + ": the map is a " + std::string(toString(method)) + " map, which does not use it");
 }
 
+// Map::load with the model and dtype given, if any, refused with the settings named in `given`
+// when the map's method ignores them.
+Map loadMapRefusingIgnoredSettings(const std::string& path, const std::optional<std::string>& model,
+                                   const std::optional<std::string>& dtype, int threads,
+                                   std::vector<std::string> given = {}) {
+  Map map = Map::load(path, model.value_or("default"), dtype.value_or("f32"), threads);
+  if (model) given.push_back("model");
+  if (dtype) given.push_back("dtype");
+  refuseSettingsTheMapIgnores(map, given);
+  return map;
+}
+
 class PyLocalizer {
  public:
   PyLocalizer(Map map, LocalizeOptions options) : map_(std::move(map)), options_(std::move(options)) {}
@@ -558,13 +570,8 @@ PYBIND11_MODULE(_ffloc, m) {
       .def_static("load",
                   [](const py::handle& path, const std::optional<std::string>& model,
                      const std::optional<std::string>& dtype, int threads) {
-                    Map map = Map::load(pathArgument(path, "path", "a map file path"), model.value_or("default"),
-                                        dtype.value_or("f32"), threads);
-                    std::vector<std::string> given;
-                    if (model) given.push_back("model");
-                    if (dtype) given.push_back("dtype");
-                    refuseSettingsTheMapIgnores(map, given);
-                    return map;
+                    return loadMapRefusingIgnoredSettings(pathArgument(path, "path", "a map file path"), model,
+                                                          dtype, threads);
                   },
                   py::arg("path"), py::arg("model") = py::none(), py::arg("dtype") = py::none(),
                   py::arg("threads") = 0, "Opens a map from 'ffloc map' (model: for fastforward maps)")
@@ -697,13 +704,11 @@ PYBIND11_MODULE(_ffloc, m) {
                opened = map.cast<Map>();
                resolveThreadCount(threads);  // refused here rather than at the first query
                opened.threads = threads;
+               refuseSettingsTheMapIgnores(opened, given);
              } else {
-               const std::string path = pathArgument(map, "map", "an ffloc.Map or a map file path");
-               opened = Map::load(path, model.value_or("default"), dtype.value_or("f32"), threads);
-               if (model) given.push_back("model");
-               if (dtype) given.push_back("dtype");
+               opened = loadMapRefusingIgnoredSettings(pathArgument(map, "map", "an ffloc.Map or a map file path"),
+                                                       model, dtype, threads, given);
              }
-             refuseSettingsTheMapIgnores(opened, given);
              return PyLocalizer(std::move(opened), options);
            }),
            py::arg("map"), py::arg("model") = py::none(), py::arg("dtype") = py::none(), py::arg("threads") = 0,
