@@ -1,6 +1,5 @@
 #include <iostream>
 #include <memory>
-#include <optional>
 #include <string>
 
 #include "command_options.h"
@@ -24,16 +23,16 @@ void runConvert(const ConvertArguments& args) {
   // a working model (nearest-neighbour matching, docs/model.md), worth shipping as a file.
   if (args.input.rfind("random:", 0) == 0) {
     if (!args.dtype.empty() && args.dtype != "f32") throw InputError("--dtype: a fresh model is written as f32");
-    std::optional<LoadedModel> loaded;
-    try {
-      loaded = loadModel(args.input);
-    } catch (const InputError& e) {
-      // The library names its field 'model', which other commands' --model sets; here --input.
-      const std::string what = e.what();
-      if (what.rfind("model: ", 0) == 0) throw InputError("--input: " + what.substr(7));
-      throw;
-    }
-    LoadedModel& model = *loaded;
+    const LoadedModel model = [&] {
+      try {
+        return loadModel(args.input);
+      } catch (const InputError& e) {
+        // The library names its field 'model', which other commands' --model sets; here --input.
+        const std::string what = e.what();
+        if (what.rfind("model: ", 0) == 0) throw InputError("--input: " + what.substr(7));
+        throw;
+      }
+    }();
     saveModel(*model.model, args.output, {{"source", args.input}});
     std::cout << "wrote " << args.output << ": " << model.description << "\n";
     return;

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <set>
 #include <map>
 #include <memory>
 #include <optional>
@@ -171,13 +172,11 @@ void printTable(const RetrievalRecall& result, size_t queries, size_t mapping) {
 
 void runRetrieval(const RetrievalArguments& args) {
   if (args.top_k.empty()) throw InputError("--top-k: no K given");
-  for (size_t i = 0; i < args.top_k.size(); ++i) {
-    if (args.top_k[i] == 0) throw InputError("--top-k: K must be positive");
+  std::set<size_t> seen;
+  for (size_t k : args.top_k) {
+    if (k == 0) throw InputError("--top-k: K must be positive");
     // A K given twice printed its row twice.
-    if (std::find(args.top_k.begin(), args.top_k.begin() + static_cast<std::ptrdiff_t>(i), args.top_k[i]) !=
-        args.top_k.begin() + static_cast<std::ptrdiff_t>(i)) {
-      throw InputError("--top-k: " + std::to_string(args.top_k[i]) + " given twice");
-    }
+    if (!seen.insert(k).second) throw InputError("--top-k: " + std::to_string(k) + " given twice");
   }
   // The recall JSON given the map's path replaced the map, exit 0 (probe).
   refuseOutputOverInputs("--json", args.json_path, {{"the map (--map)", args.map_path}}, {args.dataset});
