@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+#include <set>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
@@ -69,7 +70,8 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
     if (!with_depth.empty()) {
       bool any_valid = false;
       std::string read;
-      for (const size_t i : {with_depth.front(), with_depth[with_depth.size() / 2], with_depth.back()}) {
+      // A set: a scene of one or two frames with depth has each read once.
+      for (const size_t i : std::set<size_t>{with_depth.front(), with_depth[with_depth.size() / 2], with_depth.back()}) {
         const cv::Mat1f depth = readDepthMetres(scene.frames[i]);
         any_valid = any_valid || cv::countNonZero(depth > 0) > 0;
         read += (read.empty() ? "" : ", ") + scene.frames[i].name;
