@@ -441,6 +441,13 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   EXPECT_EQ(single.exit_code, 2) << single.output;
   EXPECT_TRUE(contains(single.output, "error: query '" + image + "': cx, cy: the principal point (900, 95.5)"))
       << single.output;
+  // A comma with no number beside it was read as a space: "200,200,127.5,95.5," passed as four.
+  for (const std::string cut : {"200,200,127.5,95.5,", "200,,200,127.5,95.5", ",200,200,127.5,95.5"}) {
+    const CliRun run = runCli({"localize", "--map", map.string(), "--image", image, "--intrinsics", cut});
+    EXPECT_EQ(run.exit_code, 2) << cut << ": " << run.output;
+    EXPECT_TRUE(contains(run.output, "--intrinsics: intrinsics must be four numbers fx,fy,cx,cy, got '" + cut + "'"))
+        << run.output;
+  }
   // A path with spaces (split at its first space, it was refused), after a UTF-8 byte order mark,
   // with Windows line ends and intrinsics apart by commas; and a NUL byte, which cut the path short.
   fs::copy_file(scene / "images" / "query_0000_near.png", scene / "images" / "near view.png");

@@ -49,15 +49,22 @@ struct Query {
 };
 
 // "fx,fy,cx,cy" (commas or spaces).
+// Four numbers apart by commas or spaces. A comma with no number on one side ("500,500,320,240,",
+// "500,,500,320") is refused: such text is cut or mistyped, not four numbers.
 Intrinsics parseIntrinsics(const std::string& text, const std::string& where) {
-  std::string spaced = text;
-  for (char& c : spaced)
-    if (c == ',') c = ' ';
+  const auto refuse = [&] {
+    throw InputError(where + ": intrinsics must be four numbers fx,fy,cx,cy, got '" + text + "'");
+  };
+  std::string spaced;
+  std::istringstream pieces(text + ",");
+  for (std::string piece; std::getline(pieces, piece, ',');) {
+    if (piece.find_first_not_of(" \t\r") == std::string::npos) refuse();
+    spaced += piece + " ";
+  }
   std::istringstream stream(spaced);
   Intrinsics k;
   std::string extra;
-  if (!(stream >> k.fx >> k.fy >> k.cx >> k.cy) || (stream >> extra))
-    throw InputError(where + ": intrinsics must be four numbers fx,fy,cx,cy, got '" + text + "'");
+  if (!(stream >> k.fx >> k.fy >> k.cx >> k.cy) || (stream >> extra)) refuse();
   return k;
 }
 
