@@ -18,6 +18,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
+#include "ffloc/io/convert_weights.h"
 #include "ffloc/io/tensor_checksums.h"
 #include "ffloc/io/testing/safetensors_edit.h"
 #include "ffloc/synthetic/synthetic.h"
@@ -540,6 +541,23 @@ TEST(Trainer, RefusesToResumeFromADamagedCheckpoint) {
   EXPECT_EQ(resume(), model.string() + ": metadata checksum mismatch (the file is corrupted)");
   restore();
   EXPECT_EQ(Trainer(config, {smallScene()}, run, true).stepsDone(), 1);
+}
+
+// A checkpoint's weights replaced by their f16 copy (`ffloc convert --dtype f16`, metadata kept)
+// loaded, rounded, and the run went on from weights it never saved.
+TEST(Trainer, RefusesToResumeFromWeightsOfAnotherPrecision) {
+  const TrainingConfig config = smallConfigOfSteps(2);
+  const fs::path run = testing::makeTempDir("ffloc-train-f16");
+  const fs::path model = checkpointAfterOneStep(config, run) / "model.safetensors";
+  const fs::path half = run / "half.safetensors";
+  ConvertWeightsOptions f16;
+  f16.float_dtype = DType::kF16;
+  f16.quiet = true;
+  convertWeights(model.string(), half.string(), f16);
+  fs::rename(half, model);
+  const std::string error = errorOf([&] { Trainer(config, {smallScene()}, run, true); });
+  EXPECT_EQ(error.rfind(model.string() + ": tensor '", 0), 0u) << error;
+  EXPECT_NE(error.find("' is F16, but a run saves its weights as F32"), std::string::npos) << error;
 }
 
 // Checkpoints written before checksums have none, and resume as they did.

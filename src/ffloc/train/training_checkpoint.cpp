@@ -133,6 +133,16 @@ std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) 
   const auto archive = openSafetensors(model_path);
   // The tensors are verified as the model loads; the step and the settings are read here.
   verifyMetadataChecksum(*archive);
+  // The run writes its float32 weights; a lower-precision copy in their place (ffloc convert
+  // --dtype f16) would load, rounded, and the run would go on from other weights than it saved.
+  for (const std::string& name : archive->names()) {
+    if (const DType dtype = archive->at(name).dtype; dtype != DType::kF32) {
+      throwInputError(model_path.string(), 0,
+                      "tensor '" + name + "' is " + toString(dtype) +
+                          ", but a run saves its weights as F32: this is not the file the run wrote, and "
+                          "resuming from it would not continue the run exactly");
+    }
+  }
   info.step = parseCount(*archive, "step", 0);
   // Checkpoints from before data-parallel training were written by one process.
   info.world_size = archive->metadata().count("world_size") ? static_cast<int>(parseCount(*archive, "world_size", 1)) : 1;
