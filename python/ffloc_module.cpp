@@ -442,8 +442,14 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
     throw InputError("image_size: must be positive, got " + std::to_string(camera.width) + "x" +
                      std::to_string(camera.height));
   // As Localizer.localize refuses them: a principal point outside the image gave a pose metres
-  // off reported as success. (Without image_size the image is made to fit the principal point.)
-  if (image_size) checkIntrinsicsFitImage(camera, camera.width, camera.height);
+  // off reported as success. Without image_size the image is made to fit the principal point, and
+  // the focal length is still judged against it (1e300 px went on to RANSAC).
+  try {
+    checkIntrinsicsFitImage(camera, camera.width, camera.height);
+  } catch (const InputError& e) {
+    if (image_size) throw;
+    throw InputError(std::string(e.what()) + " (the size twice the principal point; pass image_size)");
+  }
   if (!options.is_none() && !py::isinstance<py::dict>(options))
     throw InputError("options: expected a dict of PnP options, got " +
                      py::str(py::type::of(options).attr("__name__")).cast<std::string>());

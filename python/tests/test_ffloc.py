@@ -348,6 +348,9 @@ def test_estimate_absolute_pose_refuses_a_principal_point_no_image_has():
     points2d, points3d, _, _, _ = synthetic_pairs(200, 0)
     with pytest.raises(ffloc.Error, match="cx, cy: the principal point \\(1000, 240\\) lies outside the 640x480 image"):
         ffloc.estimate_absolute_pose(points2d, points3d, (500, 500, 1000, 240), image_size=(640, 480))
+    # Without image_size, a focal length no camera has went on to RANSAC (1e300 px: "no model").
+    with pytest.raises(ffloc.Error, match="fx: focal length 1e\\+300 px is not in .* pass image_size"):
+        ffloc.estimate_absolute_pose(points2d, points3d, (1e300, 500, 320, 240))
 
 
 def test_arguments_of_the_wrong_type_raise_errors_naming_them():
