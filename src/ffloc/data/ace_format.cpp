@@ -20,14 +20,22 @@ const std::pair<const char*, Split> kSplitFolders[] = {{"train", Split::kMapping
 
 // Files of one folder keyed by the part of their name before the first '.': the tools pair
 // rgb/x.color.png with poses/x.pose.txt, and Cambridge's rgb/x.png with poses/x.txt. Hidden
-// files (".DS_Store") are not frames.
+// files (".DS_Store") are not frames. Two files of one stem are refused: an editor's backup
+// (x.pose.txt~) took the frame's pose, whichever the folder listed last.
 std::map<std::string, fs::path> filesByStem(const fs::path& folder) {
   std::map<std::string, fs::path> files;
   if (!fs::is_directory(folder)) return files;
   for (const auto& entry : fs::directory_iterator(folder)) {
     if (!entry.is_regular_file() || entry.path().filename().string().front() == '.') continue;
     const std::string name = entry.path().filename().string();
-    files[name.substr(0, name.find('.'))] = entry.path();
+    const auto [kept, added] = files.emplace(name.substr(0, name.find('.')), entry.path());
+    if (!added) {
+      std::string first = kept->second.filename().string(), second = name;
+      if (second < first) std::swap(first, second);
+      throwInputError(folder.string(), 0,
+                      "'" + first + "' and '" + second + "' are both files of frame '" + kept->first +
+                          "' (its name up to the first '.'); remove or rename one");
+    }
   }
   return files;
 }

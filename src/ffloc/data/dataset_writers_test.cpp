@@ -11,6 +11,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/format_io.h"
+#include "ffloc/data/readers.h"
 #include "ffloc/core/testing/shared_data.h"
 
 namespace ffloc {
@@ -81,6 +82,53 @@ TEST_F(DatasetWriters, AMissingDepthFileIsNamedByEveryWriter) {
     } catch (const InputError& e) {
       EXPECT_NE(std::string(e.what()).find("a.depth.png"), std::string::npos) << format << ": " << e.what();
     }
+  }
+}
+
+// Found by an outside probe: ACE files pair by the name up to its first '.', so frames in folders
+// 'a.1' and 'a.2' were written as frame 'a' twice: read back, one frame was lost and the other
+// had its pose. Dots in folders are now written as '_' (and a clash so made is refused), and the
+// reader refuses two files of one frame, as an editor's backup of a pose file beside it.
+TEST_F(DatasetWriters, AceFramesInDottedFoldersReadBackAsWrittenAndStrayFilesAreRefused) {
+  const fs::path source = dir_ / "source";
+  Scene scene;
+  scene.name = "source";
+  scene.root = source;
+  scene.format = "manifest";
+  for (const std::string folder : {"a.1", "a.2"}) {
+    Frame frame;
+    frame.name = folder + "/img.png";
+    frame.image_path = source / frame.name;
+    frame.intrinsics = {50, 50, 31.5, 23.5, 64, 48};
+    frame.camera_to_world.t = Eigen::Vector3d(folder == "a.1" ? 1 : 2, 0, 0);
+    frame.split = Split::kMapping;
+    fs::create_directories(source / folder);
+    cv::imwrite(frame.image_path.string(), cv::Mat(48, 64, CV_8UC3, cv::Scalar(40, 80, 120)));
+    scene.frames.push_back(frame);
+  }
+  writeDataset(scene, "ace", dir_ / "ace");
+  const Scene back = readAceLayout(dir_ / "ace");
+  ASSERT_EQ(back.frames.size(), 2u);
+  for (const Frame& frame : back.frames) {
+    const bool first = frame.name.find("a_1_img") != std::string::npos;
+    EXPECT_TRUE(first || frame.name.find("a_2_img") != std::string::npos) << frame.name;
+    EXPECT_EQ(frame.camera_to_world.t.x(), first ? 1 : 2) << frame.name;
+  }
+  std::ofstream(dir_ / "ace" / "train" / "poses" / "a_1_img.pose.txt~") << "1 0 0 5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  try {
+    readAceLayout(dir_ / "ace");
+    ADD_FAILURE() << "a stray file beside a pose was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("'a_1_img.pose.txt' and 'a_1_img.pose.txt~' are both files of frame 'a_1_img'"),
+              std::string::npos)
+        << e.what();
+  }
+  scene.frames[1].name = "a_1/img.png";
+  try {
+    writeDataset(scene, "ace", dir_ / "clash");
+    ADD_FAILURE() << "'a.1/img.png' and 'a_1/img.png' were written as one frame";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("a_1_img"), std::string::npos) << e.what();
   }
 }
 

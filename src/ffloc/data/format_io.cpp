@@ -163,8 +163,10 @@ std::vector<std::string> uniqueFrameStems(const Scene& scene) {
   for (const std::string& name : portableFrameNames(scene)) {
     const fs::path path(name);
     std::string folders = path.parent_path().generic_string();
+    // No '.' either: readers pair a frame's files by the name up to the first one, so 'a.1/img'
+    // and 'a.2/img' would both be read as frame 'a'.
     for (char& c : folders)
-      if (c == '/') c = '_';
+      if (c == '/' || c == '.') c = '_';
     const std::string file = path.filename().string();
     stems.push_back((folders.empty() ? "" : folders + "_") + file.substr(0, file.find('.')));
   }

@@ -61,7 +61,8 @@ bool isQuerySide(const Frame& frame);
 std::vector<std::string> portableFrameNames(const Scene& scene);
 
 // A file stem per frame, unique within the scene, for formats that pair files by the stem before
-// the first '.': the portable name's folders joined by '_' and its file name cut at the first '.'
+// the first '.': the portable name's folders joined by '_' (their dots made '_' too) and its file
+// name cut at the first '.'
 // ("seq-01/frame-000000.color.png" -> "seq-01_frame-000000"). Throws InputError naming both
 // frames when two stems coincide.
 std::vector<std::string> uniqueFrameStems(const Scene& scene);
