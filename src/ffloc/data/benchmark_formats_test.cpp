@@ -433,6 +433,17 @@ TEST(Kapture, BadInputNamesFileAndLine) {
   expectInputError([&] { loadDataset(dir); }, {"records_camera.txt:2:", "0007.jpg not found"});
 }
 
+// Found by an outside probe: a half whose sensors.txt was lost, or whose records_camera.txt was
+// emptied, read as no frames: the dataset was its other half alone, exit 0.
+TEST(Kapture, AHalfWithoutCamerasOrImagesIsRefused) {
+  const fs::path dir = kaptureSample();
+  const fs::path mapping = dir / "mapping/sensors";
+  writeTextFile(mapping / "records_camera.txt", std::string(kKaptureHeader));
+  expectInputError([&] { loadDataset(dir); }, {"mapping/sensors/records_camera.txt", "lists no image"});
+  fs::remove(mapping / "sensors.txt");
+  expectInputError([&] { loadDataset(dir); }, {"mapping/sensors/sensors.txt", "not found"});
+}
+
 // ffloc reads registered depth only, whose sensor has its colour camera's intrinsics. Paired by
 // size, a depth sensor of another resolution (an Azure Kinect's 640x576 beside 1280x720 colour)
 // refused the whole dataset, and one of the image's size but another focal length was read as if

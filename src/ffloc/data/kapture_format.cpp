@@ -319,6 +319,7 @@ void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, 
     scene.frames.push_back(std::move(frame));
   }
 
+  if (frames_at.empty()) throwInputError(records.string(), 0, "lists no image");
   pairDepthRecords(depth_records, folder, frames_at, depth_file, scene);
 }
 
@@ -335,9 +336,17 @@ Scene readKapture(const fs::path& dir) {
   if (!looksLikeKapture(dir))
     throwInputError(dir.string(), 0, "not a kapture dataset: no sensors/sensors.txt in it, nor in mapping/ or query/");
   Scene scene = emptyScene(dir, "kapture", true);
-  for (const auto& [folder, split] : kKaptureFolders)
-    if (fs::is_regular_file(dir / folder / "sensors" / "sensors.txt"))
+  for (const auto& [folder, split] : kKaptureFolders) {
+    const fs::path sensors = dir / folder / "sensors";
+    if (fs::is_regular_file(sensors / "sensors.txt")) {
       readFolder((dir / folder).lexically_normal(), dir, split, scene);
+    } else if (fs::exists(sensors)) {
+      // Without it the half was skipped whole: a dataset whose mapping half lost its sensors.txt
+      // read as its query half alone.
+      throwInputError((sensors / "sensors.txt").string(), 0, "not found (kapture's list of the cameras of " +
+                                                                   sensors.string() + ")");
+    }
+  }
   return scene;
 }
 
