@@ -10,6 +10,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/data/dataset.h"
+#include "ffloc/data/depth.h"
 #include "ffloc/data/format_io.h"
 #include "ffloc/data/readers.h"
 #include "ffloc/core/testing/shared_data.h"
@@ -83,6 +84,27 @@ TEST_F(DatasetWriters, AMissingDepthFileIsNamedByEveryWriter) {
       EXPECT_NE(std::string(e.what()).find("a.depth.png"), std::string::npos) << format << ": " << e.what();
     }
   }
+}
+
+// Found by an outside probe: depth beyond 65.534 m was written as 0, "no depth", by the formats
+// of 16-bit millimetres (ace, mapfree, rio10), exit 0. Refused, naming the frame; kapture keeps it.
+TEST_F(DatasetWriters, DepthBeyondSixteenBitMillimetresIsRefusedWhereItCannotBeStored) {
+  fs::create_directories(dir_ / "source");
+  Scene scene = sceneFailingAtItsSecondFrame(dir_ / "source");
+  scene.frames.pop_back();
+  cv::imwrite((dir_ / "source" / "a.depth.png").string(), cv::Mat1w(48, 64, uint16_t{10000}));
+  scene.frames[0].depth = DepthSource{dir_ / "source" / "a.depth.png", 0.01};
+  for (const std::string format : {"ace", "mapfree", "rio10"}) {
+    try {
+      writeDataset(scene, format, dir_ / ("out-" + format));
+      ADD_FAILURE() << format << " wrote depth of 100 m";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("a.png: 3072 depth pixels lie beyond 65.534 m (up to 100 m)", 0), 0u)
+          << format << ": " << e.what();
+    }
+  }
+  writeDataset(scene, "kapture", dir_ / "out-kapture");
+  EXPECT_FLOAT_EQ(readDepthMetres(readKapture(dir_ / "out-kapture").frames[0])(10, 10), 100.0f);
 }
 
 // Found by an outside probe: ACE files pair by the name up to its first '.', so frames in folders

@@ -1,11 +1,13 @@
 #include "ffloc/data/format_io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/io/image_format.h"
@@ -103,11 +105,23 @@ void copyFrameImage(const Frame& frame, const fs::path& destination, bool as_jpe
 void writeDepthMillimetrePng(const Frame& frame, const fs::path& destination) {
   const cv::Mat1f metres = readDepthMetres(frame);
   cv::Mat1w millimetres(metres.size());
+  int beyond = 0;
+  float farthest = 0;
   for (int y = 0; y < metres.rows; ++y)
     for (int x = 0; x < metres.cols; ++x) {
       const double mm = std::round(metres(y, x) * 1000.0);
       millimetres(y, x) = mm > 0 && mm < 65535 ? static_cast<uint16_t>(mm) : 0;
+      if (mm >= 65535 && std::isfinite(metres(y, x))) {
+        ++beyond;
+        farthest = std::max(farthest, metres(y, x));
+      }
     }
+  // Written as 0 they would read back as "no depth" without a word.
+  if (beyond > 0)
+    throwInputError(frame.name, 0,
+                    std::to_string(beyond) + " depth pixels lie beyond 65.534 m (up to " + formatNumber(farthest) +
+                        " m), which 16-bit millimetre depth cannot hold: convert to manifest or kapture, which "
+                        "store depth as floats");
   createParent(destination);
   if (!cv::imwrite(destination.string(), millimetres)) throwInputError(destination.string(), 0, "cannot write depth image");
 }
