@@ -29,7 +29,8 @@ INF = math.inf
 # scaled to (noise_scale); verdict.cpp uses the residuals' estimate.
 DEFAULT = dict(min_inliers=12, min_inlier_ratio=0.1, min_inlier_spread=0.1, pixel_noise=("estimated", 0),
                max_centre_sigma_relative=INF, max_centre_sigma_m=0.10, max_rotation_sigma_deg=INF,
-               max_focal_deviation=0.2, max_principal_point_shift=0.1, max_certain_focal_deviation=0.05,
+               max_focal_deviation=0.2, max_moderate_focal_deviation=0.15, max_principal_point_shift=0.1,
+               max_certain_focal_deviation=0.05,
                max_certain_principal_point_shift=0.04, max_agreement_translation=0.05, max_agreement_rotation_deg=2.0,
                max_agreement_distance_m=0.05, require_agreement=True)
 
@@ -96,14 +97,18 @@ TESTS = dict(
 )
 
 FOCAL_SIGNIFICANCE = 6  # VerdictOptions::kFocalSignificance
+MODERATE_FOCAL_SIGNIFICANCE = 8  # VerdictOptions::kModerateFocalSignificance
 PRINCIPAL_POINT_SIGNIFICANCE = 8  # VerdictOptions::kPrincipalPointSignificance
 CERTAIN_SIGNIFICANCE = 30  # VerdictOptions::kCertainSignificance
 
 
-def deviation_counts(deviation, significance, large, large_significance, small):
-    """verdict.cpp's deviationCounts: large and significant, or small but certain."""
-    return ((deviation > large and significance > large_significance)
-            or (deviation > small and significance > CERTAIN_SIGNIFICANCE))
+def deviation_counts(deviation, significance, tiers):
+    """verdict.cpp's deviationCounts: past a tier's deviation at more than its significance."""
+    return any(deviation > bound and significance > least for bound, least in tiers)
+
+
+def setting(rule, name):
+    return rule.get(name, DEFAULT[name])
 
 
 def fits_focal(row, rule):
@@ -114,9 +119,10 @@ def fits_focal(row, rule):
         return True
     deviation = abs(math.log(scale))
     significance = deviation / sigma if sigma > 0 else INF
-    return not deviation_counts(deviation, significance, math.log1p(rule.get("max_focal_deviation", DEFAULT["max_focal_deviation"])),
-                                FOCAL_SIGNIFICANCE,
-                                math.log1p(rule.get("max_certain_focal_deviation", DEFAULT["max_certain_focal_deviation"])))
+    return not deviation_counts(deviation, significance,
+                                [(math.log1p(setting(rule, "max_focal_deviation")), FOCAL_SIGNIFICANCE),
+                                 (math.log1p(setting(rule, "max_moderate_focal_deviation")), MODERATE_FOCAL_SIGNIFICANCE),
+                                 (math.log1p(setting(rule, "max_certain_focal_deviation")), CERTAIN_SIGNIFICANCE)])
 
 
 def fits_principal_point(row, rule):
@@ -125,9 +131,8 @@ def fits_principal_point(row, rule):
     if not (shift >= 0 and math.isfinite(shift)):
         return True
     return not deviation_counts(shift, significance,
-                                rule.get("max_principal_point_shift", DEFAULT["max_principal_point_shift"]),
-                                PRINCIPAL_POINT_SIGNIFICANCE,
-                                rule.get("max_certain_principal_point_shift", DEFAULT["max_certain_principal_point_shift"]))
+                                [(setting(rule, "max_principal_point_shift"), PRINCIPAL_POINT_SIGNIFICANCE),
+                                 (setting(rule, "max_certain_principal_point_shift"), CERTAIN_SIGNIFICANCE)])
 
 
 TESTS["max_focal_deviation"] = fits_focal

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <stdexcept>
 
@@ -21,24 +22,35 @@ void requireAtLeast(const char* field, double value, double lowest) {
                      std::to_string(value));
 }
 
-// A deviation counts when it is both large and significant, or small but certain.
-bool deviationCounts(double deviation, double significance, double large, double large_significance, double small) {
-  return (deviation > large && significance > large_significance) ||
-         (deviation > small && significance > VerdictOptions::kCertainSignificance);
+// A deviation past `deviation` counts once it is more than `significance` predicted sigma away:
+// the larger the deviation, the less certain of it the inliers need to be.
+struct DeviationTier {
+  double deviation;
+  double significance;
+};
+
+bool deviationCounts(double deviation, double significance, std::initializer_list<DeviationTier> tiers) {
+  return std::any_of(tiers.begin(), tiers.end(), [&](const DeviationTier& tier) {
+    return deviation > tier.deviation && significance > tier.significance;
+  });
 }
 
 bool focalLengthMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
   if (!(evidence.focal_scale > 0)) return false;
   const double deviation = std::abs(std::log(evidence.focal_scale));
   const double significance = deviation / evidence.focal_scale_log_sigma;
-  return deviationCounts(deviation, significance, std::log1p(options.max_focal_deviation),
-                         VerdictOptions::kFocalSignificance, std::log1p(options.max_certain_focal_deviation));
+  return deviationCounts(
+      deviation, significance,
+      {{std::log1p(options.max_focal_deviation), VerdictOptions::kFocalSignificance},
+       {std::log1p(options.max_moderate_focal_deviation), VerdictOptions::kModerateFocalSignificance},
+       {std::log1p(options.max_certain_focal_deviation), VerdictOptions::kCertainSignificance}});
 }
 
 bool principalPointMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
-  return deviationCounts(evidence.principal_point_shift, evidence.principal_point_shift_significance,
-                         options.max_principal_point_shift, VerdictOptions::kPrincipalPointSignificance,
-                         options.max_certain_principal_point_shift);
+  return deviationCounts(
+      evidence.principal_point_shift, evidence.principal_point_shift_significance,
+      {{options.max_principal_point_shift, VerdictOptions::kPrincipalPointSignificance},
+       {options.max_certain_principal_point_shift, VerdictOptions::kCertainSignificance}});
 }
 
 }  // namespace
@@ -63,6 +75,7 @@ void VerdictOptions::check() const {
   requireAtLeast("max_centre_sigma_m", max_centre_sigma_m, 0);
   requireAtLeast("max_rotation_sigma_deg", max_rotation_sigma_deg, 0);
   requireAtLeast("max_focal_deviation", max_focal_deviation, 0);
+  requireAtLeast("max_moderate_focal_deviation", max_moderate_focal_deviation, 0);
   requireAtLeast("max_principal_point_shift", max_principal_point_shift, 0);
   requireAtLeast("max_certain_focal_deviation", max_certain_focal_deviation, 0);
   requireAtLeast("max_certain_principal_point_shift", max_certain_principal_point_shift, 0);
