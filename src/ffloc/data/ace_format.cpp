@@ -104,7 +104,7 @@ Scene readAceLayout(const fs::path& dir) {
       // A copy: bound by reference beside temporary arguments, GCC 13 warns of a dangling one.
       const fs::path pose_file = requireCompanion(poses, stem, root / "poses", image);
       const MatrixFile pose = readMatrixFile(pose_file, 4, 4);
-      frame.camera_to_world = validatedPose(pose.values, pose_file, pose.row_lines.back());
+      frame.camera_to_world = validatedPose(pose.values, pose_file, pose.row_lines);
       if (const auto depth = depths.find(stem); depth != depths.end()) frame.depth = millimetreDepth(depth->second);
       frame.split = split;
       scene.frames.push_back(std::move(frame));

@@ -56,6 +56,8 @@ TEST(BadInput, MalformedPoses) {
       {"1 0 0 0\n0 1 0\n0 0 1 0\n0 0 0 1\n", ":2: expected 4 numbers"},
       {"1 0 0 0\n0 1 0 0\n0 0 1 nan\n0 0 0 1\n", ":3: non-finite value"},
       {"1 0 0 0\n0 1 0 0\n0 0 1 x\n0 0 0 1\n", ":3: expected a number"},
+      {"1 0 0 0x10\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", ":1: expected a number for value 4, got '0x10'"},  // was 16
+      {"1 0 0 1e308\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", ":1: camera centre is 1e+308 from the origin"},  // was :4:
       {"1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 1 1\n", "last row"},
       {"1 0 0 0\n0 2 0 0\n0 0 1 0\n0 0 0 1\n", "not orthonormal"},
       {"1 0 0 0\n0 1 0 0\n0 0 -1 0\n0 0 0 1\n", "rotation is a reflection (det -1): an axis is flipped"},

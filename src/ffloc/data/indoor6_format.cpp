@@ -61,7 +61,7 @@ Pose readWorldToCameraPose(const fs::path& file) {
   const MatrixFile matrix = readMatrixFile(file, 3, 4);
   Eigen::Matrix4d world_to_camera = Eigen::Matrix4d::Identity();
   world_to_camera.topRows<3>() = matrix.values;
-  return validatedPose(world_to_camera, file, matrix.row_lines.back()).inverse();
+  return validatedPose(world_to_camera, file, matrix.row_lines).inverse();
 }
 
 // One image name of a split list, with where it was read for messages.

@@ -44,9 +44,25 @@ std::string cameraCentreProblem(const Eigen::Vector3d& centre) {
   return what.str();
 }
 
-Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, int line) {
+// The line of the row at fault: the first holding a non-finite value, the last row's, the row of
+// the largest translation for a centre too far away, else the matrix's first (the rotation spans
+// its rows). A translation of 1e308 on line 1 was blamed on line 4.
+int lineOfPoseProblem(const Eigen::Matrix4d& T, const std::vector<int>& row_lines) {
+  const int rows = static_cast<int>(row_lines.size());
+  for (int row = 0; row < rows; ++row)
+    if (!T.row(row).allFinite()) return row_lines[row];
+  if (rows == 4 && (T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6) return row_lines[3];
+  if (!cameraCentreProblem(T.topRightCorner<3, 1>()).empty()) {
+    int farthest = 0;
+    T.topRightCorner<3, 1>().cwiseAbs().maxCoeff(&farthest);
+    return row_lines[farthest];
+  }
+  return row_lines.front();
+}
+
+Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, const std::vector<int>& row_lines) {
   const std::string problem = poseMatrixProblem(T);
-  if (!problem.empty()) throwInputError(file.string(), line, problem);
+  if (!problem.empty()) throwInputError(file.string(), lineOfPoseProblem(T, row_lines), problem);
   Pose pose = Pose::fromMatrix(T);
   projectToRotation(pose.R);
   return pose;

@@ -3,6 +3,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "ffloc/geometry/pose.h"
 
@@ -22,8 +23,9 @@ std::string cameraCentreProblem(const Eigen::Vector3d& centre);
 std::string rotationProblem(const Eigen::Matrix3d& R);
 
 // The checked matrix as a Pose, its rotation re-orthonormalised (parsed text loses digits).
-// Throws InputError "<file>:<line>: <problem>".
-Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, int line);
+// `row_lines`: the line each row of T was read from (3 for a file of the top three rows). Throws
+// InputError "<file>:<line of the row at fault>: <problem>".
+Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, const std::vector<int>& row_lines);
 Eigen::Matrix3d validatedRotation(const Eigen::Matrix3d& R, const std::filesystem::path& file, int line);
 
 // Whether `frame` is the pose a map stores for the same image: equal up to the digits a pose

@@ -182,7 +182,7 @@ Scene readRio10(const fs::path& dir) {
       if (!fs::exists(pose_file))
         throwInputError(image.string(), 0, "no pose " + pose_file.filename().string() + " beside it");
       const MatrixFile pose = readMatrixFile(pose_file, 4, 4);
-      frame.camera_to_world = validatedPose(pose.values, pose_file, pose.row_lines.back());
+      frame.camera_to_world = validatedPose(pose.values, pose_file, pose.row_lines);
       const fs::path depth = sequence / (stem + kDepthSuffix);
       if (fs::exists(depth)) frame.depth = millimetreDepth(depth);
       frame.split = splitOf(sequence);

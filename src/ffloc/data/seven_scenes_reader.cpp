@@ -76,7 +76,7 @@ bool isSevenScenesDepthCamera(const Intrinsics& k) {
 // Original 7-Scenes text: tab-separated, `e-001` exponents, trailing tabs, CRLF.
 Pose readPoseFile(const fs::path& file) {
   const MatrixFile matrix = readMatrixFile(file, 4, 4);
-  return validatedPose(matrix.values, file, matrix.row_lines.back());
+  return validatedPose(matrix.values, file, matrix.row_lines);
 }
 
 // Frames of one folder, sorted by name; `name_root` is what Frame::name is relative to.

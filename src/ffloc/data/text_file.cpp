@@ -75,8 +75,9 @@ double parseDouble(const std::string& token, const std::filesystem::path& file, 
   errno = 0;
   char* end = nullptr;
   const double value = std::strtod(token.c_str(), &end);
-  // ERANGE on underflow (denormals) is harmless; only reject what did not parse.
-  if (token.empty() || end != token.c_str() + token.size())
+  // ERANGE on underflow (denormals) is harmless; only reject what did not parse. strtod also
+  // reads C's hexadecimal ("0x10" as 16), which no dataset's tools write or read.
+  if (token.empty() || end != token.c_str() + token.size() || token.find_first_of("xX") != std::string::npos)
     throwInputError(file.string(), line, "expected a number for " + field + ", got '" + token + "'");
   return value;
 }
