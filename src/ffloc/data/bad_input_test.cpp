@@ -293,6 +293,17 @@ TEST(BadInput, NerfErrors) {
   // "w" and "h" swapped passed, and a converted copy then failed its own reader.
   expectInputError([&] { loadDataset(makeNerf("", R"(, "w": 6, "h": 8)")); },
                    {"frame 'train/r_0.png'", "the intrinsics are for a 6x8 image, but", "r_0.png is 8x6"});
+  // Found by an outside probe: with distortion given, the size, the focal length and the
+  // principal point were judged through the distortion, and blamed on 'k2'; a focal length of 0
+  // named no field.
+  const std::string lens = R"(, "fl_x": 7.32, "k1": 0.05, "k2": -0.3)";  // folds an image twice as large
+  EXPECT_EQ(loadDataset(makeNerf("", lens)).frames[0].intrinsics.distortion[1], -0.3);
+  expectInputError([&] { loadDataset(makeNerf("", lens + R"(, "w": 16, "h": 12)")); },
+                   {"the intrinsics are for a 16x12 image, but", "r_0.png is 8x6"});
+  expectInputError([&] { loadDataset(makeNerf("", lens + R"(, "cx": 1e9)")); },
+                   {"cx, cy: the principal point (1e+09"});
+  expectInputError([&] { loadDataset(makeNerf("", R"(, "fl_x": 0, "k1": 0.05)")); },
+                   {"transforms_train.json", "field 'fl_x': the focal length must be positive, got 0"});
   // Degrees given by mistake read as radians: 40 gave a focal length 5.7 times too short.
   expectInputError([&] { loadDataset(makeNerf(R"(, "camera_angle_x": 40)")); },
                    {"transforms_train.json", "frames[0].camera_angle_x", "must be an angle in radians in (0, pi), got 40"});
@@ -487,6 +498,9 @@ TEST(BadInput, StrechaErrorsNameTheLine) {
   writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
                 "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1e12 2 3\n8 6\n");
   expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:8:", "camera centre is 1e+12 from the origin"});
+  writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
+                "5 0 3.5\n0 -5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n8 6\n");
+  expectInputError([&] { loadDataset(dir); }, {"0000.jpg.camera:2:", "the focal length must be positive"});  // was :9:
   writeTextFile(dir / "gt_dense_cameras/0000.jpg.camera",
                 "5 0 3.5\n0 5 2.5\n0 0 1\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 2 3\n\n8 6\n");
   fs::remove(dir / "images/0000.jpg");

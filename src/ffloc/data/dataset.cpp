@@ -65,11 +65,6 @@ void requirePlausibleFrames(const Scene& scene) {
   std::set<std::pair<int, int>> sizes_seen;
   for (const Frame& frame : scene.frames) {
     const std::string where = "frame '" + frame.name + "': ";
-    try {
-      checkIntrinsicsFitImage(frame.intrinsics, frame.intrinsics.width, frame.intrinsics.height);
-    } catch (const InputError& error) {
-      throwInputError(scene.root.string(), 0, where + "intrinsics: " + error.what());
-    }
     const cv::Size claimed(frame.intrinsics.width, frame.intrinsics.height);
     const bool first_of_its_size = sizes_seen.insert({claimed.width, claimed.height}).second;
     const std::optional<ImageHeader> header = first_of_its_size ? std::nullopt : fileImageHeader(frame.image_path);
@@ -87,6 +82,13 @@ void requirePlausibleFrames(const Scene& scene) {
       }
     } catch (const InputError& error) {
       throwInputError(scene.root.string(), 0, where + error.what());
+    }
+    // After the size: intrinsics for an image of another size were judged as they stood, and a
+    // lens that folds the image they describe was blamed for what a wrong size did.
+    try {
+      checkIntrinsicsFitImage(frame.intrinsics, frame.intrinsics.width, frame.intrinsics.height);
+    } catch (const InputError& error) {
+      throwInputError(scene.root.string(), 0, where + "intrinsics: " + error.what());
     }
     const std::string centre = cameraCentreProblem(frame.camera_to_world.t);
     if (!centre.empty()) throwInputError(scene.root.string(), 0, where + centre);

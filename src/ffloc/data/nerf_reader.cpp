@@ -2,6 +2,7 @@
 #include <cmath>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 #include "ffloc/io/image_size.h"
 #include "ffloc/io/json_fields.h"
 #include "ffloc/data/pose_check.h"
@@ -110,9 +111,24 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
     if (keys.has(key) && keys.number(key) != 0.0)
       keys.owner(key).fail(key, "rational/fisheye distortion terms are not supported");
 
-  if (!intrinsics.isValid())
-    keys.owner("fl_x").fail("", "invalid intrinsics (need positive focal length and image size)");
-  const std::string problem = distortionProblem(intrinsics);
+  for (const auto& [key, focal] : {std::pair{"fl_x", intrinsics.fx}, {"fl_y", intrinsics.fy}})
+    if (!(focal > 0)) keys.owner(key).fail(key, "the focal length must be positive, got " + formatNumber(focal));
+  // The distortion is judged over the image the rest describes: a wrong size, focal length or
+  // principal point was blamed on a coefficient ("field 'k2': ... folds the image" for "w" twice
+  // the image's). Those are named first, by the dataset's checks of every frame.
+  const auto pinholeFitsItsImage = [&] {
+    Intrinsics pinhole = intrinsics;
+    pinhole.distortion.clear();
+    try {
+      checkIntrinsicsFitImage(pinhole, pinhole.width, pinhole.height);
+    } catch (const InputError&) {
+      return false;
+    }
+    // The stored size from the header (no decoding per frame); turned by EXIF, it is not judged.
+    const std::optional<ImageHeader> header = fileImageHeader(image_path);
+    return !header || header->with_exif || header->size == cv::Size(pinhole.width, pinhole.height);
+  };
+  const std::string problem = distorted && pinholeFitsItsImage() ? distortionProblem(intrinsics) : std::string();
   if (!problem.empty()) {
     // The coefficients act together; the field named is the one farthest from 0, the likeliest
     // culprit (the message names every coefficient that is not 0).

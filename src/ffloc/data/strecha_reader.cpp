@@ -50,6 +50,9 @@ Frame readCameraFile(const fs::path& file, const fs::path& image) {
   K.cx = rows[0][2];
   K.fy = rows[1][1];
   K.cy = rows[1][2];
+  // Here, not with the image size on line 9, to which a negative focal length was blamed.
+  for (const int row : {0, 1})
+    if (!(rows[row][row] > 0)) throwInputError(file.string(), lines[row].number, "the focal length must be positive");
   const std::vector<double>& radial = rows[3];
   if (radial[0] != 0 || radial[1] != 0 || radial[2] != 0) K.distortion = {radial[0], radial[1], 0, 0, radial[2]};
   Eigen::Matrix3d R;
@@ -65,7 +68,6 @@ Frame readCameraFile(const fs::path& file, const fs::path& image) {
                       "image size must be two whole numbers in [1, " + std::to_string(kMaxImageSide) + "]");
   K.width = static_cast<int>(rows[8][0]);
   K.height = static_cast<int>(rows[8][1]);
-  if (!K.isValid()) throwInputError(file.string(), lines[8].number, "invalid image size or focal length");
   requireLensDistortion(K, file, lines[3].number);
   requireImageSize(image, K.width, K.height, file.string(), lines[8].number);
   frame.image_path = image;
