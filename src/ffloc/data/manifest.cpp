@@ -90,6 +90,8 @@ Scene readManifest(const std::filesystem::path& manifest_json) {
     Frame frame;
     const std::string image = entry.string("image");
     frame.name = entry.has("name") ? entry.string("name") : image;
+    // An empty name was mapped, then could not be converted ("images/: cannot write").
+    if (frame.name.empty()) entry.fail(entry.has("name") ? "name" : "image", "empty");
     frame.image_path = (folder / image).lexically_normal();
     if (!names.insert(frame.name).second) entry.fail("image", "duplicate frame '" + frame.name + "'");
     // Spelt "./a.png" beside "a.png", one file got two frames with two poses.

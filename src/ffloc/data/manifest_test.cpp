@@ -153,6 +153,8 @@ TEST(Manifest, RejectsBadFieldsNamingThem) {
       {"[1,0,0,1],", "[2,0,0,1],", "not orthonormal"},
       {"[1,0,0,1],", "[1,0,0,1e300],", "camera centre is 1e+300 from the origin"},
       {"\"image\": \"a.png\",", "", "frames[0].image"},
+      // Mapped under an empty name, then not converted ("images/: cannot write").
+      {"\"camera\": \"0\"", "\"name\": \"\", \"camera\": \"0\"", "field 'frames[0].name': empty"},
       {"\"metric\": true", "\"metric\": true,", "invalid JSON"},
       // Misspelt or invented fields were read as absent: "k1" gave no distortion, without a word.
       {"\"cy\": 1}", "\"cy\": 1, \"k1\": 0.1}", "field 'cameras.0.k1': unknown field (known here: width, height"},
