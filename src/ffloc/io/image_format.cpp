@@ -1,6 +1,8 @@
 #include "ffloc/io/image_format.h"
 
 #include <array>
+#include <cerrno>
+#include <cstring>
 #include <csetjmp>
 #include <cstdint>
 #include <cstdio>
@@ -176,6 +178,8 @@ std::string jpegDataProblem(std::string_view bytes) {
 
 void requireDecodableImageFile(const std::filesystem::path& path, const std::string& refusal) {
   std::ifstream in(path, std::ios::binary);
+  // A file that cannot be opened (no read permission) read as no bytes: "not a PNG, JPEG, ...".
+  if (!in) throwInputError(path.string(), 0, refusal + ": cannot open the file: " + std::strerror(errno));
   std::array<char, 12> leading{};
   in.read(leading.data(), leading.size());
   const std::string_view bytes(leading.data(), static_cast<size_t>(in.gcount()));

@@ -29,6 +29,10 @@ TEST(ImageFormat, FilesOfOtherFormatsAreRefusedBeforeDecoding) {
   testing::expectInputError([&] { readImageSize(dir / "scan.png"); },
                             {"scan.png", "cannot decode image: not a PNG, JPEG, TIFF, BMP, WebP, Netpbm or OpenEXR file"});
   testing::expectInputError([&] { readImageRgb(dir / "scan.png"); }, {"scan.png", "image: cannot decode: not a PNG"});
+  // A file that cannot be opened (an unreadable depth map, found by an outside probe) was called
+  // "not a PNG, ...".
+  testing::expectInputError([&] { requireDecodableImageFile(dir / "gone.png", "cannot decode depth image"); },
+                            {"gone.png", "cannot decode depth image: cannot open the file: No such file or directory"});
   // A JPEG whose damaged APP0 length stops the header walk, while libjpeg skips on to a frame of
   // 65272 x 13041 (2.5 GB; found by the localize_request fuzzer, docs/fuzzing.md).
   static const char kBadApp0Length[] =
