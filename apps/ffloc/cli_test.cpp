@@ -695,6 +695,8 @@ TEST_F(Cli, OutputFoldersAndServerCountsAreRefusedNamingTheFlag) {
       {{"convert-dataset", "--dataset", dir_.string(), "--format", "kapture", "--out", loop.string()},
        "--out: " + loop.string() + ": cannot examine the output folder: Too many levels of symbolic links"},
       {{"serve", "--map", "m.ffmap", "--max-waiting", "100000"}, "--max-waiting: Value 100000 not in range 0 to 256"},
+      // It bound the IPv6 loopback while saying that any machine on the network could reach it.
+      {{"serve", "--map", "m.ffmap", "--host", ""}, "--host: empty: name an address"},
       // CLI11's Range took "nan" (every comparison with it fails).
       {{"serve", "--map", "m.ffmap", "--header-timeout", "nan"},
        "--header-timeout: must be a finite number of seconds in [0.1, 3600], got nan"},

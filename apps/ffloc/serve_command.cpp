@@ -143,18 +143,20 @@ int runServe(const ServeArguments& args) {
 
   LocalizationServer server(catalog, options);
   const int port = server.bind();
+  // An IPv6 address goes in brackets in a URL: http://::1:8080 is no address.
+  const std::string address =
+      (args.host.find(':') != std::string::npos ? "[" + args.host + "]" : args.host) + ":" + std::to_string(port);
   if (!options.keys) {
-    std::cerr << "no --keys: every client that reaches " << args.host << ":" << port << " may use every map"
-              << (args.host == "127.0.0.1" || args.host == "localhost" || args.host == "::1"
-                      ? " (loopback only: other machines cannot)"
-                      : " (not loopback: any machine on the network can)")
+    const bool loopback = args.host == "localhost" || args.host.rfind("127.", 0) == 0 || args.host == "::1";
+    std::cerr << "no --keys: every client that reaches " << address << " may use every map"
+              << (loopback ? " (loopback only: other machines cannot)" : " (not loopback: any machine on the network can)")
               << "\n";
   }
   StopOnSignal stop_on_signal(server);
-  std::cerr << "listening on http://" << args.host << ":" << port << " (" << catalog.names().size()
+  std::cerr << "listening on http://" << address << " (" << catalog.names().size()
             << " map(s): GET /health, GET /maps, GET /maps/NAME, GET /maps/NAME/scene, POST /maps/NAME/localize"
             << (catalog.names().size() == 1 ? ", GET /map, POST /localize" : "") << "; Ctrl-C stops)\n"
-            << "map viewer: http://" << args.host << ":" << port << "/\n";
+            << "map viewer: http://" << address << "/\n";
   server.serve();
   std::cerr << "stopped\n";
   return 0;
@@ -178,6 +180,15 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
   addModelOptions(*cmd, args->model, "fastforward maps: the model the map was built with (as for 'ffloc map')");
   addQueryOptions(*cmd, args->query);
   cmd->add_option("--host", args->host, "Address to listen on (0.0.0.0: every interface; with --keys, as a rule)")
+      // Empty, the library bound the IPv6 loopback while the start-up message said any machine
+      // could reach the server.
+      ->check(CLI::Validator(
+          [](const std::string& host) {
+            return host.empty() ? std::string("empty: name an address (127.0.0.1: this machine only, 0.0.0.0: every "
+                                              "interface)")
+                                : std::string();
+          },
+          "ADDRESS"))
       ->capture_default_str();
   cmd->add_option("--port", args->port, "TCP port (0: any free one, printed at start)")
       ->check(CLI::Range(0, 65535))

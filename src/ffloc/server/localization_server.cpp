@@ -352,13 +352,26 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     http_->routes.emplace_back("POST", std::regex(pattern));
   };
 
+  // The request's Authorization header, or nullopt with 400 set when it is given twice: the first
+  // decided, and a proxy in front may read the other (as for Content-Length).
+  const auto authorization = [](const httplib::Request& request,
+                                httplib::Response& response) -> std::optional<std::string> {
+    if (request.get_header_value_count("Authorization") > 1) {
+      replyError(response, 400, "Authorization: given more than once");
+      return std::nullopt;
+    }
+    return request.get_header_value("Authorization");
+  };
+
   // The map of a request, when the client may use it; null with the refusal set otherwise.
-  auto authorizedMap = [this](const httplib::Request& request,
-                              httplib::Response& response) -> std::shared_ptr<const ServedMap> {
+  auto authorizedMap = [this, authorization](const httplib::Request& request,
+                                             httplib::Response& response) -> std::shared_ptr<const ServedMap> {
     const std::string name = requestedMap(request, maps_, response);
     if (name.empty()) return nullptr;
     if (options_.keys) {
-      switch (options_.keys->decide(request.get_header_value("Authorization"), name)) {
+      const std::optional<std::string> key = authorization(request, response);
+      if (!key) return nullptr;
+      switch (options_.keys->decide(*key, name)) {
         case ApiKeys::Decision::kAllowed: break;
         case ApiKeys::Decision::kUnauthenticated:
           replyError(response, 401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server");
@@ -381,15 +394,16 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     log(request, "200");
   });
 
-  get("/maps", [this, log](const httplib::Request& request, httplib::Response& response) {
+  get("/maps", [this, log, authorization](const httplib::Request& request, httplib::Response& response) {
     std::vector<std::string> names = maps_.names();
     if (options_.keys) {
-      const std::string authorization = request.get_header_value("Authorization");
-      if (options_.keys->decide(authorization, "") != ApiKeys::Decision::kAllowed) {
+      const std::optional<std::string> key = authorization(request, response);
+      if (!key) return;
+      if (options_.keys->decide(*key, "") != ApiKeys::Decision::kAllowed) {
         replyError(response, 401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server");
         return;
       }
-      names = options_.keys->allowedMaps(authorization, names);
+      names = options_.keys->allowedMaps(*key, names);
     }
     nlohmann::json list = nlohmann::json::array();
     for (const std::string& name : names) list.push_back(mapSummary(name, *maps_.get(name)));

@@ -172,6 +172,15 @@ TEST_F(MapServing, KeysDecideWhoUsesWhichMap) {
   EXPECT_EQ(body(allowed)["method"], "classical");
   EXPECT_EQ(client(kEveryMapKey).Post(localizePath("office").c_str(), queryBytes(), "image/png")->status, 200);
   EXPECT_EQ(client(kEveryMapKey).Get("/maps/attic")->status, 404);
+  // Two keys in one request: the first decided (an outside probe), and a proxy may read the other.
+  const httplib::Headers two_keys = {{"Authorization", std::string("Bearer ") + kKitchenKey},
+                                     {"Authorization", std::string("Bearer ") + kEveryMapKey}};
+  for (const char* path : {"/maps", "/maps/office"}) {
+    const auto twice = client().Get(path, two_keys);
+    ASSERT_TRUE(twice);
+    EXPECT_EQ(twice->status, 400) << path;
+    EXPECT_EQ(body(twice)["error"], "Authorization: given more than once") << path;
+  }
 
   // With two maps the single-map routes do not guess which one.
   const auto ambiguous = client(kEveryMapKey).Get("/map");
