@@ -4,6 +4,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <climits>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -127,8 +128,11 @@ std::vector<Vector> pointsFrom(const py::handle& value, const std::string& field
     throw InputError(field + ": expected an N x " + std::to_string(columns) + " array, got shape " + shapeText(array));
   std::vector<Vector> points(static_cast<size_t>(array.shape(0)));
   const auto v = array.unchecked<2>();
-  for (size_t i = 0; i < points.size(); ++i)
+  for (size_t i = 0; i < points.size(); ++i) {
     for (int c = 0; c < columns; ++c) points[i][c] = v(static_cast<py::ssize_t>(i), c);
+    // Such a pair was left out without a word (199 of 200 used).
+    if (!points[i].allFinite()) throw InputError(field + ": row " + std::to_string(i) + " holds a value that is not finite");
+  }
   return points;
 }
 
@@ -181,6 +185,14 @@ std::string pathArgument(const py::handle& value, const std::string& argument, c
 // An image as a path (read as `ffloc localize` reads it) or an H x W x 3 uint8 RGB array, which
 // the returned Mat shares without copying while `keep` holds it.
 cv::Mat imageFrom(const py::handle& image, py::object& keep, std::string& name) {
+  if (py::isinstance<py::bytes>(image)) {
+    // A file's encoded bytes (open(...).read()) were taken as a path: a 77,000-character error.
+    const std::string bytes = image.cast<std::string>();
+    if (bytes.size() > PATH_MAX || bytes.find('\0') != std::string::npos)
+      throw InputError("image: got " + std::to_string(bytes.size()) +
+                       " bytes that are no path (an encoded image?): pass its path, or the image decoded to an H x W "
+                       "x 3 uint8 array");
+  }
   if (py::isinstance<py::str>(image) || py::isinstance<py::bytes>(image) || py::hasattr(image, "__fspath__")) {
     // The GIL is released only once the path is a C++ string.
     const std::string path = pathArgument(image, "image", "a path or an H x W x 3 uint8 array");

@@ -157,6 +157,8 @@ def test_query_options_are_the_cli_flags(cli_map, query):
         (np.zeros((240, 320, 4), np.uint8), "got \\(240, 320, 4\\)"),
         ("/no/such/image.png", "/no/such/image.png"),
         (42, "image: expected a path"),
+        # A file's encoded bytes were taken as a path (a 77,000-character error).
+        (b"\xff\xd8\xff\xe0\x00\x10JFIF" + bytes(5000), "image: got 5010 bytes that are no path \\(an encoded image\\?\\)"),
     ],
 )
 def test_bad_images_raise_errors_naming_the_image(cli_map, query, image, message):
@@ -348,6 +350,11 @@ def test_estimate_absolute_pose_refuses_a_principal_point_no_image_has():
     points2d, points3d, _, _, _ = synthetic_pairs(200, 0)
     with pytest.raises(ffloc.Error, match="cx, cy: the principal point \\(1000, 240\\) lies outside the 640x480 image"):
         ffloc.estimate_absolute_pose(points2d, points3d, (500, 500, 1000, 240), image_size=(640, 480))
+    # Rows that are not finite were left out without a word.
+    bad = points2d.copy()
+    bad[17, 1] = np.nan
+    with pytest.raises(ffloc.Error, match="points2d: row 17 holds a value that is not finite"):
+        ffloc.estimate_absolute_pose(bad, points3d, (500, 500, 320, 240))
     # Without image_size, a focal length no camera has went on to RANSAC (1e300 px: "no model").
     with pytest.raises(ffloc.Error, match="fx: focal length 1e\\+300 px is not in .* pass image_size"):
         ffloc.estimate_absolute_pose(points2d, points3d, (1e300, 500, 320, 240))
