@@ -46,6 +46,8 @@ nlohmann::json localizationJson(const std::string& name, const LocalizationResul
                      {"predicted_rotation_sigma_deg", measuredOrNull(e.predicted_rotation_sigma_deg)},
                      {"focal_scale", measuredOrNull(e.focal_scale)},
                      {"focal_scale_log_sigma", measuredOrNull(e.focal_scale_log_sigma)},
+                     {"focal_aspect", measuredOrNull(e.focal_aspect)},
+                     {"focal_aspect_log_sigma", measuredOrNull(e.focal_aspect_log_sigma)},
                      {"principal_point_shift", measuredOrNull(e.principal_point_shift)},
                      {"principal_point_shift_significance", measuredOrNull(e.principal_point_shift_significance)}};
   nlohmann::json selected = nlohmann::json::array();

@@ -139,6 +139,9 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
   evidence.focal_scale = focal.valid ? focal.scale : 1;
   evidence.focal_scale_log_sigma = focal.valid ? focal.log_scale_sigma : std::numeric_limits<double>::infinity();
+  const FocalAspectFit aspect = fitFocalAspect(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
+  evidence.focal_aspect = aspect.valid ? aspect.aspect : 1;
+  evidence.focal_aspect_log_sigma = aspect.valid ? aspect.log_aspect_sigma : std::numeric_limits<double>::infinity();
   const PrincipalPointFit principal_point =
       fitPrincipalPoint(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
   evidence.principal_point_shift =

@@ -36,6 +36,10 @@ struct PoseEvidence {
   // logarithm. Negative without a pose, +inf sigma when the pairs do not determine it.
   double focal_scale = -1;
   double focal_scale_log_sigma = -1;
+  // The ratio fy / fx the pairs fit best over the one given (fitFocalAspect, the same pairs), and
+  // the predicted standard deviation of its logarithm; as focal_scale without a pose or a fit.
+  double focal_aspect = -1;
+  double focal_aspect_log_sigma = -1;
   // The principal point the pairs fit best (fitPrincipalPoint, the same pairs): its distance
   // from the one given over the focal length fx (for small shifts, the angle it turns the view
   // by, in radians), and that shift in predicted standard deviations. Negative without a pose; a

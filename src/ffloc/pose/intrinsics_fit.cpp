@@ -26,6 +26,20 @@ struct FocalScaleParameters {
   }
 };
 
+struct FocalAspectParameters {
+  static constexpr int kCount = 1;  // ln(aspect)
+  const Intrinsics& given;
+  Intrinsics camera(const Eigen::Matrix<double, 1, 1>& x) const {
+    Intrinsics k = given;
+    k.fx *= std::exp(-0.5 * x(0));
+    k.fy *= std::exp(0.5 * x(0));
+    return k;
+  }
+  static Eigen::Matrix<double, 2, 1> jacobian(const Intrinsics& k, const Eigen::Vector2d& projected) {
+    return Eigen::Vector2d(-0.5 * (projected.x() - k.cx), 0.5 * (projected.y() - k.cy));
+  }
+};
+
 struct PrincipalPointParameters {
   static constexpr int kCount = 2;  // the shift in pixels
   const Intrinsics& given;
@@ -176,6 +190,19 @@ FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::ve
   fit.valid = true;
   fit.scale = std::exp(estimate->value(0));
   fit.log_scale_sigma = std::sqrt(estimate->covariance(0, 0));
+  return fit;
+}
+
+FocalAspectFit fitFocalAspect(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
+                              const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
+                              double inlier_threshold_px) {
+  FocalAspectFit fit;
+  const auto estimate =
+      fitOnExplainedPairs(FocalAspectParameters{camera}, pixels, points, indices, world_to_camera, inlier_threshold_px);
+  if (!estimate) return fit;
+  fit.valid = true;
+  fit.aspect = std::exp(estimate->value(0));
+  fit.log_aspect_sigma = std::sqrt(estimate->covariance(0, 0));
   return fit;
 }
 

@@ -33,6 +33,18 @@ FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::ve
                        const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
                        double inlier_threshold_px = 0);
 
+// fx and fy scaled apart, their product kept: fx / sqrt(a), fy * sqrt(a). A query given fy 700
+// where fx and fy are 525 fits one common scale near 1, and was `localized` 0.7 m off; a frame
+// resized in one direction only gives such intrinsics.
+struct FocalAspectFit {
+  bool valid = false;
+  double aspect = 1;            // the ratio fy / fx the pairs fit best, over the one given
+  double log_aspect_sigma = 0;  // predicted standard deviation of ln(aspect), from the residuals
+};
+FocalAspectFit fitFocalAspect(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
+                              const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
+                              double inlier_threshold_px = 0);
+
 // The principal point moved, the focal length kept.
 struct PrincipalPointFit {
   bool valid = false;
