@@ -148,6 +148,11 @@ TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
   EXPECT_EQ(requestErrorOf(pinholeFields(), "not an image at all").rfind("image:", 0), 0u);
   EXPECT_EQ(requestErrorOf(pinholeFields(), image, pixelLimit(64 * 48 - 1)).rfind("image: 64x48 is more", 0), 0u);
   EXPECT_EQ(requestErrorOf(pinholeFields(), image, pixelLimit(64 * 48)), "");
+  // A 16-bit PNG at half the limit's pixels: twice the bytes (a probe's 280 KB one took 580 MB).
+  const std::string deep = pngBytes(cv::Mat(48, 64, CV_16UC3, cv::Scalar(9000, 9000, 9000)));
+  EXPECT_EQ(requestErrorOf(pinholeFields(), deep, pixelLimit(2 * 64 * 48 - 1)),
+            "image: a 16-bit PNG of 64x48 is more than the 3071 pixels this server accepts at 16 bits (half its limit at 8)");
+  EXPECT_EQ(requestErrorOf(pinholeFields(), deep, pixelLimit(2 * 64 * 48)), "");
   // A PNG header announcing 30000x30000 is refused from the header, before decoding allocates.
   std::string huge = "\x89PNG\r\n\x1a\n" + std::string("\0\0\0\x0dIHDR", 8) + std::string("\0\0\x75\x30\0\0\x75\x30", 8);
   EXPECT_EQ(requestErrorOf(pinholeFields(), huge).rfind("image: 30000x30000 is more", 0), 0u);
