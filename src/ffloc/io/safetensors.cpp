@@ -118,6 +118,13 @@ SafetensorsArchive::SafetensorsArchive(const std::filesystem::path& path, FileMa
     previous_end = item.end;
     previous_name = &name;
   }
+  // As the reference reader refuses them: two map files joined by `cat` opened as the first, and
+  // a map extended in place was served as if whole.
+  if (previous_end < data_size) {
+    fail(std::to_string(data_size - previous_end) + " bytes follow the last tensor's data (which ends at byte " +
+         std::to_string(8 + header_size + previous_end) + " of " + std::to_string(file_size) +
+         "): the file was appended to or joined with another");
+  }
   for (const Placed& item : placed) {
     TensorView& view = views[item.header_index];
     names_.push_back(view.name);

@@ -138,6 +138,13 @@ TEST_F(SafetensorsErrors, EmptyTensorsMayShareOffsets) {
   EXPECT_EQ(archive->at("e").nbytes, 0u);
 }
 
+// Two files joined by `cat` opened as the first (an outside probe, with map files).
+TEST_F(SafetensorsErrors, BytesAfterTheLastTensorAreRefused) {
+  const std::string header = R"({"w":{"dtype":"I32","shape":[2],"data_offsets":[0,8]}})";
+  EXPECT_NO_THROW(openSafetensors(withHeader(header, 8)));
+  expectFailure(withHeader(header, 11), {"3 bytes follow the last tensor's data (which ends at byte 72 of 75)"});
+}
+
 // Random damage ends in InputError or a valid archive whose views stay inside the file.
 TEST_F(SafetensorsErrors, RandomDamageNeverCrashes) {
   const std::string header =
