@@ -20,8 +20,17 @@ MapCatalog::MapCatalog(std::vector<Source> sources, MapOpener open, std::chrono:
     : open_(std::move(open)), reload_check_(reload_check) {
   if (sources.empty()) throw InputError("maps: no map to serve");
   for (Source& source : sources) {
-    if (source.name.empty() || source.name.find('/') != std::string::npos) {
-      throwInputError(source.path.string(), 0, "map name '" + source.name + "' must be non-empty and hold no '/'");
+    // A name is a segment of the URL /maps/NAME: '%', '?' and '#' change what a client sends, and
+    // clients rewrite '.' and '..' away, so such a map was listed but could not be reached.
+    const bool unreachable = source.name == "." || source.name == ".." ||
+                             std::any_of(source.name.begin(), source.name.end(), [](char c) {
+                               return c == '/' || c == '%' || c == '?' || c == '#' || static_cast<unsigned char>(c) < 0x20;
+                             });
+    if (source.name.empty() || unreachable) {
+      throwInputError(source.path.string(), 0,
+                      "map name '" + source.name +
+                          "' cannot be reached as /maps/NAME: give one that is not '.' or '..' and holds none of "
+                          "'/', '%', '?', '#' or a control character");
     }
     if (std::find(names_.begin(), names_.end(), source.name) != names_.end()) {
       throwInputError(source.path.string(), 0, "map name '" + source.name + "' given twice");

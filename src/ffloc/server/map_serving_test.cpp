@@ -332,6 +332,14 @@ TEST(MapCatalogSources, NamesComeFromTheFlagOrTheFileStem) {
   EXPECT_NE(errorOf([&] { MapCatalog({{"a", dir / "x.ffmap"}, {"a", dir / "y.ffmap"}}, empty); }).find("given twice"),
             std::string::npos);
   EXPECT_NE(errorOf([&] { MapCatalog({{"a/b", dir / "x.ffmap"}}, empty); }).find("'a/b'"), std::string::npos);
+  // Listed, but not reachable at /maps/NAME (an outside probe): clients rewrite '.' and '..', and
+  // '%', '?' and '#' change the URL.
+  for (const std::string name : {".", "..", "sp%20ace", "a?b", "a#b"}) {
+    EXPECT_NE(errorOf([&] { MapCatalog({{name, dir / "x.ffmap"}}, empty); })
+                  .find("map name '" + name + "' cannot be reached as /maps/NAME"),
+              std::string::npos)
+        << name;
+  }
   fs::remove_all(dir);
 }
 
