@@ -50,7 +50,8 @@ ApiKeys ApiKeys::read(const std::filesystem::path& file, const std::vector<std::
     std::istringstream words(line);
     std::string key, maps, extra;
     if (!(words >> key) || key[0] == '#') continue;
-    if (!(words >> maps) || (words >> extra)) {
+    // '#' starts a comment at the end of a line too, as the docs said (it was refused there).
+    if (!(words >> maps) || ((words >> extra) && extra[0] != '#')) {
       throwInputError(file.string(), number, "expected '<key> <map>[,<map>...]' or '<key> *'");
     }
     // A key travels in an HTTP header: one with a control or non-ASCII byte can never be sent.

@@ -306,6 +306,11 @@ TEST(ApiKeys, FileErrorsNameTheLine) {
   EXPECT_NE(errorFor("\n# nothing\n").find("holds no key"), std::string::npos);
   EXPECT_NE(errorFor("0123456789abcd\x01f kitchen\n").find("only printable ASCII"), std::string::npos);
   EXPECT_NE(errorFor("0123456789abcdef kitchen,\n").find("an empty map name"), std::string::npos);
+  EXPECT_NE(errorFor("0123456789abcdef kitchen office\n").find("expected"), std::string::npos);
+  // A comment after the maps was refused though the docs allowed it (an outside probe).
+  std::ofstream(dir / "keys.txt", std::ios::trunc) << "0123456789abcdef kitchen # the kitchen's tablet\n";
+  EXPECT_EQ(ApiKeys::read(dir / "keys.txt", {"kitchen", "office"}).decide("Bearer 0123456789abcdef", "kitchen"),
+            ApiKeys::Decision::kAllowed);
   // A byte order mark became part of the first key, which then never matched (second probe).
   std::ofstream(dir / "keys.txt", std::ios::trunc) << "\xEF\xBB\xBF" "0123456789abcdef kitchen\n";
   EXPECT_EQ(ApiKeys::read(dir / "keys.txt", {"kitchen", "office"}).decide("Bearer 0123456789abcdef", "kitchen"),
