@@ -136,12 +136,12 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   }
 
   const double refit_threshold_px = fit_pairs == IntrinsicsFitPairs::kExplained ? pnp.inlier_threshold_px : 0;
-  const FocalFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
-  evidence.focal_scale = focal.valid ? focal.scale : 1;
-  evidence.focal_scale_log_sigma = focal.valid ? focal.log_scale_sigma : std::numeric_limits<double>::infinity();
-  const FocalAspectFit aspect = fitFocalAspect(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
-  evidence.focal_aspect = aspect.valid ? aspect.aspect : 1;
-  evidence.focal_aspect_log_sigma = aspect.valid ? aspect.log_aspect_sigma : std::numeric_limits<double>::infinity();
+  const FactorFit focal = fitFocalScale(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
+  evidence.focal_scale = focal.valid ? focal.factor : 1;
+  evidence.focal_scale_log_sigma = focal.valid ? focal.log_sigma : std::numeric_limits<double>::infinity();
+  const FactorFit aspect = fitFocalAspect(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
+  evidence.focal_aspect = aspect.valid ? aspect.factor : 1;
+  evidence.focal_aspect_log_sigma = aspect.valid ? aspect.log_sigma : std::numeric_limits<double>::infinity();
   const PrincipalPointFit principal_point =
       fitPrincipalPoint(pixels, points, inliers, camera, world_to_camera, refit_threshold_px);
   evidence.principal_point_shift =

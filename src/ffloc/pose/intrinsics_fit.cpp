@@ -178,32 +178,33 @@ std::optional<IntrinsicsEstimate<Parameters::kCount>> fitOnExplainedPairs(
   return latest;
 }
 
-}  // namespace
-
-FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
-                       const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
-                       double inlier_threshold_px) {
-  FocalFit fit;
-  const auto estimate =
-      fitOnExplainedPairs(FocalScaleParameters{camera}, pixels, points, indices, world_to_camera, inlier_threshold_px);
+// A fit of Parameters' one parameter, the logarithm of a factor.
+template <typename Parameters>
+FactorFit fitFactor(const Parameters& parameters, const std::vector<Eigen::Vector2d>& pixels,
+                    const std::vector<Eigen::Vector3d>& points, const std::vector<int>& indices,
+                    const Pose& world_to_camera, double inlier_threshold_px) {
+  static_assert(Parameters::kCount == 1);
+  FactorFit fit;
+  const auto estimate = fitOnExplainedPairs(parameters, pixels, points, indices, world_to_camera, inlier_threshold_px);
   if (!estimate) return fit;
   fit.valid = true;
-  fit.scale = std::exp(estimate->value(0));
-  fit.log_scale_sigma = std::sqrt(estimate->covariance(0, 0));
+  fit.factor = std::exp(estimate->value(0));
+  fit.log_sigma = std::sqrt(estimate->covariance(0, 0));
   return fit;
 }
 
-FocalAspectFit fitFocalAspect(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
-                              const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
-                              double inlier_threshold_px) {
-  FocalAspectFit fit;
-  const auto estimate =
-      fitOnExplainedPairs(FocalAspectParameters{camera}, pixels, points, indices, world_to_camera, inlier_threshold_px);
-  if (!estimate) return fit;
-  fit.valid = true;
-  fit.aspect = std::exp(estimate->value(0));
-  fit.log_aspect_sigma = std::sqrt(estimate->covariance(0, 0));
-  return fit;
+}  // namespace
+
+FactorFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
+                        const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
+                        double inlier_threshold_px) {
+  return fitFactor(FocalScaleParameters{camera}, pixels, points, indices, world_to_camera, inlier_threshold_px);
+}
+
+FactorFit fitFocalAspect(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
+                         const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
+                         double inlier_threshold_px) {
+  return fitFactor(FocalAspectParameters{camera}, pixels, points, indices, world_to_camera, inlier_threshold_px);
 }
 
 PrincipalPointFit fitPrincipalPoint(const std::vector<Eigen::Vector2d>& pixels,

@@ -23,27 +23,27 @@ namespace ffloc {
 // to kIntrinsicsRefitRounds fits or until they stop changing; 0 fits `indices` once.
 constexpr int kIntrinsicsRefitRounds = 6;
 
-// fx and fy scaled together, the principal point kept.
-struct FocalFit {
+// One factor on the intrinsics given: the factor the pairs fit best and the predicted standard
+// deviation of its logarithm, from the residuals.
+struct FactorFit {
   bool valid = false;
-  double scale = 1;            // the focal length the pairs fit best, over the one given
-  double log_scale_sigma = 0;  // predicted standard deviation of ln(scale), from the residuals
+  double factor = 1;
+  double log_sigma = 0;
 };
-FocalFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
-                       const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
-                       double inlier_threshold_px = 0);
 
-// fx and fy scaled apart, their product kept: fx / sqrt(a), fy * sqrt(a). A query given fy 700
-// where fx and fy are 525 fits one common scale near 1, and was `localized` 0.7 m off; a frame
-// resized in one direction only gives such intrinsics.
-struct FocalAspectFit {
-  bool valid = false;
-  double aspect = 1;            // the ratio fy / fx the pairs fit best, over the one given
-  double log_aspect_sigma = 0;  // predicted standard deviation of ln(aspect), from the residuals
-};
-FocalAspectFit fitFocalAspect(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
-                              const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
-                              double inlier_threshold_px = 0);
+// fx and fy scaled together, the principal point kept: the factor is the focal length the pairs
+// fit over the one given.
+FactorFit fitFocalScale(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
+                        const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
+                        double inlier_threshold_px = 0);
+
+// fx and fy scaled apart, their product kept (fx / sqrt(a), fy * sqrt(a)): the factor a is the
+// ratio fy / fx the pairs fit over the one given. A query given fy 700 where fx and fy are 525
+// fits one common scale near 1, and was `localized` 0.7 m off; a frame resized in one direction
+// only gives such intrinsics.
+FactorFit fitFocalAspect(const std::vector<Eigen::Vector2d>& pixels, const std::vector<Eigen::Vector3d>& points,
+                         const std::vector<int>& indices, const Intrinsics& camera, const Pose& world_to_camera,
+                         double inlier_threshold_px = 0);
 
 // The principal point moved, the focal length kept.
 struct PrincipalPointFit {

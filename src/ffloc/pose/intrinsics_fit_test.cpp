@@ -81,12 +81,29 @@ TEST(FocalFit, RecoversTheFocalLengthThePixelsWereSeenWith) {
   for (const double true_scale : {1.0, 0.6, 1.7}) {
     SCOPED_TRACE(true_scale);
     const Pairs pairs = observe(true_scale, 1, 6, 7);
-    const FocalFit fit = fitFocalScale(pairs.pixels, pairs.points, pairs.indices, givenCamera(), worldToCamera());
+    const FactorFit fit = fitFocalScale(pairs.pixels, pairs.points, pairs.indices, givenCamera(), worldToCamera());
     ASSERT_TRUE(fit.valid);
-    EXPECT_NEAR(fit.scale, true_scale, 0.01 * true_scale);
-    EXPECT_GT(fit.log_scale_sigma, 0);
-    EXPECT_LT(fit.log_scale_sigma, 0.01);
+    EXPECT_NEAR(fit.factor, true_scale, 0.01 * true_scale);
+    EXPECT_GT(fit.log_sigma, 0);
+    EXPECT_LT(fit.log_sigma, 0.01);
   }
+}
+
+// fy 1.25 times what the pixels were seen with, fx right: the aspect fit finds the ratio fy / fx
+// (0.8 of the one given; the product fx fy is off too, which it keeps, so within 2 %) and says how
+// sure it is.
+TEST(FocalFit, TheAspectFitFindsARatioOfFocalLengthsTheCommonScaleMisses) {
+  Intrinsics given = givenCamera();
+  given.fy *= 1.25;
+  const Pairs pairs = observe(givenCamera(), 1, 6, 7);
+  const FactorFit aspect = fitFocalAspect(pairs.pixels, pairs.points, pairs.indices, given, worldToCamera());
+  ASSERT_TRUE(aspect.valid);
+  EXPECT_NEAR(aspect.factor, 0.8, 0.016);
+  EXPECT_GT(aspect.log_sigma, 0);
+  EXPECT_LT(aspect.log_sigma, 0.01);
+  const FactorFit right = fitFocalAspect(pairs.pixels, pairs.points, pairs.indices, givenCamera(), worldToCamera());
+  ASSERT_TRUE(right.valid);
+  EXPECT_NEAR(right.factor, 1.0, 3 * right.log_sigma);
 }
 
 // A pose estimated with a focal length 1.33 times the true one (3 px of noise, 100 wrong pairs
@@ -100,23 +117,23 @@ TEST(FocalFit, RefitOnThePairsItExplainsEscapesTheInliersOfTheWrongFocalLength) 
   const auto [pose, inliers] = poseWithTheGivenIntrinsics(pairs);
   ASSERT_GT(inliers.size(), 20u);
   ASSERT_LT(inliers.size(), pairs.pixels.size());
-  const FocalFit once = fitFocalScale(pairs.pixels, pairs.points, inliers, givenCamera(), pose);
-  const FocalFit refit = fitFocalScale(pairs.pixels, pairs.points, inliers, givenCamera(), pose, 8);
+  const FactorFit once = fitFocalScale(pairs.pixels, pairs.points, inliers, givenCamera(), pose);
+  const FactorFit refit = fitFocalScale(pairs.pixels, pairs.points, inliers, givenCamera(), pose, 8);
   ASSERT_TRUE(once.valid);
   ASSERT_TRUE(refit.valid);
-  EXPECT_NEAR(refit.scale, true_scale, 0.01 * true_scale);
-  EXPECT_GT(std::abs(once.scale - true_scale), 0.05 * true_scale);
+  EXPECT_NEAR(refit.factor, true_scale, 0.01 * true_scale);
+  EXPECT_GT(std::abs(once.factor - true_scale), 0.05 * true_scale);
 }
 
 // Points of a thin, far slab: a longer focal length and a camera moved back see nearly the same
 // pixels, so the fit's predicted uncertainty is large, and the verdict cannot blame the focal length.
 TEST(FocalFit, AFarThinSlabLeavesTheFocalLengthUndetermined) {
   const Pairs far = observe(1.0, 50, 50.05, 8);
-  const FocalFit fit = fitFocalScale(far.pixels, far.points, far.indices, givenCamera(), worldToCamera());
+  const FactorFit fit = fitFocalScale(far.pixels, far.points, far.indices, givenCamera(), worldToCamera());
   const Pairs deep = observe(1.0, 1, 6, 8);
-  const FocalFit deep_fit = fitFocalScale(deep.pixels, deep.points, deep.indices, givenCamera(), worldToCamera());
+  const FactorFit deep_fit = fitFocalScale(deep.pixels, deep.points, deep.indices, givenCamera(), worldToCamera());
   ASSERT_TRUE(deep_fit.valid);
-  EXPECT_TRUE(!fit.valid || fit.log_scale_sigma > 50 * deep_fit.log_scale_sigma);
+  EXPECT_TRUE(!fit.valid || fit.log_sigma > 50 * deep_fit.log_sigma);
 }
 
 TEST(FocalFit, TooFewPairsGiveNoFit) {
