@@ -102,6 +102,10 @@ TEST(BadInput, BadIntrinsicsFile) {
   const auto dir = makeSevenScenes();
   writeTextFile(dir / "camera-intrinsics.txt", "5 0 3.5\n0 5\n0 0 1\n");
   expectInputError([&] { loadDataset(dir); }, {"camera-intrinsics.txt:2"});
+  // A link to no file took the default intrinsics without a word (an outside probe).
+  fs::remove(dir / "camera-intrinsics.txt");
+  fs::create_symlink(dir / "nowhere.txt", dir / "camera-intrinsics.txt");
+  expectInputError([&] { loadDataset(dir); }, {"camera-intrinsics.txt", "not found"});
 }
 
 TEST(BadInput, SequenceLayoutSplitNamesMissingSequence) {

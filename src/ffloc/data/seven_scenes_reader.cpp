@@ -156,7 +156,10 @@ Scene readSevenScenes(const fs::path& dir) {
   Scene scene = emptyScene(dir, "7scenes", true);
 
   const fs::path intrinsics_file = dir / "camera-intrinsics.txt";
-  const Intrinsics camera = fs::exists(intrinsics_file) ? readIntrinsicsFile(intrinsics_file) : defaultIntrinsics();
+  // A link to no file is a file meant but not there: read, it says so (the defaults were taken).
+  const Intrinsics camera = fs::exists(intrinsics_file) || fs::is_symlink(intrinsics_file)
+                                ? readIntrinsicsFile(intrinsics_file)
+                                : defaultIntrinsics();
 
   if (hasPoseFiles(dir) || hasPoseFiles(dir / "rgbd-frames")) {
     scene.frames = readFrameFolder(hasPoseFiles(dir) ? dir : dir / "rgbd-frames", dir, camera);
