@@ -308,6 +308,10 @@ TEST(BadInput, NerfErrors) {
                    {"cx, cy: the principal point (1e+09"});
   expectInputError([&] { loadDataset(makeNerf("", R"(, "fl_x": 0, "k1": 0.05)")); },
                    {"transforms_train.json", "field 'fl_x': the focal length must be positive, got 0"});
+  // A file of no frames read as a dataset of none (an outside probe).
+  const fs::path none = testing::makeTempDir("ffloc-bad-nerf-empty");
+  writeTextFile(none / "transforms.json", R"({"camera_angle_x": 1.0, "frames": []})");
+  expectInputError([&] { loadDataset(none); }, {"the nerf dataset holds no frame"});
   // Degrees given by mistake read as radians: 40 gave a focal length 5.7 times too short.
   expectInputError([&] { loadDataset(makeNerf(R"(, "camera_angle_x": 40)")); },
                    {"transforms_train.json", "frames[0].camera_angle_x", "must be an angle in radians in (0, pi), got 40"});

@@ -138,6 +138,8 @@ Scene loadKnownFormat(const fs::path& dataset_dir, const std::string& format) {
     if (name != candidate.name) continue;
     if (!fs::is_directory(dir)) throwInputError(dir.string(), 0, "dataset folder not found");
     Scene scene = candidate.read(dir);
+    // A NeRF file of no frames converted to a dataset of none, exit 0.
+    if (scene.frames.empty()) throwInputError(dir.string(), 0, "the " + name + " dataset holds no frame");
     requireUniqueNames(scene);
     requirePlausibleFrames(scene);
     applySplitFiles(scene);
