@@ -30,7 +30,8 @@ INF = math.inf
 DEFAULT = dict(min_inliers=12, min_inlier_ratio=0.1, min_inlier_spread=0.1, pixel_noise=("estimated", 0),
                max_centre_sigma_relative=INF, max_centre_sigma_m=0.10, max_rotation_sigma_deg=INF,
                max_focal_deviation=0.2, max_moderate_focal_deviation=0.15, max_principal_point_shift=0.1,
-               max_certain_focal_deviation=0.05,
+               max_certain_focal_deviation=0.05, max_focal_aspect_deviation=0.12,
+               max_certain_focal_aspect_deviation=0.07,
                max_certain_principal_point_shift=0.04, max_agreement_translation=0.05, max_agreement_rotation_deg=2.0,
                max_agreement_distance_m=0.05, require_agreement=True)
 
@@ -58,7 +59,8 @@ def load(directory):
             for key in ("inlier_ratio", "inlier_spread", "agreement_translation", "agreement_rotation_deg",
                         "agreement_distance", "residual_sigma_px", "predicted_centre_sigma",
                         "predicted_centre_sigma_relative", "predicted_rotation_sigma_deg", "focal_scale",
-                        "focal_scale_log_sigma", "principal_point_shift", "principal_point_shift_significance"):
+                        "focal_scale_log_sigma", "principal_point_shift", "principal_point_shift_significance",
+                        "focal_aspect", "focal_aspect_log_sigma"):
                 row[key] = number(row.get(key, "inf"))
             row["inliers"] = int(row["inliers"])
             frames.append(row)
@@ -98,6 +100,7 @@ TESTS = dict(
 
 FOCAL_SIGNIFICANCE = 6  # VerdictOptions::kFocalSignificance
 MODERATE_FOCAL_SIGNIFICANCE = 8  # VerdictOptions::kModerateFocalSignificance
+FOCAL_ASPECT_SIGNIFICANCE = 10  # VerdictOptions::kFocalAspectSignificance
 PRINCIPAL_POINT_SIGNIFICANCE = 8  # VerdictOptions::kPrincipalPointSignificance
 CERTAIN_SIGNIFICANCE = 30  # VerdictOptions::kCertainSignificance
 
@@ -125,6 +128,19 @@ def fits_focal(row, rule):
                                  (math.log1p(setting(rule, "max_certain_focal_deviation")), CERTAIN_SIGNIFICANCE)])
 
 
+def fits_focal_aspect(row, rule):
+    """verdict.cpp's aspect test: the ratio fy / fx the inliers fit (over the one given); CSVs
+    without the columns pass."""
+    aspect, sigma = row["focal_aspect"], row["focal_aspect_log_sigma"]
+    if not (aspect > 0 and math.isfinite(aspect)):
+        return True
+    deviation = abs(math.log(aspect))
+    significance = deviation / sigma if sigma > 0 else INF
+    return not deviation_counts(deviation, significance,
+                                [(math.log1p(setting(rule, "max_focal_aspect_deviation")), FOCAL_ASPECT_SIGNIFICANCE),
+                                 (math.log1p(setting(rule, "max_certain_focal_aspect_deviation")), CERTAIN_SIGNIFICANCE)])
+
+
 def fits_principal_point(row, rule):
     """verdict.cpp's principal point test; CSVs without the columns pass."""
     shift, significance = row["principal_point_shift"], row["principal_point_shift_significance"]
@@ -136,6 +152,7 @@ def fits_principal_point(row, rule):
 
 
 TESTS["max_focal_deviation"] = fits_focal
+TESTS["max_focal_aspect_deviation"] = fits_focal_aspect
 TESTS["max_principal_point_shift"] = fits_principal_point
 UNCERTAINTY_TESTS = ("max_centre_sigma_relative", "max_centre_sigma_m", "max_rotation_sigma_deg")
 

@@ -46,6 +46,16 @@ bool focalLengthMisfits(const PoseEvidence& evidence, const VerdictOptions& opti
        {std::log1p(options.max_certain_focal_deviation), VerdictOptions::kCertainSignificance}});
 }
 
+bool focalAspectMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
+  if (!(evidence.focal_aspect > 0)) return false;
+  const double deviation = std::abs(std::log(evidence.focal_aspect));
+  const double significance = deviation / evidence.focal_aspect_log_sigma;
+  return deviationCounts(
+      deviation, significance,
+      {{std::log1p(options.max_focal_aspect_deviation), VerdictOptions::kFocalAspectSignificance},
+       {std::log1p(options.max_certain_focal_aspect_deviation), VerdictOptions::kCertainSignificance}});
+}
+
 bool principalPointMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
   return deviationCounts(
       evidence.principal_point_shift, evidence.principal_point_shift_significance,
@@ -76,6 +86,8 @@ void VerdictOptions::check() const {
   requireAtLeast("max_rotation_sigma_deg", max_rotation_sigma_deg, 0);
   requireAtLeast("max_focal_deviation", max_focal_deviation, 0);
   requireAtLeast("max_moderate_focal_deviation", max_moderate_focal_deviation, 0);
+  requireAtLeast("max_focal_aspect_deviation", max_focal_aspect_deviation, 0);
+  requireAtLeast("max_certain_focal_aspect_deviation", max_certain_focal_aspect_deviation, 0);
   requireAtLeast("max_principal_point_shift", max_principal_point_shift, 0);
   requireAtLeast("max_certain_focal_deviation", max_certain_focal_deviation, 0);
   requireAtLeast("max_certain_principal_point_shift", max_certain_principal_point_shift, 0);
@@ -197,6 +209,9 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
     verdict.reason = "the inliers leave the pose too uncertain";
   else if (focalLengthMisfits(evidence, options))
     verdict.reason = "the correspondences fit a focal length " + std::to_string(evidence.focal_scale) +
+                     " times the one given: check the query's intrinsics";
+  else if (focalAspectMisfits(evidence, options))
+    verdict.reason = "the correspondences fit a ratio fy / fx " + std::to_string(evidence.focal_aspect) +
                      " times the one given: check the query's intrinsics";
   else if (principalPointMisfits(evidence, options))
     verdict.reason = "the correspondences fit a principal point " + std::to_string(evidence.principal_point_shift) +

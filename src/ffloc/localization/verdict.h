@@ -88,6 +88,15 @@ struct VerdictOptions {
   // 640 x 480; 7 with this tier); no right pose of any verdict set fits that far off that surely.
   double max_moderate_focal_deviation = 0.15;
   static constexpr double kModerateFocalSignificance = 8;
+  // The ratio fy / fx the correspondences fit (PoseEvidence::focal_aspect): off by more than this
+  // fraction at more than kFocalAspectSignificance sigma, or by more than the certain tier's at
+  // kCertainSignificance, the pose is kUncertain. Redkitchen's queries given fy 700 where fx and fy
+  // are 525 fit 0.80-0.89 at 13-104 sigma and were `localized` 0.2-0.7 m off; of the 1200
+  // `localized` poses of every verdict set and method, the right ones fit at most 10 % off (at 19.5
+  // sigma) and at most 29 sigma (4.5 % off) (docs/verdict.md).
+  double max_focal_aspect_deviation = 0.12;
+  static constexpr double kFocalAspectSignificance = 10;
+  double max_certain_focal_aspect_deviation = 0.07;
   // The same for the principal point: when the correspondences fit one farther than this fraction
   // of the focal length (for small shifts, the angle it turns the view by) from the one given, and more
   // than kPrincipalPointSignificance predicted standard deviations away. On 919 right poses of

@@ -95,6 +95,24 @@ TEST(Verdict, AFocalLengthTheInliersDoNotFitMakesThePoseUncertain) {
   EXPECT_EQ(judged(3, 0.01, off).status, PoseStatus::kLocalized);
 }
 
+// Inliers that fit another ratio fy / fx than the one given (a query given fy 700 where fx and fy
+// are 525, 0.7 m off): past 12 % at 10 sigma, or past 7 % at 30; what right poses fit does not
+// (redkitchen's frame 840, 10 % at 19.5 sigma; frame 644, 4.5 % at 29).
+TEST(Verdict, ARatioOfFocalLengthsTheInliersDoNotFitMakesThePoseUncertain) {
+  auto judged = [](double aspect, double log_sigma) {
+    return judgedStrong([&](PoseEvidence& e) { e.focal_aspect = aspect; e.focal_aspect_log_sigma = log_sigma; }, {});
+  };
+  EXPECT_EQ(judged(1.0, 0.001).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged(1.105, 0.00512).status, PoseStatus::kLocalized);  // frame 840
+  EXPECT_EQ(judged(1.046, 0.00155).status, PoseStatus::kLocalized);  // frame 644
+  EXPECT_EQ(judged(0.85, 0.01).reason,
+            "the correspondences fit a ratio fy / fx 0.850000 times the one given: check the query's intrinsics");
+  EXPECT_EQ(judged(0.85, 0.02).status, PoseStatus::kLocalized);   // 8 sigma
+  EXPECT_EQ(judged(0.92, 0.002).status, PoseStatus::kUncertain);  // 8 % at 42 sigma
+  EXPECT_EQ(judged(0.95, 0.001).status, PoseStatus::kLocalized);  // 5 %: within the certain tier
+  EXPECT_EQ(judged(0.85, std::numeric_limits<double>::infinity()).status, PoseStatus::kLocalized);
+}
+
 // Inliers that fit another principal point: far off and significant, or a little off and
 // certain, makes the pose uncertain; what right poses fit does not.
 TEST(Verdict, APrincipalPointTheInliersDoNotFitMakesThePoseUncertain) {
