@@ -386,6 +386,24 @@ TEST_F(ClassicalTest, AWrongFocalLengthIsNeverLocalized) {
   EXPECT_GE(flagged, 1);
 }
 
+// fy alone wrong: one common focal scale fits near 1, and redkitchen's queries given fy 700 for
+// 525 were `localized` 0.2-0.7 m off (an outside probe); the ratio fy / fx the inliers fit tells.
+TEST_F(ClassicalTest, ARatioOfFocalLengthsOtherThanTheCamerasIsNeverLocalized) {
+  const ClassicalLocalizer localizer(build(scene_->mappingIndices()));
+  int flagged = 0;
+  for (const double scale : {0.75, 1.33}) {
+    for (size_t q : scene_->queryIndices()) {
+      const Frame& frame = scene_->frames[q];
+      Intrinsics wrong = frame.intrinsics;
+      wrong.fy *= scale;
+      const LocalizationResult result = localizer.localize(readImageRgb(frame.image_path), wrong, frame.name, {});
+      EXPECT_FALSE(result.localized()) << frame.name << " at " << scale << "x its fy";
+      flagged += result.verdict.reason.find("ratio fy / fx") != std::string::npos;
+    }
+  }
+  EXPECT_GE(flagged, 1);
+}
+
 // Retrieval given too few images leaves poses uncertain; the mapping images the first pose sees
 // bring the pairs that settle them, and what they settle is right.
 TEST_F(ClassicalTest, PoseGuidedRetrievalLocalizesWhatRetrievalAloneLeavesUncertain) {
