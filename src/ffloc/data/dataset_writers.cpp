@@ -4,6 +4,7 @@
 #include <functional>
 
 #include "ffloc/core/error.h"
+#include "ffloc/data/depth.h"
 #include "ffloc/data/format_io.h"
 #include "ffloc/data/manifest.h"
 #include "ffloc/io/input_file.h"
@@ -101,6 +102,9 @@ std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path
       // As the other writers, which read the depth, refuse it: copy_file's own error was an
       // internal one.
       requireRegularFile(frame.depth->path, "depth file");
+      // Decoded once, as the other writers decode it, so that a corrupt or 8-bit depth map is
+      // refused here too (it was copied, exit 0).
+      readDepthMetres(scene.frames[i]);
       fs::create_directories(depth.parent_path());
       fs::copy_file(frame.depth->path, depth, fs::copy_options::overwrite_existing);
       frame.depth->path = depth;
