@@ -114,31 +114,30 @@ def setting(rule, name):
     return rule.get(name, DEFAULT[name])
 
 
-def fits_focal(row, rule):
-    """verdict.cpp's focal test: the inliers' best focal length (over the one given) too far
-    from 1 for its significance fails. CSVs without the columns pass."""
-    scale, sigma = row["focal_scale"], row["focal_scale_log_sigma"]
-    if not (scale > 0 and math.isfinite(scale)):
+def factor_fits(factor, sigma, fraction_tiers):
+    """verdict.cpp's factorMisfits, negated: a fitted factor (over the one given) too far from 1
+    for its significance fails; a factor that was not measured passes."""
+    if not (factor > 0 and math.isfinite(factor)):
         return True
-    deviation = abs(math.log(scale))
+    deviation = abs(math.log(factor))
     significance = deviation / sigma if sigma > 0 else INF
     return not deviation_counts(deviation, significance,
-                                [(math.log1p(setting(rule, "max_focal_deviation")), FOCAL_SIGNIFICANCE),
-                                 (math.log1p(setting(rule, "max_moderate_focal_deviation")), MODERATE_FOCAL_SIGNIFICANCE),
-                                 (math.log1p(setting(rule, "max_certain_focal_deviation")), CERTAIN_SIGNIFICANCE)])
+                                [(math.log1p(fraction), least) for fraction, least in fraction_tiers])
+
+
+def fits_focal(row, rule):
+    """verdict.cpp's focal test on the inliers' best focal length; CSVs without the columns pass."""
+    return factor_fits(row["focal_scale"], row["focal_scale_log_sigma"],
+                       [(setting(rule, "max_focal_deviation"), FOCAL_SIGNIFICANCE),
+                        (setting(rule, "max_moderate_focal_deviation"), MODERATE_FOCAL_SIGNIFICANCE),
+                        (setting(rule, "max_certain_focal_deviation"), CERTAIN_SIGNIFICANCE)])
 
 
 def fits_focal_aspect(row, rule):
-    """verdict.cpp's aspect test: the ratio fy / fx the inliers fit (over the one given); CSVs
-    without the columns pass."""
-    aspect, sigma = row["focal_aspect"], row["focal_aspect_log_sigma"]
-    if not (aspect > 0 and math.isfinite(aspect)):
-        return True
-    deviation = abs(math.log(aspect))
-    significance = deviation / sigma if sigma > 0 else INF
-    return not deviation_counts(deviation, significance,
-                                [(math.log1p(setting(rule, "max_focal_aspect_deviation")), FOCAL_ASPECT_SIGNIFICANCE),
-                                 (math.log1p(setting(rule, "max_certain_focal_aspect_deviation")), CERTAIN_SIGNIFICANCE)])
+    """verdict.cpp's aspect test on the ratio fy / fx the inliers fit; CSVs without the columns pass."""
+    return factor_fits(row["focal_aspect"], row["focal_aspect_log_sigma"],
+                       [(setting(rule, "max_focal_aspect_deviation"), FOCAL_ASPECT_SIGNIFICANCE),
+                        (setting(rule, "max_certain_focal_aspect_deviation"), CERTAIN_SIGNIFICANCE)])
 
 
 def fits_principal_point(row, rule):

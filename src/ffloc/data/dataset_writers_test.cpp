@@ -20,13 +20,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// Two frames; the second's image does not exist, so a writer fails after copying the first.
-Scene sceneFailingAtItsSecondFrame(const fs::path& dir) {
+// Mapping frames of 64 x 48 images named `names` in `dir`, their images not written.
+Scene sceneOfFrames(const fs::path& dir, const std::vector<std::string>& names) {
   Scene scene;
   scene.name = "source";
   scene.root = dir;
   scene.format = "manifest";
-  for (const std::string name : {"a.png", "missing.png"}) {
+  for (const std::string& name : names) {
     Frame frame;
     frame.name = name;
     frame.image_path = dir / name;
@@ -34,8 +34,18 @@ Scene sceneFailingAtItsSecondFrame(const fs::path& dir) {
     frame.split = Split::kMapping;
     scene.frames.push_back(frame);
   }
-  cv::imwrite((dir / "a.png").string(), cv::Mat(48, 64, CV_8UC3, cv::Scalar(40, 80, 120)));
   return scene;
+}
+
+void writeImage(const fs::path& path) {
+  fs::create_directories(path.parent_path());
+  cv::imwrite(path.string(), cv::Mat(48, 64, CV_8UC3, cv::Scalar(40, 80, 120)));
+}
+
+// Two frames; the second's image does not exist, so a writer fails after copying the first.
+Scene sceneFailingAtItsSecondFrame(const fs::path& dir) {
+  writeImage(dir / "a.png");
+  return sceneOfFrames(dir, {"a.png", "missing.png"});
 }
 
 std::vector<fs::path> entriesOf(const fs::path& dir) {
@@ -69,41 +79,28 @@ TEST_F(DatasetWriters, AFailedWriteRemovesWhatItWroteAndNothingElse) {
 }
 
 // A frame whose depth file is missing: the manifest writer's copy failed as an internal error
-// (exit 3) where every other writer names the file (probe).
-TEST_F(DatasetWriters, AMissingDepthFileIsNamedByEveryWriter) {
+// (exit 3) where every other writer names the file (probe). And a depth map cut short: the
+// manifest writer copied it, exit 0, where every other writer, which decodes it, refused it
+// (another probe).
+TEST_F(DatasetWriters, AMissingOrBrokenDepthFileIsNamedByEveryWriter) {
   fs::create_directories(dir_ / "source");
   Scene scene = sceneFailingAtItsSecondFrame(dir_ / "source");
   scene.frames.pop_back();
   scene.frames[0].depth = DepthSource{dir_ / "source" / "a.depth.png"};
-  for (const std::string& format : datasetWriterFormats()) {
-    if (format == "indoor6") continue;  // the format holds no depth, so its writer reads none
-    try {
-      writeDataset(scene, format, dir_ / ("out-" + format));
-      ADD_FAILURE() << format << " wrote a frame whose depth is missing";
-    } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("a.depth.png"), std::string::npos) << format << ": " << e.what();
-    }
-  }
-}
-
-// Found by an outside probe: the manifest writer copied a depth map cut short, exit 0, where every
-// other writer, which decodes it, refused it.
-TEST_F(DatasetWriters, ADepthMapCutShortIsRefusedByEveryWriter) {
-  fs::create_directories(dir_ / "source");
-  Scene scene = sceneFailingAtItsSecondFrame(dir_ / "source");
-  scene.frames.pop_back();
   std::vector<uchar> png;
   cv::imencode(".png", cv::Mat1w(48, 64, uint16_t{1500}), png);
-  std::ofstream(dir_ / "source" / "a.depth.png", std::ios::binary)
-      .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size() / 2));
-  scene.frames[0].depth = DepthSource{dir_ / "source" / "a.depth.png"};
-  for (const std::string& format : datasetWriterFormats()) {
-    if (format == "indoor6") continue;  // the format holds no depth, so its writer reads none
-    try {
-      writeDataset(scene, format, dir_ / ("out-" + format));
-      ADD_FAILURE() << format << " wrote a depth map cut short";
-    } catch (const InputError& e) {
-      EXPECT_NE(std::string(e.what()).find("a.depth.png"), std::string::npos) << format << ": " << e.what();
+  for (const std::string problem : {"missing", "cut short"}) {
+    if (problem == "cut short")
+      std::ofstream(dir_ / "source" / "a.depth.png", std::ios::binary)
+          .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size() / 2));
+    for (const std::string& format : datasetWriterFormats()) {
+      if (format == "indoor6") continue;  // the format holds no depth, so its writer reads none
+      try {
+        writeDataset(scene, format, dir_ / ("out-" + format));
+        ADD_FAILURE() << format << " wrote a frame whose depth is " << problem;
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("a.depth.png"), std::string::npos) << format << ": " << e.what();
+      }
     }
   }
 }
@@ -134,21 +131,10 @@ TEST_F(DatasetWriters, DepthBeyondSixteenBitMillimetresIsRefusedWhereItCannotBeS
 // had its pose. Dots in folders are now written as '_' (and a clash so made is refused), and the
 // reader refuses two files of one frame, as an editor's backup of a pose file beside it.
 TEST_F(DatasetWriters, AceFramesInDottedFoldersReadBackAsWrittenAndStrayFilesAreRefused) {
-  const fs::path source = dir_ / "source";
-  Scene scene;
-  scene.name = "source";
-  scene.root = source;
-  scene.format = "manifest";
-  for (const std::string folder : {"a.1", "a.2"}) {
-    Frame frame;
-    frame.name = folder + "/img.png";
-    frame.image_path = source / frame.name;
-    frame.intrinsics = {50, 50, 31.5, 23.5, 64, 48};
-    frame.camera_to_world.t = Eigen::Vector3d(folder == "a.1" ? 1 : 2, 0, 0);
-    frame.split = Split::kMapping;
-    fs::create_directories(source / folder);
-    cv::imwrite(frame.image_path.string(), cv::Mat(48, 64, CV_8UC3, cv::Scalar(40, 80, 120)));
-    scene.frames.push_back(frame);
+  Scene scene = sceneOfFrames(dir_ / "source", {"a.1/img.png", "a.2/img.png"});
+  for (size_t i = 0; i < 2; ++i) {
+    scene.frames[i].camera_to_world.t = Eigen::Vector3d(static_cast<double>(i + 1), 0, 0);
+    writeImage(scene.frames[i].image_path);
   }
   writeDataset(scene, "ace", dir_ / "ace");
   const Scene back = readAceLayout(dir_ / "ace");
