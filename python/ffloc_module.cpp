@@ -616,7 +616,11 @@ PYBIND11_MODULE(_ffloc, m) {
                                return poses;
                              },
                              "N x 4 x 4: the mapping cameras")
-      .def("points", [](const Map& map, size_t max_points) { return pointArray(map.localizer().mapPoints(max_points)); },
+      // py::object, not size_t: pybind11 refused -1 with a TypeError and its signatures, not ffloc.Error.
+      .def("points",
+           [](const Map& map, const py::object& max_points) {
+             return pointArray(map.localizer().mapPoints(optionValue<size_t>(max_points, "max_points")));
+           },
            py::arg("max_points") = 100000, "At most max_points world points (N x 3); none for maps without points")
       .def_property_readonly("build_report",
                              [](const Map& map) -> py::object {
@@ -745,7 +749,7 @@ PYBIND11_MODULE(_ffloc, m) {
 
   m.def(
       "evaluate",
-      [](const py::handle& dataset, const std::vector<std::string>& methods, size_t max_queries, bool use_depth,
+      [](const py::handle& dataset, const std::vector<std::string>& methods, const py::object& max_queries, bool use_depth,
          const std::string& model, const std::string& dtype, int threads, const std::string& format, bool quiet,
          const py::kwargs& kwargs) {
         std::vector<std::string> unused;
@@ -763,7 +767,7 @@ PYBIND11_MODULE(_ffloc, m) {
         options.localize = localize;
         options.evaluation.pnp = localize.pnp;
         options.evaluation.verdict = localize.verdict;
-        options.evaluation.max_queries = max_queries;
+        options.evaluation.max_queries = optionValue<size_t>(max_queries, "max_queries");
         options.evaluation.quiet = quiet;
         options.use_depth = use_depth;
         // Loaded on first use and shared by the methods that need it.

@@ -466,6 +466,11 @@ def test_settings_the_maps_method_ignores_and_empty_paths_are_refused(cli_map, s
         ffloc.build_map(str(scene_dir), out="")
     # A max_points near 2**64 wrapped the sampling stride to 0: SIGFPE.
     assert ffloc.Map.load(str(cli_map)).points(2**64 - 1).shape[1] == 3
+    # Counts below 0 raised pybind11's TypeError with its signatures (an outside probe).
+    with pytest.raises(ffloc.Error, match="max_points: expected a non-negative integer within range, got -1"):
+        ffloc.Map.load(str(cli_map)).points(-1)
+    with pytest.raises(ffloc.Error, match="max_queries: expected a non-negative integer within range, got -1"):
+        ffloc.evaluate(str(scene_dir), max_queries=-1)
 
 
 # Evaluation
