@@ -437,11 +437,12 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
   Intrinsics camera = intrinsicsFrom(intrinsics, py::none());
   // The solver's test against chance needs the image's area; without it, the principal point is
   // taken to be the image's centre.
-  // Beyond int, the side was cast to -2147483648 (undefined behaviour) and named image_size.
+  // Beyond int, the side was cast to -2147483648 (undefined behaviour) and named image_size; a
+  // principal point at (0, 0), as for pixels measured from the image's centre, made a 1 x 1 image.
   const auto sideAround = [](double centre, const char* name) {
+    constexpr double kSmallestSide = 16;
     const double side = std::ceil(2 * centre + 1);
-    if (!(side >= 1 && side <= std::numeric_limits<int>::max()))
-    {
+    if (!(side >= kSmallestSide && side <= std::numeric_limits<int>::max())) {
       std::ostringstream what;
       what << "intrinsics: " << name << " = " << centre << " puts the image centre where no image is (pass image_size)";
       throw InputError(what.str());

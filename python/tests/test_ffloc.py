@@ -346,6 +346,9 @@ def test_estimate_absolute_pose_refuses_a_principal_point_no_image_has():
     # side overflow an int (undefined behaviour), reported as "image_size: ... -2147483648x481".
     with pytest.raises(ffloc.Error, match="intrinsics: cx = 1e\\+12 puts the image centre where no image is"):
         ffloc.estimate_absolute_pose(np.zeros((10, 2)), np.zeros((10, 3)), (500, 500, 1e12, 240))
+    # At (0, 0), as for pixels measured from the centre, the image was 1 x 1 (an outside probe).
+    with pytest.raises(ffloc.Error, match="intrinsics: cx = 0 puts the image centre where no image is"):
+        ffloc.estimate_absolute_pose(np.zeros((10, 2)), np.zeros((10, 3)), (500, 500, 0, 0))
     # With image_size, a principal point outside that image: success, 5 m off, before.
     points2d, points3d, _, _, _ = synthetic_pairs(200, 0)
     with pytest.raises(ffloc.Error, match="cx, cy: the principal point \\(1000, 240\\) lies outside the 640x480 image"):
