@@ -79,8 +79,8 @@ cv::Mat1f readDepthMetres(const Frame& frame) {
     throwInputError(file, 0, "depth image is 8-bit; expected a 16-bit PNG or a 32-bit float TIFF");
   // The decoder gives grey with alpha, or colour with alpha, as three channels.
   if (stored.channels() != 1)
-    throwInputError(file, 0, "depth image has colour or alpha channels (decoded as " +
-                                 std::to_string(stored.channels()) + "); expected one grey channel");
+    throwInputError(file, 0, "depth image has colour or alpha channels (decoded to " + std::to_string(stored.channels()) +
+                                 " channels; grey with alpha decodes to 3 too); expected one grey channel");
   if (stored.cols != camera.width || stored.rows != camera.height)
     throwInputError(file, 0,
                     "depth image is " + std::to_string(stored.cols) + "x" + std::to_string(stored.rows) + " but " +

@@ -77,7 +77,7 @@ TEST(Depth, BadFilesNameTheFile) {
   // Read as grey, a 16-bit colour PNG was a weighted sum of its channels, taken as millimetres.
   ASSERT_TRUE(cv::imwrite((dir / "rgb16.png").string(), cv::Mat_<cv::Vec3w>(2, 3, cv::Vec3w(1000, 2000, 3000))));
   expectInputError([&] { readDepthMetres(frameWithDepth(dir / "rgb16.png", 3, 2)); },
-                   {"rgb16.png", "colour or alpha channels (decoded as 3); expected one grey channel"});
+                   {"rgb16.png", "colour or alpha channels (decoded to 3 channels; grey with alpha decodes to 3 too); expected one grey channel"});
   Frame no_depth = frameWithDepth(dir / "x.png", 3, 2);
   no_depth.depth.reset();
   expectInputError([&] { readDepthMetres(no_depth); }, {"f.png", "no depth"});
