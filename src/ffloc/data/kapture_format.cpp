@@ -12,6 +12,7 @@
 #include "ffloc/data/colmap_camera.h"
 #include "ffloc/data/dataset_writers.h"
 #include "ffloc/data/format_io.h"
+#include "ffloc/data/pose_check.h"
 #include "ffloc/data/readers.h"
 #include "ffloc/data/text_file.h"
 
@@ -313,6 +314,10 @@ void readFolder(const fs::path& root, const fs::path& dataset_dir, Split split, 
       throwInputError(records.string(), row.number,
                       "no pose for image '" + row.fields[2] + "' (timestamp " + row.fields[0] + ", device " + device +
                           ") in trajectories.txt");
+    // Here, before the depth records are paired by pose: a camera 1e300 from the origin was
+    // reported as a depth map with "another pose".
+    if (const std::string centre = cameraCentreProblem(pose->t); !centre.empty())
+      throwInputError(records.string(), row.number, "image '" + row.fields[2] + "': " + centre);
     frame.camera_to_world = *pose;
     frame.split = split;
     frames_at.emplace(timestamp, scene.frames.size());
