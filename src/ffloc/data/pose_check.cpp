@@ -22,17 +22,33 @@ std::string rotationProblem(const Eigen::Matrix3d& R) {
   return what.str();
 }
 
-std::string poseMatrixProblem(const Eigen::Matrix4d& T) {
-  if (!T.allFinite()) return "pose has a non-finite value (NaN or inf)";
+namespace {
+
+// poseMatrixProblem, and in `row` the row (0-3) at fault: the first holding a non-finite value,
+// the last, the one of the largest translation for a centre too far away, else the first (the
+// rotation spans three rows).
+std::string poseMatrixProblemAt(const Eigen::Matrix4d& T, Eigen::Index* row) {
+  for (*row = 0; *row < 4; ++*row)
+    if (!T.row(*row).allFinite()) return "pose has a non-finite value (NaN or inf)";
+  *row = 3;
   const Eigen::RowVector4d last = T.row(3);
   if ((last - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6) {
     std::ostringstream what;
     what << "pose's last row is (" << last << "), expected (0 0 0 1)";
     return what.str();
   }
+  T.topRightCorner<3, 1>().cwiseAbs().maxCoeff(row);
   const std::string centre = cameraCentreProblem(T.topRightCorner<3, 1>());
   if (!centre.empty()) return centre;
+  *row = 0;
   return rotationProblem(T.topLeftCorner<3, 3>());
+}
+
+}  // namespace
+
+std::string poseMatrixProblem(const Eigen::Matrix4d& T) {
+  Eigen::Index row = 0;
+  return poseMatrixProblemAt(T, &row);
 }
 
 std::string cameraCentreProblem(const Eigen::Vector3d& centre) {
@@ -44,25 +60,12 @@ std::string cameraCentreProblem(const Eigen::Vector3d& centre) {
   return what.str();
 }
 
-// The line of the row at fault: the first holding a non-finite value, the last row's, the row of
-// the largest translation for a centre too far away, else the matrix's first (the rotation spans
-// its rows). A translation of 1e308 on line 1 was blamed on line 4.
-int lineOfPoseProblem(const Eigen::Matrix4d& T, const std::vector<int>& row_lines) {
-  const int rows = static_cast<int>(row_lines.size());
-  for (int row = 0; row < rows; ++row)
-    if (!T.row(row).allFinite()) return row_lines[row];
-  if (rows == 4 && (T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-6) return row_lines[3];
-  if (!cameraCentreProblem(T.topRightCorner<3, 1>()).empty()) {
-    int farthest = 0;
-    T.topRightCorner<3, 1>().cwiseAbs().maxCoeff(&farthest);
-    return row_lines[farthest];
-  }
-  return row_lines.front();
-}
-
 Pose validatedPose(const Eigen::Matrix4d& T, const std::filesystem::path& file, const std::vector<int>& row_lines) {
-  const std::string problem = poseMatrixProblem(T);
-  if (!problem.empty()) throwInputError(file.string(), lineOfPoseProblem(T, row_lines), problem);
+  // A translation of 1e308 on line 1 was blamed on the file's last line.
+  Eigen::Index row = 0;
+  const std::string problem = poseMatrixProblemAt(T, &row);
+  if (!problem.empty())
+    throwInputError(file.string(), row_lines[std::min(static_cast<size_t>(row), row_lines.size() - 1)], problem);
   Pose pose = Pose::fromMatrix(T);
   projectToRotation(pose.R);
   return pose;
