@@ -18,6 +18,7 @@
 #include "commands.h"
 #include "ffloc/core/allocator.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/host_address.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/pipeline/map_localizer.h"
 #include "ffloc/model/model_loader.h"
@@ -147,9 +148,8 @@ int runServe(const ServeArguments& args) {
   const std::string address =
       (args.host.find(':') != std::string::npos ? "[" + args.host + "]" : args.host) + ":" + std::to_string(port);
   if (!options.keys) {
-    const bool loopback = args.host == "localhost" || args.host.rfind("127.", 0) == 0 || args.host == "::1";
     std::cerr << "no --keys: every client that reaches " << address << " may use every map"
-              << (loopback ? " (loopback only: other machines cannot)" : " (not loopback: any machine on the network can)")
+              << (isLoopbackHost(args.host) ? " (loopback only: other machines cannot)" : " (not loopback: any machine on the network can)")
               << "\n";
   }
   StopOnSignal stop_on_signal(server);

@@ -21,6 +21,7 @@
 #include <stdexcept>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/host_address.h"
 
 namespace ffloc {
 
@@ -40,17 +41,13 @@ int integerVariable(const char* name, int fallback, int minimum, int maximum) {
 }
 
 #ifdef FFLOC_WITH_GLOO
-bool isLoopback(const std::string& address) {
-  return address == "localhost" || address.rfind("127.", 0) == 0 || address == "::1";
-}
-
 // Gloo binds to the interface torch's launcher would use: GLOO_SOCKET_IFNAME when set, loopback
 // for a run on one machine, else the address this host's name resolves to.
 std::shared_ptr<::gloo::transport::Device> glooDevice(const DistributedEnvironment& environment) {
   if (const char* interface = std::getenv("GLOO_SOCKET_IFNAME"); interface && *interface) {
     return c10d::ProcessGroupGloo::createDeviceForInterface(interface);
   }
-  if (isLoopback(environment.master_addr)) return c10d::ProcessGroupGloo::createDeviceForHostname("127.0.0.1");
+  if (isLoopbackHost(environment.master_addr)) return c10d::ProcessGroupGloo::createDeviceForHostname("127.0.0.1");
   return c10d::ProcessGroupGloo::createDefaultDevice();
 }
 #endif
