@@ -35,28 +35,27 @@ bool deviationCounts(double deviation, double significance, std::initializer_lis
   });
 }
 
-// A fitted factor (FactorFit) against tiers of fractions off 1, judged on its logarithm; a
-// factor that was not measured (not positive) never counts.
-bool factorMisfits(double factor, double log_sigma, std::initializer_list<DeviationTier> fraction_tiers) {
+// A fitted factor (FactorFit) judged on its logarithm, against tiers of log deviations; a factor
+// that was not measured (not positive) never counts.
+bool factorMisfits(double factor, double log_sigma, std::initializer_list<DeviationTier> log_tiers) {
   if (!(factor > 0)) return false;
   const double deviation = std::abs(std::log(factor));
-  const double significance = deviation / log_sigma;
-  return std::any_of(fraction_tiers.begin(), fraction_tiers.end(), [&](const DeviationTier& tier) {
-    return deviation > std::log1p(tier.deviation) && significance > tier.significance;
-  });
+  return deviationCounts(deviation, deviation / log_sigma, log_tiers);
 }
 
 bool focalLengthMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
-  return factorMisfits(evidence.focal_scale, evidence.focal_scale_log_sigma,
-                       {{options.max_focal_deviation, VerdictOptions::kFocalSignificance},
-                        {options.max_moderate_focal_deviation, VerdictOptions::kModerateFocalSignificance},
-                        {options.max_certain_focal_deviation, VerdictOptions::kCertainSignificance}});
+  return factorMisfits(
+      evidence.focal_scale, evidence.focal_scale_log_sigma,
+      {{std::log1p(options.max_focal_deviation), VerdictOptions::kFocalSignificance},
+       {std::log1p(options.max_moderate_focal_deviation), VerdictOptions::kModerateFocalSignificance},
+       {std::log1p(options.max_certain_focal_deviation), VerdictOptions::kCertainSignificance}});
 }
 
 bool focalAspectMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
-  return factorMisfits(evidence.focal_aspect, evidence.focal_aspect_log_sigma,
-                       {{options.max_focal_aspect_deviation, VerdictOptions::kFocalAspectSignificance},
-                        {options.max_certain_focal_aspect_deviation, VerdictOptions::kCertainSignificance}});
+  return factorMisfits(
+      evidence.focal_aspect, evidence.focal_aspect_log_sigma,
+      {{std::log1p(options.max_focal_aspect_deviation), VerdictOptions::kFocalAspectSignificance},
+       {std::log1p(options.max_certain_focal_aspect_deviation), VerdictOptions::kCertainSignificance}});
 }
 
 bool principalPointMisfits(const PoseEvidence& evidence, const VerdictOptions& options) {
