@@ -763,12 +763,13 @@ PYBIND11_MODULE(_ffloc, m) {
           if (const std::string problem = settingNoMethodUsesProblem(methods, setting); !problem.empty())
             throw InputError(setting + ": " + problem);
         }
+        const size_t query_count = optionValue<size_t>(max_queries, "max_queries");  // before the dataset is read
         const Scene scene = sceneFrom(dataset, format);
         MethodEvaluationOptions options;
         options.localize = localize;
         options.evaluation.pnp = localize.pnp;
         options.evaluation.verdict = localize.verdict;
-        options.evaluation.max_queries = optionValue<size_t>(max_queries, "max_queries");
+        options.evaluation.max_queries = query_count;
         options.evaluation.quiet = quiet;
         options.use_depth = use_depth;
         // Loaded on first use and shared by the methods that need it.
