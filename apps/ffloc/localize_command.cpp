@@ -48,7 +48,6 @@ struct Query {
   std::string location;
 };
 
-// "fx,fy,cx,cy" (commas or spaces).
 // Four numbers apart by commas or spaces. A comma with no number on one side ("500,500,320,240,",
 // "500,,500,320") is refused: such text is cut or mistyped, not four numbers.
 Intrinsics parseIntrinsics(const std::string& text, const std::string& where) {

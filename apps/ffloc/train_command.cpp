@@ -87,9 +87,6 @@ Scene loadTrainingData(const std::string& spec) {
   return scene;
 }
 
-// Refuses a dataset given twice (`--data a,a`, or `a` beside `a@mapping`), which would pool its
-// frames twice and weigh them double without a word. One dataset's two splits, DIR@mapping and
-// DIR@query, are distinct frames and may be pooled.
 // The dataset folder of a DIR[@split] spec and the split ("" for all its frames).
 std::pair<fs::path, std::string> datasetParts(const std::string& spec) {
   const size_t at = spec.rfind('@');
@@ -104,6 +101,9 @@ bool shareFrames(const std::string& a, const std::string& b) {
   return dir == other_dir && (split.empty() || other_split.empty() || split == other_split);
 }
 
+// Refuses a dataset given twice (`--data a,a`, or `a` beside `a@mapping`), which would pool its
+// frames twice and weigh them double without a word. One dataset's two splits, DIR@mapping and
+// DIR@query, are distinct frames and may be pooled.
 void requireDistinctData(const std::vector<std::string>& specs, const std::string& flag) {
   for (size_t i = 0; i < specs.size(); ++i) {
     for (size_t j = 0; j < i; ++j) {
