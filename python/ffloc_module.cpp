@@ -265,6 +265,17 @@ T optionValue(const py::handle& value, const std::string& field) {
   }
 }
 
+// `methods`: one name, or a list or tuple of them (pybind11's list cast refused a plain string
+// with a TypeError that named no argument).
+std::vector<std::string> methodNames(const py::handle& value) {
+  if (py::isinstance<py::str>(value)) return {value.cast<std::string>()};
+  if (!py::isinstance<py::list>(value) && !py::isinstance<py::tuple>(value))
+    throw InputError("methods: expected a method name or a list of them, got " + py::repr(value).cast<std::string>());
+  std::vector<std::string> names;
+  for (const py::handle& name : value) names.push_back(optionValue<std::string>(name, "methods"));
+  return names;
+}
+
 // Query options from keyword arguments, named as the CLI's flags.
 QuerySettings querySettings(const py::kwargs& kwargs, std::vector<std::string>& unused) {
   QuerySettings settings;
@@ -750,12 +761,13 @@ PYBIND11_MODULE(_ffloc, m) {
 
   m.def(
       "evaluate",
-      [](const py::handle& dataset, const std::vector<std::string>& methods, const py::object& max_queries, bool use_depth,
+      [](const py::handle& dataset, const py::handle& method_names, const py::object& max_queries, bool use_depth,
          const std::string& model, const std::string& dtype, int threads, const std::string& format, bool quiet,
          const py::kwargs& kwargs) {
         std::vector<std::string> unused;
         const LocalizeOptions localize = localizeOptions(querySettings(kwargs, unused));
         refuseUnknown(unused, "evaluate");
+        const std::vector<std::string> methods = methodNames(method_names);
         if (const std::string problem = methodListProblem(methods); !problem.empty())
           throw InputError("methods: " + problem);
         for (const auto& [key, value] : kwargs) {
@@ -790,7 +802,7 @@ PYBIND11_MODULE(_ffloc, m) {
         }
         return toPython(summaryJson(summaries));
       },
-      py::arg("dataset"), py::arg("methods") = std::vector<std::string>{"classical"}, py::arg("max_queries") = 0,
+      py::arg("dataset"), py::arg("methods") = "classical", py::arg("max_queries") = 0,
       py::arg("use_depth") = true, py::arg("model") = "default", py::arg("dtype") = "f32", py::arg("threads") = 0,
       py::arg("format") = "auto", py::arg("quiet") = true,
       "Localizes the dataset's queries with each method; the summary as 'ffloc eval --json' writes it");

@@ -494,6 +494,15 @@ def test_evaluate_gives_the_summary_the_cli_writes(scene_dir, cli, tmp_path):
         assert ours == theirs
 
 
+def test_evaluate_takes_one_method_by_its_name(scene_dir):
+    one = ffloc.evaluate(scene_dir, methods="oracle-depth", threads=1)
+    listed = ffloc.evaluate(scene_dir, methods=("oracle-depth",), threads=1)
+    assert [result["method"] for result in one["results"]] == ["oracle-depth"]
+    for result in (one, listed):
+        result["results"][0].pop("latency_ms")
+    assert one == listed
+
+
 def test_evaluate_refuses_unknown_methods(scene_dir):
     with pytest.raises(ffloc.Error, match="methods: unknown method 'magic'"):
         ffloc.evaluate(scene_dir, methods=["magic"])
@@ -504,6 +513,10 @@ def test_evaluate_refuses_unknown_methods(scene_dir):
         ffloc.evaluate(scene_dir, methods=["classical", "classical"])
     with pytest.raises(ffloc.Error, match="dataset: expected a folder path"):
         ffloc.evaluate(3.5)
+    with pytest.raises(ffloc.Error, match="methods: expected a method name or a list of them, got 3"):
+        ffloc.evaluate(scene_dir, methods=3)
+    with pytest.raises(ffloc.Error, match="methods: expected a string, got None"):
+        ffloc.evaluate(scene_dir, methods=["classical", None])
     # A setting of a method not evaluated ran as if it were not given.
     with pytest.raises(ffloc.Error, match=r"features: none of the methods evaluated \(classical, oracle-depth\) uses it"):
         ffloc.evaluate(scene_dir, methods=["classical", "oracle-depth"], features=500)
