@@ -347,10 +347,14 @@ TEST_F(Cli, LocalizeKeepsItsInputsRefusesTheOtherMethodsFlagsAndReportsLostOutpu
   ASSERT_FALSE(HasFailure());
   const std::string image = (scene / "images" / "query_0000_near.png").string();
   const auto map_size = fs::file_size(map);
+  // Another map: a pose list written over it replaced it (found by an outside probe).
+  const fs::path other_map = dir_ / "other.ffmap";
+  fs::copy_file(map, other_map);
   const std::vector<std::string> query = {"localize", "--map", map.string(), "--image", image, "--intrinsics",
                                           "200,200,127.5,95.5"};
   const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
       {{"--poses", map.string()}, "--poses: '" + map.string() + "' is the map (--map)"},
+      {{"--poses", other_map.string()}, "--poses: '" + other_map.string() + "' is an ffloc map, which this output would replace; write it elsewhere"},
       {{"--ply", image}, "--ply: '" + image + "' is a query image"},
       {{"--poses", (dir_ / "o.txt").string(), "--ply", (dir_ / "o.txt").string()}, "is also the output of --poses"},
       {{"--model", (dir_ / "missing.pth").string()}, "--model: the map is a classical map, which does not use it"},
@@ -363,6 +367,10 @@ TEST_F(Cli, LocalizeKeepsItsInputsRefusesTheOtherMethodsFlagsAndReportsLostOutpu
     EXPECT_TRUE(contains(run.output, expected)) << run.output;
   }
   EXPECT_EQ(fs::file_size(map), map_size);
+  const CliRun eval = runCli({"eval", "--dataset", scene.string(), "--csv", other_map.string(), "--quiet"});
+  EXPECT_EQ(eval.exit_code, 2) << eval.output;
+  EXPECT_TRUE(contains(eval.output, "--csv: '" + other_map.string() + "' is an ffloc map")) << eval.output;
+  EXPECT_EQ(fs::file_size(other_map), map_size);
   EXPECT_TRUE(fs::exists(image));
 
   if (!fs::exists("/dev/full")) return;
@@ -466,6 +474,15 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   const CliRun nul = runCli({"localize", "--map", map.string(), "--images", (scene / "nul.txt").string()});
   EXPECT_EQ(nul.exit_code, 2) << nul.output;
   EXPECT_TRUE(contains(nul.output, "nul.txt:1: query list: the line holds a NUL byte")) << nul.output;
+  // A FIFO waited for a writer for ever; /dev/zero, one endless line, filled the memory.
+  const fs::path fifo = scene / "list.fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  for (const fs::path& list : {fifo, fs::path("/dev/zero")}) {
+    const CliRun endless = runCli({"localize", "--map", map.string(), "--images", list.string()});
+    EXPECT_EQ(endless.exit_code, 2) << endless.output;
+    EXPECT_TRUE(contains(endless.output, list.string() + ": query list expected, found something that is not a regular file"))
+        << endless.output;
+  }
 }
 
 TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {

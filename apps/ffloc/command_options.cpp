@@ -14,6 +14,7 @@
 #include "ffloc/core/file_paths.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/io/input_file.h"
+#include "ffloc/io/map_file.h"
 #include "ffloc/data/format_io.h"
 
 namespace ffloc::cli {
@@ -323,6 +324,11 @@ void refuseOutputOverInputs(const std::string& flag, const std::string& path,
     if (!dataset.empty() && liesWithin(path, dataset))
       throw InputError(flag + ": '" + path + "' is inside the dataset '" + dataset +
                        "', whose files it could replace; write it elsewhere");
+  // Another map than the one in use: a pose list or a CSV written over it replaced hours of
+  // mapping without a word.
+  std::error_code error;
+  if (std::filesystem::is_regular_file(path, error) && isMapFile(path))
+    throw InputError(flag + ": '" + path + "' is an ffloc map, which this output would replace; write it elsewhere");
 }
 
 std::filesystem::path sameFolderKey(const std::string& path) {

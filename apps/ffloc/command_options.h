@@ -95,8 +95,8 @@ std::string withFlagName(const std::string& message);
 std::filesystem::path sameFolderKey(const std::string& path);
 
 // InputError when the output `path` of `flag` is one of the command's `inputs` (what it is, its
-// path) or lies inside one of its `datasets`, whose files it could replace: a report given the
-// map's path replaced the map, exit 0.
+// path), lies inside one of its `datasets`, whose files it could replace, or is another ffloc
+// map: a report given the map's path replaced the map, exit 0.
 void refuseOutputOverInputs(const std::string& flag, const std::string& path,
                             const std::vector<std::pair<std::string, std::string>>& inputs,
                             const std::vector<std::string>& datasets = {});

@@ -18,6 +18,7 @@
 #include "ffloc/eval/report.h"
 #include "ffloc/io/image.h"
 #include "ffloc/io/image_size.h"
+#include "ffloc/io/input_file.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/localization/localization_json.h"
@@ -101,6 +102,7 @@ size_t misgivenIntrinsicsStart(const std::string& line, const std::vector<size_t
 // four, the path everything before them, so a path may hold spaces (split at the first space, it was
 // refused as "intrinsics must be four numbers").
 std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrinsics& fallback) {
+  requireRegularFile(list, "query list");  // a FIFO blocked for ever, /dev/zero filled the memory
   std::ifstream file(list, std::ios::binary);
   if (!file) throwInputError(list.string(), 0, "query list: cannot open");
   std::vector<Query> queries;

@@ -225,6 +225,22 @@ MapHeader readMapHeader(const std::filesystem::path& path) {
   return mapHeader(readMapMetadata(*archive, path.string()), path.string());
 }
 
+bool isMapFile(const std::filesystem::path& path) {
+  try {
+    readMapHeader(path);
+    return true;
+  } catch (const InputError&) {
+    return false;
+  }
+}
+
+InputError namingMapFile(const InputError& error, const std::filesystem::path& path) {
+  const std::string what = error.what();
+  const std::string generic = "map: ";
+  if (what.rfind(generic, 0) != 0) return error;
+  return InputError(path.string() + ": " + what.substr(generic.size()));
+}
+
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {
   // Shared: each image's tokens keep the mapping alive. A snapshot: a map stays open in a server
   // or a Python session while the file may be written over in place, and the file as mapped then

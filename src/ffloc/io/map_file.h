@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ffloc/core/error.h"
 #include "ffloc/geometry/camera.h"
 #include "ffloc/geometry/pose.h"
 #include "ffloc/geometry/preprocess.h"
@@ -84,6 +85,11 @@ struct MapHeader {
   int version = 0;
 };
 MapHeader readMapHeader(const std::filesystem::path& path);
+// Whether `path` holds a map (its header reads): an output that is no map must not replace one.
+bool isMapFile(const std::filesystem::path& path);
+// A map in memory knows no file, so the library's errors about one start "map: "; read from or
+// written to `path`, the error names the file instead. Other errors are returned as they are.
+InputError namingMapFile(const InputError& error, const std::filesystem::path& path);
 // The same from a container already open: its JSON description (checked against its checksum
 // where the map has one; maps written before it was added have none), then the header in it.
 nlohmann::json readMapMetadata(const TensorArchive& archive, const std::string& file);

@@ -193,9 +193,15 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
   if (!pose.ok()) {
     verdict.status = PoseStatus::kFailed;
     // "no model" read as a missing network.
-    verdict.reason = pose.status == PnpStatus::kNoModel
-                         ? "no pose: RANSAC found none the correspondences agree on (or only a degenerate one)"
-                         : std::string("no pose: ") + toString(pose.status);
+    if (pose.status == PnpStatus::kNoModel)
+      verdict.reason = "no pose: RANSAC found none the correspondences agree on (or only a degenerate one)";
+    else if (pose.status == PnpStatus::kTooFewInliers && pose.required_inliers > 0)
+      // "too few inliers" beside "192 inliers of 192" read as a contradiction: in a tiny image
+      // pairs at random collect that many.
+      verdict.reason = "no pose: too few inliers (" + std::to_string(pose.inliers) + ", " +
+                       std::to_string(pose.required_inliers) + " needed)";
+    else
+      verdict.reason = std::string("no pose: ") + toString(pose.status);
     return verdict;
   }
   verdict.status = PoseStatus::kUncertain;

@@ -203,6 +203,11 @@ TEST(Verdict, NoPoseIsFailedAndSaysWhy) {
   const PoseVerdict verdict = judgePose(PoseEvidence{}, pose, true, VerdictOptions{});
   EXPECT_EQ(verdict.status, PoseStatus::kFailed);
   EXPECT_EQ(verdict.reason, "no pose: too few correspondences");
+  // "too few inliers" beside "192 inliers of 192" read as a contradiction.
+  pose.status = PnpStatus::kTooFewInliers;
+  pose.inliers = 192;
+  pose.required_inliers = 250;
+  EXPECT_EQ(judgePose(PoseEvidence{}, pose, true, VerdictOptions{}).reason, "no pose: too few inliers (192, 250 needed)");
   pose.status = PnpStatus::kNoModel;  // said "no pose: no model", read as a missing network
   EXPECT_EQ(judgePose(PoseEvidence{}, pose, true, VerdictOptions{}).reason,
             "no pose: RANSAC found none the correspondences agree on (or only a degenerate one)");

@@ -156,8 +156,13 @@ void FastForwardLocalizer::decode(const EncodedQuery& query, const std::vector<s
     images.push_back(std::move(encoded));
     if (uses_points) points.push_back(normalizedTokenPoints(image, layout.normalization));
   }
-  const FastForwardPrediction prediction = model_.forward(query.encoding, assembleMapTokens(layout, images, points),
-                                                                nullptr, FastForwardOutputs::kQuery);
+  const MapTokens map_tokens = assembleMapTokens(layout, images, points);
+  // A sample of a few tokens (num_features 5) may hold none with a point, though the map has
+  // depth: the matching head then places nothing, and the query has no pairs (failed) rather
+  // than the map being called one without depth.
+  if (model_.config().query_head == QueryHeadKind::kMatching && !map_tokens.point_valid.any().item<bool>()) return;
+  const FastForwardPrediction prediction =
+      model_.forward(query.encoding, map_tokens, nullptr, FastForwardOutputs::kQuery);
   out.correspondences = queryCorrespondences(prediction.query, 0, out.normalization, model_.config().queryGridStride(),
                                              &query.image.preprocessed.geometry);
 }

@@ -18,7 +18,15 @@ bool appendsTo(const std::filesystem::path& output, const MapBuildOptions& optio
   // A mistyped path made a new map of the dataset alone, and said it had appended.
   if (!std::filesystem::exists(output))
     throwInputError(output.string(), 0, "append: no map to append to (build it without append first)");
-  const MapHeader header = readMapHeader(output);
+  MapHeader header;
+  try {
+    header = readMapHeader(output);
+  } catch (const InputError& error) {
+    // Said before: "exists and is not an ffloc map, so it is not replaced", to a user who asked
+    // for no replacement.
+    throwInputError(output.string(), 0, std::string("append: the map cannot be read, so nothing is appended and the file "
+                                                    "is left as it is (") + error.what() + ")");
+  }
   if (header.method != toString(options.method))
     throwInputError(output.string(), 0, "append: the map was built with the " + header.method + " method, not " +
                                             toString(options.method) + " (method)");
@@ -77,12 +85,13 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   const WriterLock lock(output, [&] {
     if (!quiet) std::cerr << "waiting: another ffloc is writing " << output.string() << "\n";
   });
-  requireReplaceable(output);
+  const bool append = appendsTo(output, options);
+  if (!append) requireReplaceable(output);
   MapBuildReport report;
   if (options.method == LocalizationMethod::kClassical) {
     options.classical.check();
     ClassicalMap map = emptyClassicalMap(scene.metric, options.classical);
-    if (appendsTo(output, options)) map = readClassicalMap(output);
+    if (append) map = readClassicalMap(output);
     report.previous_images = map.images.size();
     const ClassicalMappingReport added = addToClassicalMap(map, scene, frames, options.classical);
     writeClassicalMap(map, output);
@@ -97,9 +106,15 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   }
   const LoadedModel model = load_model();
   MapFile map = emptyMap(model, scene.metric);
-  if (appendsTo(output, options)) map = readMapFile(output, model.id);
+  if (append) map = readMapFile(output, model.id);
   report.previous_images = map.images.size();
-  const MappingReport added = addToMap(map, model, scene, frames, options.fastforward);
+  const MappingReport added = [&] {
+    try {
+      return addToMap(map, model, scene, frames, options.fastforward);
+    } catch (const InputError& error) {
+      throw namingMapFile(error, output);
+    }
+  }();
   writeMapFile(map, output);
   report.images = map.images.size();
   report.added = added.added;

@@ -24,6 +24,7 @@
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
 #include "ffloc/pipeline/map_building.h"
+#include "ffloc/pipeline/map_localizer.h"
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pipeline/prepared_image.h"
@@ -418,6 +419,20 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
   testing::expectInputError([&] { buildMap(scene, mistyped, options, no_model); },
                             {mistyped.string() + ": append: no map to append to"});
   EXPECT_FALSE(fs::exists(mistyped));
+
+  // Appended to a damaged map: "exists and is not an ffloc map, so it is not replaced" answered a
+  // user who had asked for no replacement.
+  testing::expectInputError([&] { buildMap(scene, manifest, options, no_model); },
+                            {manifest.string() + ": append: the map cannot be read, so nothing is appended and the "
+                                                 "file is left as it is"});
+  std::ifstream unchanged_stream(manifest);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(unchanged_stream), {}), before);
+
+  // A map file of no images said "map: holds no images", naming no file.
+  const auto tiny_model = [] { return loadModel("random:sift-tiny"); };
+  const fs::path empty = scene.root / "empty.ffmap";
+  writeMapFile(emptyMap(tiny_model(), true), empty);
+  testing::expectInputError([&] { openMapLocalizer(empty, tiny_model); }, {empty.string() + ": holds no images"});
 }
 
 // The matching family maps with the points of its tokens, which come from depth: they survive the
@@ -449,6 +464,26 @@ TEST(Pipeline, MatchingModelMapsCarryTokenPointsAndNeedDepth) {
   EXPECT_EQ(partial.added, 3u);
   EXPECT_EQ(partial.added_without_points, 1u);
   EXPECT_TRUE(some.images[1].token_points.empty());
+
+  // A sample of one token may hold none with a point: the query fails for want of pairs. It was
+  // refused as bad input, "the matching model needs mapping depth", of a map that has depth.
+  const FastForwardLocalizer localizer(*model.model, std::move(some));
+  const Frame& query = scene.frames[scene.queryIndices()[0]];
+  const cv::Mat rgb = readImageRgb(query.image_path);
+  LocalizeOptions one_token;
+  one_token.num_features = 1;
+  one_token.verify_with_second_reference = false;
+  size_t without_pairs = 0;
+  for (uint64_t seed = 0; seed < 20; ++seed) {
+    one_token.seed = seed;
+    const LocalizationResult result = localizer.localize(rgb, query.intrinsics, query.name, one_token);
+    if (result.correspondences.size() == 0) {
+      ++without_pairs;
+      EXPECT_EQ(result.verdict.status, PoseStatus::kFailed);
+      EXPECT_EQ(result.verdict.reason, "no pose: too few correspondences");
+    }
+  }
+  EXPECT_GT(without_pairs, 0u);
 
   for (Frame& frame : scene.frames) frame.depth.reset();
   MapFile without = emptyMap(model, scene.metric);

@@ -125,9 +125,9 @@ PnpResult estimatePose(const Correspondences& correspondences, const Intrinsics&
   result.camera_to_world = world_to_camera->inverse();
   const std::vector<int> inliers = findInliers(pixels, points, camera, *world_to_camera, options.inlier_threshold_px);
   result.inliers = static_cast<int>(inliers.size());
-  const int required = std::max({options.min_inliers, 4,
-                                 chanceInlierBound(selected.size(), camera, options.inlier_threshold_px)});
-  if (result.inliers < required) return finish(PnpStatus::kTooFewInliers);
+  result.required_inliers = std::max({options.min_inliers, 4,
+                                      chanceInlierBound(selected.size(), camera, options.inlier_threshold_px)});
+  if (result.inliers < result.required_inliers) return finish(PnpStatus::kTooFewInliers);
   if (collinear(points, inliers)) return finish(PnpStatus::kNoModel);
   return finish(PnpStatus::kSuccess);
 }

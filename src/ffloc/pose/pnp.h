@@ -50,6 +50,9 @@ struct PnpResult {
   // Valid when status == kSuccess; with kTooFewInliers it holds the rejected best model.
   Pose camera_to_world;
   int inliers = 0;  // pairs within inlier_threshold_px (positive depth) of the final pose
+  // The inliers a success needs: min_inliers, or more where pairs at random would collect that
+  // many (a small image, many pairs). 0 when no model was found.
+  int required_inliers = 0;
   int used_correspondences = 0;  // after the confidence filter and subsampling
   double seconds = 0;
   bool ok() const { return status == PnpStatus::kSuccess; }

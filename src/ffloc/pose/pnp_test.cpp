@@ -200,6 +200,16 @@ TEST(Pnp, TooFewInliersIsAStatus) {
   const PnpResult result = estimatePose(q.correspondences, testCamera(), options);
   EXPECT_EQ(result.status, PnpStatus::kTooFewInliers);
   EXPECT_EQ(result.inliers, 500);
+  EXPECT_EQ(result.required_inliers, 501);
+
+  // In a 16 x 12 image every pair lies within 8 px of any projection: chance alone explains all
+  // 500, so the bound passes their count.
+  Intrinsics tiny = testCamera();
+  tiny.width = 16;
+  tiny.height = 12;
+  const PnpResult by_chance = estimatePose(q.correspondences, tiny, PnpOptions{});
+  EXPECT_EQ(by_chance.status, PnpStatus::kTooFewInliers);
+  EXPECT_GT(by_chance.required_inliers, 500);
 }
 
 TEST(Pnp, BadInputThrowsInputErrorNamingTheField) {
