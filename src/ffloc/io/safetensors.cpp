@@ -12,6 +12,8 @@
 #include <vector>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/file_paths.h"
+#include "ffloc/core/temporary_file.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/io/mapped_file.h"
 #include "ffloc/io/tensor_archive.h"
@@ -369,8 +371,17 @@ void writeSafetensors(const std::filesystem::path& path, const std::vector<Tenso
   uint8_t length[8];
   writeLe64(text.size(), length);
 
-  std::filesystem::path temporary;
-  const int fd = createTemporaryBeside(path, &temporary);
+  // Written through a link, the link stays and what it names is replaced; a device or a FIFO
+  // is refused: the rename replaced /dev/null itself with the file.
+  const std::filesystem::path target = followSymlinks(path);
+  std::error_code status_error;
+  const std::filesystem::file_status status = std::filesystem::status(target, status_error);
+  if (std::filesystem::exists(status) && !std::filesystem::is_regular_file(status))
+    throwInputError(file, 0, "exists and is not a regular file (a folder, device, FIFO or socket), which the write "
+                             "would replace; write to a file");
+  std::filesystem::path temporary_path;
+  const int fd = createTemporaryBeside(target, &temporary_path);
+  TemporaryFile temporary(temporary_path);
   bool closed = false;
   try {
     writeAll(fd, length, sizeof(length), path);
@@ -388,15 +399,11 @@ void writeSafetensors(const std::filesystem::path& path, const std::vector<Tenso
     }
   } catch (...) {
     if (!closed) ::close(fd);
-    ::unlink(temporary.c_str());
     throw;
   }
-  if (::rename(temporary.c_str(), path.c_str()) != 0) {
-    const int error = errno;
-    ::unlink(temporary.c_str());
-    throwInputError(file, 0, std::string("cannot rename the temporary file into place: ") +
-                                 std::strerror(error));
-  }
+  if (::rename(temporary.path().c_str(), target.c_str()) != 0)
+    throwInputError(file, 0, std::string("cannot rename the temporary file into place: ") + std::strerror(errno));
+  temporary.keep();
 }
 
 }  // namespace ffloc

@@ -2,6 +2,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "ffloc/core/error.h"
@@ -74,6 +75,35 @@ TEST(Safetensors, AbandonedTemporaryFilesAreRemovedByTheNextWrite) {
   EXPECT_TRUE(std::filesystem::exists(other));
   EXPECT_TRUE(std::filesystem::exists(of_a_longer_name));
   EXPECT_TRUE(std::filesystem::exists(path));
+}
+
+// `ffloc convert --output /dev/null` renamed the file over the device; through a link the link
+// itself was replaced and what it named kept its old contents.
+TEST(Safetensors, WritesThroughLinksAndNeverOverADeviceOrFifo) {
+  const auto dir = testing::makeTempDir("ffloc-safetensors-targets");
+  const float value = 2;
+  TensorView x;
+  x.name = "x";
+  x.dtype = DType::kF32;
+  x.shape = {1};
+  x.data = reinterpret_cast<const uint8_t*>(&value);
+  x.nbytes = sizeof(value);
+  const auto fifo = dir / "fifo.safetensors";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  try {
+    writeSafetensors(fifo, {x});
+    FAIL() << "wrote over a FIFO";
+  } catch (const InputError& error) {
+    EXPECT_NE(std::string(error.what()).find(fifo.string() + ": exists and is not a regular file"), std::string::npos)
+        << error.what();
+  }
+  EXPECT_TRUE(std::filesystem::is_fifo(fifo));
+  const auto real = dir / "real.safetensors", link = dir / "link.safetensors";
+  std::ofstream(real) << "old";
+  std::filesystem::create_symlink("real.safetensors", link);
+  writeSafetensors(link, {x});
+  EXPECT_TRUE(std::filesystem::is_symlink(link));
+  EXPECT_EQ(toFloat32(openSafetensors(real)->at("x")), std::vector<float>{2});
 }
 
 TEST(Safetensors, ReadsIntegerAndByteTensors) {

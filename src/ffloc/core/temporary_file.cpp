@@ -1,0 +1,73 @@
+#include "ffloc/core/temporary_file.h"
+
+#include <unistd.h>
+
+#include <atomic>
+#include <csignal>
+#include <cstring>
+#include <mutex>
+
+namespace ffloc {
+namespace {
+
+constexpr int kSlots = 8;
+constexpr size_t kMaxPath = 4096;
+// Read by the signal handler: a slot's path is written before it is marked in use, and unmarked
+// before it is reused.
+char slot_paths[kSlots][kMaxPath];
+std::atomic<bool> slot_used[kSlots];
+constexpr int kCleanedSignals[] = {SIGINT, SIGTERM, SIGHUP};
+
+void removeTemporariesAndDie(int signal_number) {
+  for (int i = 0; i < kSlots; ++i)
+    if (slot_used[i].load(std::memory_order_acquire)) ::unlink(slot_paths[i]);
+  std::signal(signal_number, SIG_DFL);
+  std::raise(signal_number);
+}
+
+void installHandlersWhereDefault() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    for (const int signal_number : kCleanedSignals) {
+      struct sigaction current {};
+      if (::sigaction(signal_number, nullptr, &current) != 0 || current.sa_handler != SIG_DFL) continue;
+      struct sigaction cleanup {};
+      cleanup.sa_handler = removeTemporariesAndDie;
+      sigemptyset(&cleanup.sa_mask);
+      ::sigaction(signal_number, &cleanup, nullptr);
+    }
+  });
+}
+
+int takeSlot(const std::string& path) {
+  if (path.size() >= kMaxPath) return -1;
+  static std::mutex taking;
+  const std::lock_guard<std::mutex> lock(taking);
+  for (int i = 0; i < kSlots; ++i) {
+    if (slot_used[i].load(std::memory_order_acquire)) continue;
+    std::memcpy(slot_paths[i], path.c_str(), path.size() + 1);
+    slot_used[i].store(true, std::memory_order_release);
+    return i;
+  }
+  return -1;
+}
+
+}  // namespace
+
+TemporaryFile::TemporaryFile(std::filesystem::path path) : path_(std::move(path)) {
+  installHandlersWhereDefault();
+  slot_ = takeSlot(path_.string());
+}
+
+TemporaryFile::~TemporaryFile() {
+  if (slot_ >= 0) slot_used[slot_].store(false, std::memory_order_release);
+  if (!kept_) ::unlink(path_.c_str());
+}
+
+void TemporaryFile::keep() {
+  kept_ = true;
+  if (slot_ >= 0) slot_used[slot_].store(false, std::memory_order_release);
+  slot_ = -1;
+}
+
+}  // namespace ffloc
