@@ -117,6 +117,11 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
     backend_->store = c10::make_intrusive<c10d::TCPStore>(environment.master_addr, store_options);
     // Every rank counts itself in and waits for the others here, within the rendezvous timeout:
     // the process group's own joining waits as long as its collectives may (an hour).
+    // A second process given the same RANK joined, passed the count below and waited for ever
+    // in the process group's connections.
+    if (backend_->store->add("ffloc/rank/" + std::to_string(environment.rank), 1) > 1)
+      cannotJoin(": another process has already joined as this rank (two processes were given RANK=" +
+                 std::to_string(environment.rank) + ")");
     const std::string joined_key = "ffloc/joined";
     int64_t joined = backend_->store->add(joined_key, 1);
     const auto deadline = std::chrono::steady_clock::now() + rendezvous;

@@ -280,6 +280,43 @@ TEST_F(TrainCommandRanks, RanksOfOtherSettingsAreRefusedAndAMissingRankIsWaitedF
   EXPECT_NE(output("alone0").find("rank 0 of 2: only 1 of 2 ranks joined within 2 s"), std::string::npos)
       << output("alone0");
   EXPECT_LT(waited, 60);
+
+  // A second process given RANK=1 joined, then waited for ever, whatever --rendezvous-timeout said.
+  const std::string three = "(" + rankCommand(0, "dup", "") + ") & (" + rankCommand(1, "dup", "") + ") & (" +
+                            rankCommand(1, "dup_again", "") + ") & wait";
+  ASSERT_EQ(std::system(("timeout 120 /bin/sh -c '" + three + "'").c_str()), 0);
+  int refused = 0;
+  for (const std::string run : {"dup1", "dup_again1"}) {
+    std::ifstream rank_code(root_ / (run + ".rc"));
+    int code_of_rank = -1;
+    rank_code >> code_of_rank;
+    if (code_of_rank == 0) continue;
+    EXPECT_EQ(code_of_rank, 2) << output(run);
+    EXPECT_NE(output(run).find("another process has already joined as this rank (two processes were given RANK=1)"),
+              std::string::npos)
+        << output(run);
+    ++refused;
+  }
+  EXPECT_EQ(refused, 1) << output("dup1") << output("dup_again1");
+}
+
+// Found by an outside probe: `kill` of the --nproc-per-node launcher (as a scheduler stops a job)
+// ended it alone, and its ranks trained on as orphans.
+TEST_F(TrainCommandRanks, StoppingTheLauncherStopsItsRanks) {
+  testing::writeShortRunConfig(root_ / "long.json", 100000, 100000, 1);
+  const std::string out = (root_ / "stopped").string();
+  const std::string launcher = std::string(FFLOC_CLI_PATH) + " train --quiet --config " + (root_ / "long.json").string() +
+                               " --data " + smallScene().root.string() + " --out " + out + " --nproc-per-node 2";
+  const std::string script = launcher + " > " + out + ".log 2>&1 & launcher=$!; sleep 4; kill -TERM $launcher; wait $launcher; " +
+                             "echo $? > " + out + ".rc; sleep 2; pgrep -f \"^" + launcher + "\" > " + out + ".left; true";
+  ASSERT_EQ(std::system(("timeout 120 /bin/sh -c '" + script + "'").c_str()), 0);
+  std::ifstream code(out + ".rc");
+  int exit_code = -1;
+  code >> exit_code;
+  EXPECT_EQ(exit_code, 128 + SIGTERM) << output("stopped");
+  std::ifstream left(out + ".left");
+  const std::string orphans((std::istreambuf_iterator<char>(left)), {});
+  EXPECT_EQ(orphans, "") << "ranks left running: " << orphans;
 }
 #endif
 

@@ -3,6 +3,7 @@
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -12,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <iterator>
 #include <stdexcept>
 #include <thread>
 
@@ -45,6 +47,51 @@ int exitStatusOf(int status) {
   return 1;
 }
 
+// The ranks running, for the handler that passes a stop on to them: `kill` of the launcher (a
+// scheduler's, systemd's) reached it alone, and its ranks trained on as orphans.
+constexpr int kMaxLocalRanks = 4096;
+pid_t running_ranks[kMaxLocalRanks];
+volatile sig_atomic_t running_rank_count = 0;
+constexpr int kPassedOnSignals[] = {SIGINT, SIGTERM, SIGHUP};
+
+volatile sig_atomic_t signal_passed_on = 0;
+
+void passOnToRanks(int signal_number) {
+  signal_passed_on = signal_number;
+  for (int i = 0; i < running_rank_count; ++i)
+    if (running_ranks[i] > 0) ::kill(running_ranks[i], signal_number);
+}
+
+// Installed while the ranks run; the dispositions before are put back when they have ended.
+class SignalsPassedOn {
+ public:
+  SignalsPassedOn() {
+    struct sigaction pass {};
+    pass.sa_handler = passOnToRanks;
+    sigemptyset(&pass.sa_mask);
+    for (size_t i = 0; i < std::size(kPassedOnSignals); ++i) ::sigaction(kPassedOnSignals[i], &pass, &before_[i]);
+  }
+  ~SignalsPassedOn() {
+    for (size_t i = 0; i < std::size(kPassedOnSignals); ++i) ::sigaction(kPassedOnSignals[i], &before_[i], nullptr);
+    running_rank_count = 0;
+    signal_passed_on = 0;
+  }
+  SignalsPassedOn(const SignalsPassedOn&) = delete;
+  SignalsPassedOn& operator=(const SignalsPassedOn&) = delete;
+
+ private:
+  struct sigaction before_[std::size(kPassedOnSignals)] {};
+};
+
+std::string howItEnded(int status) {
+  if (WIFSIGNALED(status)) {
+    const int signal_number = WTERMSIG(status);
+    const char* name = ::strsignal(signal_number);
+    return "was ended by signal " + std::to_string(signal_number) + (name ? std::string(" (") + name + ")" : "");
+  }
+  return "failed (exit status " + std::to_string(exitStatusOf(status)) + ")";
+}
+
 }  // namespace
 
 std::string localRanksProblem(int64_t ranks) {
@@ -57,6 +104,7 @@ std::string localRanksProblem(int64_t ranks) {
 int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
   if (arguments.empty()) throw std::invalid_argument("runLocalRanks: no program");
   if (const std::string problem = localRanksProblem(ranks); !problem.empty()) throw InputError("ranks: " + problem);
+  if (ranks > kMaxLocalRanks) throw InputError("ranks: at most " + std::to_string(kMaxLocalRanks) + " on one machine");
   const char* address = std::getenv("MASTER_ADDR");
   const char* port = std::getenv("MASTER_PORT");
   const std::string master_addr = address && *address ? address : "127.0.0.1";
@@ -68,6 +116,8 @@ int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
   std::fflush(nullptr);
 
   std::vector<pid_t> children;
+  const pid_t launcher = ::getpid();
+  const SignalsPassedOn passed_on;
   for (int rank = 0; rank < ranks; ++rank) {
     const pid_t pid = ::fork();
     if (pid < 0) {
@@ -76,6 +126,10 @@ int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
       throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
     }
     if (pid == 0) {
+      for (const int signal_number : kPassedOnSignals) ::signal(signal_number, SIG_DFL);
+      // A launcher killed outright (SIGKILL) can pass nothing on: the kernel stops the rank then.
+      ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+      if (::getppid() != launcher) ::_exit(128 + SIGTERM);
       const std::string rank_text = std::to_string(rank), size_text = std::to_string(ranks);
       ::setenv("RANK", rank_text.c_str(), 1);
       ::setenv("LOCAL_RANK", rank_text.c_str(), 1);
@@ -88,6 +142,8 @@ int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
       ::_exit(127);
     }
     children.push_back(pid);
+    running_ranks[rank] = pid;
+    running_rank_count = rank + 1;
   }
 
   int result = 0;
@@ -99,19 +155,21 @@ int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
       if (errno == EINTR) continue;
       break;
     }
-    bool ours = false;
-    for (pid_t& child : children) {
-      if (child == done) {
-        child = 0;
-        ours = true;
-      }
-    }
-    if (!ours) continue;
+    const auto found = std::find(children.begin(), children.end(), done);
+    if (found == children.end()) continue;
+    const int rank = static_cast<int>(found - children.begin());
+    *found = 0;
+    running_ranks[rank] = 0;
     --running;
     const int code = exitStatusOf(status);
     if (code != 0 && result == 0) {
       result = code;
-      // A rank that failed leaves the others waiting in a collective: stop them.
+      // A rank that failed leaves the others waiting in a collective: stop them. A rank killed
+      // outright said nothing itself.
+      if (signal_passed_on != 0)
+        std::fprintf(stderr, "stopping: signal %d passed on to every rank\n", static_cast<int>(signal_passed_on));
+      else
+        std::fprintf(stderr, "rank %d %s; stopping the other ranks\n", rank, howItEnded(status).c_str());
       for (pid_t child : children) {
         if (child > 0) ::kill(child, SIGTERM);
       }
