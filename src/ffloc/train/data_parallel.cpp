@@ -65,6 +65,24 @@ DistributedEnvironment DistributedEnvironment::fromProcessEnvironment() {
   return environment;
 }
 
+namespace {
+
+// A rank that stopped or crashed fails the others' next collective inside gloo or NCCL, whose
+// message ("[./gloo/transport/tcp/pair.cc:598] Connection closed by peer") was reported as an
+// internal error.
+void runCollective(int64_t rank, const char* collective, const std::function<void()>& run) {
+  try {
+    run();
+  } catch (const std::exception& e) {
+    const std::string what = e.what();
+    throwInputError("rank " + std::to_string(rank), 0,
+                    std::string(collective) + " failed: another rank stopped or lost its connection (its own output "
+                    "says why), or the collective timeout passed: " + what.substr(0, what.find('\n')));
+  }
+}
+
+}  // namespace
+
 // The collectives of whichever c10d process group the run uses; in libtorch 1.x that is a
 // ProcessGroup, in 2.x a Backend, so only the calls every version shares are kept.
 struct DataParallel::Backend {
@@ -75,23 +93,23 @@ struct DataParallel::Backend {
 
   // `timeout`: each collective's, which may differ from the group's own (its rendezvous).
   template <typename Group>
-  void bind(const c10::intrusive_ptr<Group>& group, std::chrono::milliseconds timeout) {
-    all_reduce_sum = [group, timeout](std::vector<at::Tensor>& tensors) {
+  void bind(const c10::intrusive_ptr<Group>& group, std::chrono::milliseconds timeout, int64_t rank) {
+    all_reduce_sum = [group, timeout, rank](std::vector<at::Tensor>& tensors) {
       c10d::AllreduceOptions options;
       options.reduceOp = c10d::ReduceOp::SUM;
       options.timeout = timeout;
-      group->allreduce(tensors, options)->wait();
+      runCollective(rank, "all-reduce", [&] { group->allreduce(tensors, options)->wait(); });
     };
-    broadcast = [group, timeout](std::vector<at::Tensor>& tensors) {
+    broadcast = [group, timeout, rank](std::vector<at::Tensor>& tensors) {
       c10d::BroadcastOptions options;
       options.rootRank = 0;
       options.timeout = timeout;
-      group->broadcast(tensors, options)->wait();
+      runCollective(rank, "broadcast", [&] { group->broadcast(tensors, options)->wait(); });
     };
-    barrier = [group, timeout] {
+    barrier = [group, timeout, rank] {
       c10d::BarrierOptions options;
       options.timeout = timeout;
-      group->barrier(options)->wait();
+      runCollective(rank, "barrier", [&] { group->barrier(options)->wait(); });
     };
   }
 };
@@ -139,7 +157,7 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
       options->timeout = timeout;
       backend_->bind(
           c10::make_intrusive<c10d::ProcessGroupNCCL>(backend_->store, environment.rank, environment.world_size, options),
-          timeout);
+          timeout, environment.rank);
 #else
       throw InputError("device 'cuda': this build's libtorch has no NCCL; train on cpu or rebuild against a CUDA libtorch");
 #endif
@@ -150,7 +168,7 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
       options->devices.push_back(glooDevice(environment));
       backend_->bind(
           c10::make_intrusive<c10d::ProcessGroupGloo>(backend_->store, environment.rank, environment.world_size, options),
-          timeout);
+          timeout, environment.rank);
 #else
       throw InputError("device 'cpu': this build found no gloo headers beside its libtorch (PyTorch's pip wheels ship "
                        "none), so several CPU ranks cannot train together; train on cuda, or build against a libtorch "

@@ -2,10 +2,12 @@
 // two Gloo ranks reproduce one rank with twice the batch, and a run resumes on another world size.
 #include <ATen/TensorOperators.h>
 #include <ATen/ops/equal.h>
+#include <ATen/ops/ones.h>
 #include <ATen/ops/zeros_like.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <future>
 
 #include <sys/wait.h>
 
@@ -127,6 +129,36 @@ TEST(DataParallelTraining, TwoRanksAllReduceTheGradientsOfOneRankWithTwiceTheBat
   ASSERT_EQ(errors[1], "");
   expectSameTensors(reduced[0], expected, 1e-5, "rank 0 all-reduced vs one rank of batch 2");
   expectSameTensors(reduced[1], reduced[0], 0.0, "rank 1 vs rank 0");
+}
+
+// A rank that stopped failed the others' next collective with gloo's own words, reported as an
+// internal error (found by an outside probe).
+TEST(DataParallelTraining, ACollectiveWithARankGoneSaysSo) {
+  const int port = freeLoopbackPort();
+  std::promise<void> rank_one_gone;
+  std::string error_of_rank_zero;
+  std::thread rank_one([&] {
+    DistributedEnvironment environment;
+    environment.rank = environment.local_rank = 1;
+    environment.world_size = environment.local_world_size = 2;
+    environment.master_port = port;
+    { DataParallel parallel(environment, /*cuda=*/false, /*rendezvous_timeout_s=*/60, /*collective_timeout_s=*/10); }
+    rank_one_gone.set_value();
+  });
+  try {
+    DistributedEnvironment environment;
+    environment.world_size = environment.local_world_size = 2;
+    environment.master_port = port;
+    DataParallel parallel(environment, /*cuda=*/false, /*rendezvous_timeout_s=*/60, /*collective_timeout_s=*/10);
+    rank_one_gone.get_future().wait();
+    parallel.allReduceSum({at::ones({4})});
+  } catch (const InputError& e) {
+    error_of_rank_zero = e.what();
+  }
+  rank_one.join();
+  EXPECT_NE(error_of_rank_zero.find("rank 0: all-reduce failed: another rank stopped or lost its connection"),
+            std::string::npos)
+      << error_of_rank_zero;
 }
 
 TEST(DataParallelTraining, EnvironmentIsReadAsTorchrunWritesIt) {
