@@ -100,7 +100,11 @@ class Cli : public ::testing::Test {
 TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
   const CliRun missing = runCli({"convert", "--output", (dir_ / "out.safetensors").string()});
   EXPECT_EQ(missing.exit_code, 2) << missing.output;
-  EXPECT_TRUE(contains(missing.output, "--input is required")) << missing.output;
+  // With the "error: " every other error starts with.
+  EXPECT_TRUE(contains(missing.output, "error: --input is required")) << missing.output;
+  const CliRun empty_out = runCli({"synth", "--out", ""});  // an internal error of the file system before
+  EXPECT_EQ(empty_out.exit_code, 2) << empty_out.output;
+  EXPECT_TRUE(contains(empty_out.output, "error: --out: ")) << empty_out.output;
   const CliRun extra = runCli({"convert", "in.pth", "out.safetensors"});
   EXPECT_EQ(extra.exit_code, 2) << extra.output;
   const CliRun unknown = runCli({"localise"});

@@ -14,6 +14,11 @@ int main(int argc, char** argv) {
                "Run 'ffloc <command> --help' for the options of each command."};
   app.require_subcommand(1);
   app.set_version_flag("--version", "ffloc 0.1.0");
+  // CLI11's own errors ("Could not convert: --max-features = 99999999999") lacked the "error: "
+  // that starts every other.
+  app.failure_message([](const CLI::App* command, const CLI::Error& error) {
+    return "error: " + CLI::FailureMessage::simple(command, error);
+  });
   ffloc::cli::CommandRun run;
   ffloc::cli::registerEvalCommand(app, run);
   ffloc::cli::registerSynthCommand(app, run);

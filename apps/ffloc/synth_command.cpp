@@ -96,7 +96,8 @@ void registerSynthCommand(CLI::App& app, CommandRun& run) {
   CLI::App* cmd = app.add_subcommand(
       "synth", "Write procedural RGB-D scenes with exact depth and poses (native manifest format)");
   cmd->add_option("--out", args->out, "New (or empty) output folder; scene i goes to OUT/scene_<i>_<kind>")
-      ->required();
+      ->required()
+      ->check(nonEmptyPath());
   cmd->add_option("--seed", args->seed, "Seed; the same seed gives the same bytes")
       ->check(wholeNumber())
       ->capture_default_str();

@@ -30,6 +30,7 @@
 #include "ffloc/core/writer_lock.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/splits.h"
+#include "ffloc/io/input_file.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/train/data_parallel.h"
 #include "ffloc/train/local_launcher.h"
@@ -186,9 +187,12 @@ CommandConfig effectiveConfig(const TrainArguments& args, const DistributedEnvir
   // --resume without --config continues with the run's own settings: the defaults it took before
   // were refused as soon as the run had changed one that the optimisation depends on.
   std::string config_file = args.config;
-  if (const fs::path run_config = fs::path(args.out) / "config.json";
-      config_file.empty() && args.resume && fs::is_regular_file(run_config)) {
-    config_file = run_config.string();
+  if (const fs::path run_config = fs::path(args.out) / "config.json"; config_file.empty() && args.resume) {
+    if (fs::is_regular_file(run_config))
+      config_file = run_config.string();
+    else if (latestTrainingCheckpoint(args.out))
+      // The defaults stood in, and the first setting the run had changed was reported instead.
+      throwInputError(run_config.string(), 0, "missing, so the run's settings are unknown: pass them with --config");
   }
   CommandConfig command{config_file.empty() ? TrainingConfig{} : readTrainingConfig(config_file), {},
                         config_file.empty() ? "command line" : config_file + " with the command line"};
@@ -269,11 +273,24 @@ void checkRunFolder(const fs::path& run_dir, bool resume) {
                         " is there (a run stopped before naming its first checkpoint); to resume from it, "
                         "write its name into that file");
   }
-  if (!resume && (named || !newest_step.empty() || logHasRows(run_dir / "log.csv"))) {
-    throwInputError(run_dir.string(), 0,
-                    std::string("already holds a training run (") +
-                        (named || !newest_step.empty() ? "checkpoints" : "logged steps in log.csv") +
-                        "); pass --resume to continue it, or choose another --out");
+  // A run killed before its first checkpoint was refused as a new run ("pass --resume") and as a
+  // resumed one ("no checkpoint"), neither saying how to go on.
+  const bool checkpointed = named || !newest_step.empty();
+  const std::string stopped_early = "a run that stopped before its first checkpoint (steps in log.csv, nothing to "
+                                    "resume): choose another --out, or remove log.csv to start over here";
+  if (resume && !checkpointed && logHasRows(run_dir / "log.csv")) throwInputError(run_dir.string(), 0, "holds " + stopped_early);
+  if (!resume && checkpointed)
+    throwInputError(run_dir.string(), 0, "already holds a training run (checkpoints); pass --resume to continue it, "
+                                         "or choose another --out");
+  if (!resume && logHasRows(run_dir / "log.csv")) throwInputError(run_dir.string(), 0, "already holds " + stopped_early);
+  // `--out /` or a dataset's folder took the run's files in among others.
+  if (!resume) {
+    for (fs::directory_iterator entry(run_dir, error), end; !error && entry != end; entry.increment(error)) {
+      const std::string name = entry->path().filename().string();
+      if (name == "checkpoints" || name == "config.json" || name == "log.csv" || name.rfind('.', 0) == 0) continue;
+      throw InputError("--out: '" + run_dir.string() + "' holds other files ('" + name +
+                       "', ...); give a new or empty folder, or a run's folder with --resume");
+    }
   }
 }
 
@@ -359,6 +376,10 @@ void runTrain(const TrainArguments& args) {
   requireHeldOut(args.validation_data, args.data);
   std::vector<Scene> scenes;
   for (const std::string& spec : args.data) scenes.push_back(loadTrainingData(spec));
+  for (const Scene& scene : scenes)
+    if (liesWithin(run_dir, scene.root))
+      throw InputError("--out: '" + run_dir.string() + "' is inside the dataset '" + scene.root.string() +
+                       "'; write the run elsewhere");
   const fs::path lock_target = runLockTarget(run_dir);
   std::optional<WriterLock> run_lock;
   const RemoveNewFolderOnError cleanup(run_dir, writerLockFile(lock_target).filename(), lead);
@@ -572,7 +593,15 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
   cmd->add_flag("--quiet", args->quiet, "No progress output");
   cmd->callback([args, &run] {
     run = [args] {
-      if (args->nproc_per_node > 1) return runLocalRanks(rankArguments(), args->nproc_per_node);
+      if (args->nproc_per_node > 1) {
+        // Under torchrun or a scheduler each process started a private run of its own.
+        for (const char* variable : {"RANK", "WORLD_SIZE"})
+          if (const char* value = std::getenv(variable); value && *value)
+            throw InputError(std::string("--nproc-per-node: this process is already a rank (") + variable + "=" +
+                             value + ", as torchrun and schedulers set it); drop --nproc-per-node, or unset " +
+                             variable + " to start the ranks here");
+        return runLocalRanks(rankArguments(), args->nproc_per_node);
+      }
       runTrain(*args);
       return 0;
     };

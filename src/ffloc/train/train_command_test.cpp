@@ -136,6 +136,14 @@ TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
   EXPECT_TRUE(contains("error: --accumulate: must be in [1, 1024], got 1000000000")) << output();
   EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --nproc-per-node 100000"), 2) << output();
   EXPECT_TRUE(contains("--nproc-per-node: must be in [1, ")) << output();
+  // Under torchrun or a scheduler every process started a private run of its own.
+  ::setenv("RANK", "1", 1);
+  ::setenv("WORLD_SIZE", "4", 1);
+  const int as_a_rank = train("--config " + short_run + " --out " + run.string() + " --nproc-per-node 2");
+  ::unsetenv("RANK");
+  ::unsetenv("WORLD_SIZE");
+  EXPECT_EQ(as_a_rank, 2) << output();
+  EXPECT_TRUE(contains("error: --nproc-per-node: this process is already a rank (RANK=1")) << output();
   // NaN passed CLI11's non-negative check and the budget never ran out; an empty data path said
   // "error: : Invalid argument".
   EXPECT_EQ(train("--config " + short_run + " --out " + run.string() + " --max-seconds nan"), 2) << output();
@@ -270,7 +278,13 @@ TEST_F(TrainCommandInput, AnEarlierRunsCheckpointsAndLogAreNeverTakenByANewRun) 
   fs::remove_all(run / "checkpoints");
   fs::remove(run / "config.json");
   EXPECT_EQ(train("--config " + two_steps + " --out " + run.string()), 2) << output();
-  EXPECT_TRUE(contains("already holds a training run (logged steps in log.csv)")) << output();
+  // Refused as a new run ("pass --resume") and as a resumed one ("no checkpoint"), neither saying
+  // how to go on.
+  EXPECT_TRUE(contains("already holds a run that stopped before its first checkpoint (steps in log.csv, nothing to "
+                       "resume): choose another --out, or remove log.csv to start over here"))
+      << output();
+  EXPECT_EQ(train("--config " + two_steps + " --out " + run.string() + " --resume"), 2) << output();
+  EXPECT_TRUE(contains("error: " + run.string() + ": holds a run that stopped before its first checkpoint")) << output();
   EXPECT_EQ(fs::file_size(run / "log.csv"), log_before);
   // A log of its header alone holds nothing: a run refused after writing it may start again.
   {
@@ -295,6 +309,17 @@ TEST_F(TrainCommandInput, AnEarlierRunsCheckpointsAndLogAreNeverTakenByANewRun) 
   fs::create_directories(odd / ".run.lock");  // the message named odd/run, which is not there
   EXPECT_EQ(train("--config " + two_steps + " --out " + odd.string()), 2) << output();
   EXPECT_TRUE(contains("error: " + (odd / ".run.lock").string() + ": exists and is not a file")) << output();
+  fs::remove(odd / ".run.lock");
+
+  // `--out /` or a dataset's folder took the run in among other files (found by an outside probe).
+  std::ofstream(odd / "notes.txt") << "mine\n";
+  EXPECT_EQ(train("--config " + two_steps + " --out " + odd.string()), 2) << output();
+  EXPECT_TRUE(contains("error: --out: '" + odd.string() + "' holds other files ('notes.txt', ...)")) << output();
+  EXPECT_FALSE(fs::exists(odd / "log.csv"));
+  const fs::path inside = testing::smallScene().root / "run";
+  EXPECT_EQ(train("--config " + two_steps + " --out " + inside.string()), 2) << output();
+  EXPECT_TRUE(contains("error: --out: '" + inside.string() + "' is inside the dataset")) << output();
+  EXPECT_FALSE(fs::exists(inside));
 }
 
 // --resume without --config took the defaults, which a run of other settings refused
@@ -307,6 +332,11 @@ TEST_F(TrainCommandInput, AResumeWithoutAConfigContinuesWithTheRunsOwnSettings) 
   // A flag still overrides them, and a change the optimisation depends on is still refused.
   EXPECT_EQ(train("--out " + run.string() + " --resume --steps 4 --lr 0.5"), 2) << output();
   EXPECT_TRUE(contains("field 'learning_rate': the checkpoint was trained with 0.001, the resumed run asks for 0.5"))
+      << output();
+  // Without the run's config.json the defaults stood in, and their first difference was reported.
+  fs::remove(run / "config.json");
+  EXPECT_EQ(train("--out " + run.string() + " --resume --steps 4"), 2) << output();
+  EXPECT_TRUE(contains("error: " + (run / "config.json").string() + ": missing, so the run's settings are unknown"))
       << output();
 }
 
