@@ -32,7 +32,8 @@ DEFAULT = dict(min_inliers=12, min_inlier_ratio=0.1, min_inlier_spread=0.1, pixe
                max_focal_deviation=0.2, max_moderate_focal_deviation=0.15, max_principal_point_shift=0.1,
                max_certain_focal_deviation=0.05, max_focal_aspect_deviation=0.12,
                max_certain_focal_aspect_deviation=0.07,
-               max_certain_principal_point_shift=0.04, max_agreement_translation=0.05, max_agreement_rotation_deg=2.0,
+               max_certain_principal_point_shift=0.04, max_focal_scan_gain=1.25,
+               max_agreement_translation=0.05, max_agreement_rotation_deg=2.0,
                max_agreement_distance_m=0.05, require_agreement=True)
 
 # The rule this search gave with the predicted uncertainty (3 Dec 2026), frozen before the held-out
@@ -60,7 +61,7 @@ def load(directory):
                         "agreement_distance", "residual_sigma_px", "predicted_centre_sigma",
                         "predicted_centre_sigma_relative", "predicted_rotation_sigma_deg", "focal_scale",
                         "focal_scale_log_sigma", "principal_point_shift", "principal_point_shift_significance",
-                        "focal_aspect", "focal_aspect_log_sigma"):
+                        "focal_aspect", "focal_aspect_log_sigma", "focal_scan_factor", "focal_scan_inlier_gain"):
                 row[key] = number(row.get(key, "inf"))
             row["inliers"] = int(row["inliers"])
             frames.append(row)
@@ -150,8 +151,16 @@ def fits_principal_point(row, rule):
                                  (setting(rule, "max_certain_principal_point_shift"), CERTAIN_SIGNIFICANCE)])
 
 
+def fits_focal_scan(row, rule):
+    """verdict.cpp's focal scan test: no other focal length's pose has that many more inliers; CSVs
+    without the columns (inf) and poses without a scan (-1) pass."""
+    gain = row["focal_scan_inlier_gain"]
+    return not (math.isfinite(gain) and gain >= setting(rule, "max_focal_scan_gain"))
+
+
 TESTS["max_focal_deviation"] = fits_focal
 TESTS["max_focal_aspect_deviation"] = fits_focal_aspect
+TESTS["max_focal_scan_gain"] = fits_focal_scan
 TESTS["max_principal_point_shift"] = fits_principal_point
 UNCERTAINTY_TESTS = ("max_centre_sigma_relative", "max_centre_sigma_m", "max_rotation_sigma_deg")
 

@@ -98,6 +98,8 @@ TEST(Report, CsvHasOneRowPerFrame) {
   localized.evidence.principal_point_shift_significance = 3.5;
   localized.evidence.focal_aspect = 0.95;
   localized.evidence.focal_aspect_log_sigma = 0.002;
+  localized.evidence.focal_scan_factor = 1.2;
+  localized.evidence.focal_scan_inlier_gain = 0.75;
   const std::string csv = perFrameCsv({localized, frame(0, 0, false)});
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 3);
   EXPECT_NE(csv.find("inf"), std::string::npos);
@@ -106,9 +108,10 @@ TEST(Report, CsvHasOneRowPerFrame) {
   const std::string header = csv.substr(0, csv.find('\n'));
   EXPECT_NE(header.find(",predicted_centre_sigma,predicted_centre_sigma_relative,predicted_rotation_sigma_deg,"
                         "focal_scale,focal_scale_log_sigma,principal_point_shift,principal_point_shift_significance,"
-                        "focal_aspect,focal_aspect_log_sigma"),
+                        "focal_aspect,focal_aspect_log_sigma,focal_scan_factor,focal_scan_inlier_gain"),
             std::string::npos);
-  EXPECT_NE(csv.find(",0.012300,-1.000000,0.456000,1.250000,0.010000,0.020000,3.500000,0.950000,0.002000\n"),
+  EXPECT_NE(csv.find(",0.012300,-1.000000,0.456000,1.250000,0.010000,0.020000,3.500000,0.950000,0.002000,1.200000,"
+                     "0.750000\n"),
             std::string::npos)
       << csv;
   const std::string table = markdownTable({summarize({frame(0.01, 0.5)})}, {"d"});

@@ -118,7 +118,8 @@ std::string perFrameCsv(const std::vector<FrameResult>& frames) {
          "source_ms,pnp_ms,qw,qx,qy,qz,tx,ty,tz,verdict,inlier_ratio,inlier_spread,agreement_translation,"
          "agreement_rotation_deg,agreement_distance,residual_sigma_px,predicted_centre_sigma,"
          "predicted_centre_sigma_relative,predicted_rotation_sigma_deg,focal_scale,focal_scale_log_sigma,"
-         "principal_point_shift,principal_point_shift_significance,focal_aspect,focal_aspect_log_sigma\n";
+         "principal_point_shift,principal_point_shift_significance,focal_aspect,focal_aspect_log_sigma,"
+         "focal_scan_factor,focal_scan_inlier_gain\n";
   for (const FrameResult& f : frames) {
     out << csvField(f.dataset) << "," << csvField(f.method) << "," << csvField(f.frame) << "," << toString(f.status) << ","
         << formatNumber(f.translation_error, 6) << "," << formatNumber(f.rotation_error_deg, 6) << ","
@@ -139,7 +140,8 @@ std::string perFrameCsv(const std::vector<FrameResult>& frames) {
         << formatNumber(e.predicted_rotation_sigma_deg, 6) << "," << formatNumber(e.focal_scale, 6) << ","
         << formatNumber(e.focal_scale_log_sigma, 6) << "," << formatNumber(e.principal_point_shift, 6) << ","
         << formatNumber(e.principal_point_shift_significance, 6) << "," << formatNumber(e.focal_aspect, 6) << ","
-        << formatNumber(e.focal_aspect_log_sigma, 6) << "\n";
+        << formatNumber(e.focal_aspect_log_sigma, 6) << "," << formatNumber(e.focal_scan_factor, 6) << ","
+        << formatNumber(e.focal_scan_inlier_gain, 6) << "\n";
   }
   return out.str();
 }

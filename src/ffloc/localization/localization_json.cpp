@@ -49,7 +49,9 @@ nlohmann::json localizationJson(const std::string& name, const LocalizationResul
                      {"focal_aspect", measuredOrNull(e.focal_aspect)},
                      {"focal_aspect_log_sigma", measuredOrNull(e.focal_aspect_log_sigma)},
                      {"principal_point_shift", measuredOrNull(e.principal_point_shift)},
-                     {"principal_point_shift_significance", measuredOrNull(e.principal_point_shift_significance)}};
+                     {"principal_point_shift_significance", measuredOrNull(e.principal_point_shift_significance)},
+                     {"focal_scan_factor", measuredOrNull(e.focal_scan_factor)},
+                     {"focal_scan_inlier_gain", measuredOrNull(e.focal_scan_inlier_gain)}};
   nlohmann::json selected = nlohmann::json::array();
   for (size_t index : result.selected) selected.push_back(localizer.cameras().at(index).name);
   out["selected"] = selected;

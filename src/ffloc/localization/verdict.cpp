@@ -8,6 +8,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/random.h"
+#include "ffloc/pose/focal_scan.h"
 #include "ffloc/pose/intrinsics_fit.h"
 #include "ffloc/pose/pose_covariance.h"
 #include "ffloc/pose/reprojection.h"
@@ -89,6 +90,7 @@ void VerdictOptions::check() const {
   requireAtLeast("max_focal_deviation", max_focal_deviation, 0);
   requireAtLeast("max_moderate_focal_deviation", max_moderate_focal_deviation, 0);
   requireAtLeast("max_focal_aspect_deviation", max_focal_aspect_deviation, 0);
+  requireAtLeast("max_focal_scan_gain", max_focal_scan_gain, 1);
   requireAtLeast("max_certain_focal_aspect_deviation", max_certain_focal_aspect_deviation, 0);
   requireAtLeast("max_principal_point_shift", max_principal_point_shift, 0);
   requireAtLeast("max_certain_focal_deviation", max_certain_focal_deviation, 0);
@@ -161,6 +163,11 @@ PoseEvidence measureEvidence(const Correspondences& correspondences, const Intri
   evidence.principal_point_shift =
       principal_point.valid ? principal_point.shift_px.norm() / camera.fx : std::numeric_limits<double>::infinity();
   evidence.principal_point_shift_significance = principal_point.valid ? principal_point.significance : 0;
+  const FocalScan scan = scanFocalLengths(correspondences, camera, pnp, pose.inliers);
+  if (scan.valid) {
+    evidence.focal_scan_factor = scan.factor;
+    evidence.focal_scan_inlier_gain = scan.inlier_gain;
+  }
 
   if (second_estimate) {
     if (second_estimate->ok()) {
@@ -221,6 +228,9 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
   else if (focalAspectMisfits(evidence, options))
     verdict.reason = "the correspondences fit a ratio fy / fx " + std::to_string(evidence.focal_aspect) +
                      " times the one given: check the query's intrinsics";
+  else if (evidence.focal_scan_inlier_gain >= options.max_focal_scan_gain)
+    verdict.reason = "a focal length " + std::to_string(evidence.focal_scan_factor) + " times the one given gives " +
+                     std::to_string(evidence.focal_scan_inlier_gain) + " times the inliers: check the query's intrinsics";
   else if (principalPointMisfits(evidence, options))
     verdict.reason = "the correspondences fit a principal point " + std::to_string(evidence.principal_point_shift) +
                      " focal lengths from the one given: check the query's intrinsics";

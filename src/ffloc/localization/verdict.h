@@ -46,6 +46,11 @@ struct PoseEvidence {
   // shift of +inf at significance 0 when the pairs do not determine it (null in JSON).
   double principal_point_shift = -1;
   double principal_point_shift_significance = -1;
+  // PnP-RANSAC on all the pairs with other focal lengths (scanFocalLengths): the factor on the
+  // one given whose pose had the most inliers, and those inliers over the pose's. Negative
+  // without a pose or when no factor gave one.
+  double focal_scan_factor = -1;
+  double focal_scan_inlier_gain = -1;
   // A second, independent estimate (another reference image, another half of the pairs): the
   // distance between the two camera centres over the median inlier depth, and the angle
   // between the two rotations. Negative when no second estimate was made or it failed.
@@ -112,6 +117,13 @@ struct VerdictOptions {
   double max_certain_focal_deviation = 0.05;
   double max_certain_principal_point_shift = 0.04;
   static constexpr double kCertainSignificance = 30;
+  // A focal length 1.2 or 1.3 times (or 1/1.2, 1/1.3 times) the one given whose pose has this many
+  // times the inliers makes the pose kUncertain (PoseEvidence::focal_scan_*). FastForward's
+  // redkitchen queries given 0.76-1.33 times their focal length were `localized` 0.25-0.9 m off
+  // (55 of 400): the right focal length had 0.82-2.0 times their inliers, 1.25 or more for 38 of
+  // them; of the 49 right `localized` at the right focal length, none had another with more than
+  // 1.21 times its inliers (docs/verdict.md).
+  double max_focal_scan_gain = 1.25;
   // A second estimate that lands farther than this makes the pose kUncertain; so does an
   // independent one that fails, and a half-sample one that fails when require_agreement.
   double max_agreement_translation = 0.05;  // of the median inlier depth

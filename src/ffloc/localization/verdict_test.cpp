@@ -113,6 +113,19 @@ TEST(Verdict, ARatioOfFocalLengthsTheInliersDoNotFitMakesThePoseUncertain) {
   EXPECT_EQ(judged(0.85, std::numeric_limits<double>::infinity()).status, PoseStatus::kLocalized);
 }
 
+// Another focal length whose pose gathers clearly more of the pairs: FastForward's queries given
+// 0.8 times theirs (found by an outside probe, `localized` 0.3-0.76 m off).
+TEST(Verdict, AFocalLengthWithMoreInliersMakesThePoseUncertain) {
+  auto judged = [](double factor, double gain) {
+    return judgedStrong([&](PoseEvidence& e) { e.focal_scan_factor = factor; e.focal_scan_inlier_gain = gain; }, {});
+  };
+  EXPECT_EQ(judged(1.3, 0.9).status, PoseStatus::kLocalized);
+  EXPECT_EQ(judged(1.2, 1.21).status, PoseStatus::kLocalized);  // the most a right pose of redkitchen had
+  EXPECT_EQ(judged(1.2, 1.6).reason,
+            "a focal length 1.200000 times the one given gives 1.600000 times the inliers: check the query's intrinsics");
+  EXPECT_EQ(judged(-1, -1).status, PoseStatus::kLocalized);  // no scan
+}
+
 // Inliers that fit another principal point: far off and significant, or a little off and
 // certain, makes the pose uncertain; what right poses fit does not.
 TEST(Verdict, APrincipalPointTheInliersDoNotFitMakesThePoseUncertain) {
@@ -227,6 +240,7 @@ TEST(Verdict, OptionsOutOfRangeNameTheField) {
   EXPECT_EQ(errorOf([](VerdictOptions& r) { r.min_inliers = -1; }).rfind("min_inliers:", 0), 0u);
   EXPECT_EQ(errorOf([](VerdictOptions& r) { r.min_inlier_spread = 2; }).rfind("min_inlier_spread:", 0), 0u);
   EXPECT_EQ(errorOf([](VerdictOptions& r) { r.max_agreement_rotation_deg = std::nan(""); }).rfind("max_agreement_rotation_deg:", 0), 0u);
+  EXPECT_EQ(errorOf([](VerdictOptions& r) { r.max_focal_scan_gain = 0.5; }).rfind("max_focal_scan_gain:", 0), 0u);
   EXPECT_EQ(errorOf([](VerdictOptions&) {}), "");
 }
 
