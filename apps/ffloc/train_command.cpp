@@ -500,7 +500,7 @@ void runTrain(const TrainArguments& args) {
       const double steps_in_window = static_cast<double>(window_steps);
       const double wait_share = window_step > 0 ? window_wait / window_step : 0.0;
       std::optional<ValidationStats> validation;
-      if (validate_now) validation = trainer.validate();
+      if (validate_now) validation = trainer.validate(args.quiet);
       char row[512];
       std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
                     static_cast<long long>(stats.step), stats.loss, stats.query_loss, stats.map_loss, stats.match_loss,

@@ -65,6 +65,7 @@ TEST(TrainingConfig, ReadsJsonAndNamesBadFields) {
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"alpha", "x"}}, "cfg.json"); }), "field 'alpha'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"alpha", -1}}, "cfg.json"); }), "field 'alpha'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"max_overlap", 1.5}}, "cfg.json"); }), "max_overlap"));
+  EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"min_overlap", -1}}, "cfg.json"); }), "'min_overlap'"));
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"point_weight", -0.5}}, "cfg.json"); }), "field 'point_weight'"));
   // Past 65536 threads OpenCV's pool crashed; the command line's bound holds for a config too.
   EXPECT_TRUE(contains(errorOf([] { trainingConfigFromJson({{"threads", 65537}}, "cfg.json"); }), "field 'threads'"));
@@ -321,7 +322,7 @@ TEST(TrainingSampler, ReportsImpossibleOverlapRequests) {
   config.max_overlap = 1.0;
   TrainingSampler sampler({smallScene()}, sampleOptions(config, 16));
   EXPECT_TRUE(contains(errorOf([&] { sampler.sample(1, 80); }), "overlap in"));
-  EXPECT_TRUE(contains(errorOf([] { TrainingSampler({Scene{}}, SampleOptions{}); }), "no frame with depth"));
+  EXPECT_TRUE(contains(errorOf([] { TrainingSampler({Scene{}}, SampleOptions{}); }), "no frame has depth"));
 }
 
 // A scene whose depth files held only zeros was skipped by every draw while the others trained.
@@ -332,6 +333,12 @@ TEST(TrainingSampler, RefusesASceneWhoseDepthHoldsNoValidValue) {
   }
   const std::string error = errorOf([&] { TrainingSampler({smallScene(), blank}, SampleOptions{}); });
   EXPECT_TRUE(contains(error, blank.root.string() + ": the depth of its frames holds no valid value (read: ")) << error;
+
+  // One without depth beside one with it was never drawn, without a word (found by an outside probe).
+  Scene without = blank;
+  for (Frame& frame : without.frames) frame.depth.reset();
+  const std::string no_depth = errorOf([&] { TrainingSampler({smallScene(), without}, SampleOptions{}); });
+  EXPECT_TRUE(contains(no_depth, without.root.string() + ": no frame has depth, which training needs")) << no_depth;
 }
 
 // Settings for fitting one sample quickly: a high learning rate, no weight decay.

@@ -17,6 +17,7 @@
 #include "ffloc/core/clock.h"
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/progress.h"
 #include "ffloc/core/random.h"
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/model/model_loader.h"
@@ -454,11 +455,13 @@ TrainingSample Trainer::validationSample(int index) {
   return sampler.sample(seed, sampler.mapTokenCount(mix64(seed)));
 }
 
-ValidationStats Trainer::validate() {
+ValidationStats Trainer::validate(bool quiet) {
   at::NoGradGuard no_grad;
   ValidationStats stats;
   std::vector<double> translation_errors, rotation_errors;
+  ProgressBar progress("validating", static_cast<size_t>(config_.validation_samples), quiet);
   for (int i = 0; i < config_.validation_samples; ++i) {
+    progress.update(static_cast<size_t>(i));
     const TrainingSample sample = validationSample(i);
     const FastForwardPrediction prediction = predict({sample}).front();
     const Losses losses = lossesOf(prediction, sample);
@@ -484,6 +487,7 @@ ValidationStats Trainer::validate() {
     stats.within_10cm_10deg += (t <= 0.10 && r <= 10.0) ? 1 : 0;
     stats.within_25cm_5deg += (t <= 0.25 && r <= 5.0) ? 1 : 0;
   }
+  progress.finish();
   stats.loss /= stats.samples;
   stats.query_error /= stats.samples;
   stats.map_error /= stats.samples;

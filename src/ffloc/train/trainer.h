@@ -105,8 +105,9 @@ class Trainer {
   void requestStop() { stop_requested_ = true; }
   // The sample validate() uses as its `index`-th.
   TrainingSample validationSample(int index);
-  // config.validation_samples fixed samples (validationSampleSeed), without gradients.
-  ValidationStats validate();
+  // config.validation_samples fixed samples (validationSampleSeed), without gradients; a
+  // progress bar unless `quiet` (100000 samples ran half an hour in silence).
+  ValidationStats validate(bool quiet = true);
   // Rank 0 writes <run_dir>/checkpoints/step_<n>/ and points `latest` at it, keeping the newest
   // config.keep_checkpoints; other ranks write nothing. Returns the folder.
   std::filesystem::path saveCheckpoint();

@@ -151,7 +151,8 @@ std::optional<TrainingConfigProblem> TrainingConfig::settingsProblem() const {
   }
   if (max_map_tokens > 100000) fail("max_map_tokens", "must be at most 100000");
   if (!(min_overlap >= 0 && min_overlap <= max_overlap && max_overlap <= 1)) {
-    fail("max_overlap", "need 0 <= min_overlap <= max_overlap <= 1");
+    // A negative min_overlap was blamed on max_overlap.
+    fail(min_overlap >= 0 && min_overlap <= 1 ? "max_overlap" : "min_overlap", "need 0 <= min_overlap <= max_overlap <= 1");
   }
   if (overlap_candidates < mapping_frames) fail("overlap_candidates", "must be at least mapping_frames");
   if (overlap_stride < 1) fail("overlap_stride", "must be positive");

@@ -65,9 +65,13 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
       }
       with_depth.push_back(i);
     }
+    // A scene without depth beside one with it was never drawn, without a word (found by an
+    // outside probe); alone it was refused.
+    if (with_depth.empty())
+      throwInputError(scene.root.string(), 0, "no frame has depth, which training needs; leave the dataset out");
     // A scene whose depth holds no valid value was skipped by every draw, without a word, while
     // other scenes trained: three frames across it are read now.
-    if (!with_depth.empty()) {
+    {
       bool any_valid = false;
       std::string read;
       // A set: a scene of one or two frames with depth has each read once.
@@ -84,7 +88,7 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
     total += with_depth.size();
     frames_with_depth_.push_back(std::move(with_depth));
   }
-  if (total == 0) throwInputError(source(), 0, "no frame with depth in any of its scenes");
+  if (total == 0) throwInputError(source(), 0, "no scene to train on");
 }
 
 std::string TrainingSampler::source() const {
