@@ -447,6 +447,14 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   EXPECT_EQ(two.exit_code, 2) << two.output;
   EXPECT_TRUE(contains(two.output, "two.txt:3: query 'images/query_0000_near.png': cx, cy: the principal point (900, 95.5)"))
       << two.output;
+  // An error that names the image itself named it twice: "list:2: query 'x.png': .../x.png: ...".
+  writeText(scene / "text.png", "not an image");
+  writeText(scene / "bad.txt", "images/query_0000_near.png 200 200 127.5 95.5\ntext.png 200 200 127.5 95.5\n");
+  const CliRun bad = runCli({"localize", "--map", map.string(), "--images", (scene / "bad.txt").string(), "--json"});
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_TRUE(contains(bad.output, "bad.txt:2: " + (scene / "text.png").string() + ": ")) << bad.output;
+  EXPECT_FALSE(contains(bad.output, "query 'text.png'")) << bad.output;
+  EXPECT_TRUE(contains(bad.output, "\"status\": \"error\"")) << bad.output;
   // A single --image query named neither itself nor its flag.
   const std::string image = (scene / "images" / "query_0000_near.png").string();
   const CliRun single = runCli({"localize", "--map", map.string(), "--image", image, "--intrinsics", "200,200,900,95.5"});

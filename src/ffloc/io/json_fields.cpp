@@ -102,6 +102,14 @@ class DuplicateKeyFinder : public nlohmann::json_sax<json> {
   std::string duplicate_;
 };
 
+// nlohmann's message without its tag: "[json.exception.parse_error.101] parse error at ..." named
+// the library's exception to a user who had given a file.
+std::string untagged(const json::exception& error) {
+  const std::string what = error.what();
+  const size_t end = what.rfind("[json.exception.", 0) == 0 ? what.find("] ") : std::string::npos;
+  return end == std::string::npos ? what : what.substr(end + 2);
+}
+
 }  // namespace
 
 json parseJson(const std::string& text, const std::string& source) {
@@ -115,10 +123,10 @@ json parseJson(const std::string& text, const std::string& source) {
     const std::string near = text.substr(std::min(at, text.size()), 10);
     const bool non_finite = near.find("NaN") != std::string::npos || near.find("Infinity") != std::string::npos;
     throwInputError(source, 0,
-                    std::string("invalid JSON: ") + e.what() +
+                    "invalid JSON: " + untagged(e) +
                         (non_finite ? " (NaN and Infinity are not JSON; write finite numbers or null)" : ""));
   } catch (const json::exception& e) {
-    throwInputError(source, 0, std::string("invalid JSON: ") + e.what());
+    throwInputError(source, 0, "invalid JSON: " + untagged(e));
   }
   DuplicateKeyFinder finder;
   json::sax_parse(text, &finder);

@@ -43,6 +43,15 @@ TEST(ParseJson, FilesAreNamedInEveryError) {
   std::ofstream(dir / "nan.json") << "{\"fx\": NaN}";
   expectInputError([&] { parseJsonFile(dir / "nan.json"); },
                    {(dir / "nan.json").string() + ": invalid JSON", "NaN and Infinity are not JSON"});
+  // Without nlohmann's tag ("[json.exception.parse_error.101] ").
+  std::ofstream(dir / "cut.json") << "{\"steps\": 1";
+  try {
+    parseJsonFile(dir / "cut.json");
+    FAIL() << "a truncated file parsed";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind((dir / "cut.json").string() + ": invalid JSON: parse error at line 1", 0), 0u)
+        << e.what();
+  }
 }
 
 }  // namespace
