@@ -52,6 +52,17 @@ TEST(Safetensors, ReadsTinyModel) {
   }
 }
 
+// A tensor "x" of the one float `value`, which must outlive it.
+TensorView oneFloat(const float& value) {
+  TensorView x;
+  x.name = "x";
+  x.dtype = DType::kF32;
+  x.shape = {1};
+  x.data = reinterpret_cast<const uint8_t*>(&value);
+  x.nbytes = sizeof(value);
+  return x;
+}
+
 // A writer killed while saving (Ctrl-C during `ffloc map`) leaves its temporary file; the next
 // write to the same target removes those of processes that no longer run, and no other.
 TEST(Safetensors, AbandonedTemporaryFilesAreRemovedByTheNextWrite) {
@@ -63,13 +74,7 @@ TEST(Safetensors, AbandonedTemporaryFilesAreRemovedByTheNextWrite) {
   const auto of_a_longer_name = dir / ".m.safetensors.5.999999998.0.tmp";  // a temporary of "m.safetensors.5"
   for (const auto& file : {abandoned, live, other, of_a_longer_name}) std::ofstream(file) << "partial";
   const float value = 1;
-  TensorView x;
-  x.name = "x";
-  x.dtype = DType::kF32;
-  x.shape = {1};
-  x.data = reinterpret_cast<const uint8_t*>(&value);
-  x.nbytes = sizeof(value);
-  writeSafetensors(path, {x}, {});
+  writeSafetensors(path, {oneFloat(value)}, {});
   EXPECT_FALSE(std::filesystem::exists(abandoned));
   EXPECT_TRUE(std::filesystem::exists(live));
   EXPECT_TRUE(std::filesystem::exists(other));
@@ -82,12 +87,7 @@ TEST(Safetensors, AbandonedTemporaryFilesAreRemovedByTheNextWrite) {
 TEST(Safetensors, WritesThroughLinksAndNeverOverADeviceOrFifo) {
   const auto dir = testing::makeTempDir("ffloc-safetensors-targets");
   const float value = 2;
-  TensorView x;
-  x.name = "x";
-  x.dtype = DType::kF32;
-  x.shape = {1};
-  x.data = reinterpret_cast<const uint8_t*>(&value);
-  x.nbytes = sizeof(value);
+  const TensorView x = oneFloat(value);
   const auto fifo = dir / "fifo.safetensors";
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   try {
