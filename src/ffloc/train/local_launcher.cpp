@@ -72,9 +72,14 @@ class SignalsPassedOn {
     for (size_t i = 0; i < std::size(kPassedOnSignals); ++i) ::sigaction(kPassedOnSignals[i], &pass, &before_[i]);
   }
   ~SignalsPassedOn() {
-    for (size_t i = 0; i < std::size(kPassedOnSignals); ++i) ::sigaction(kPassedOnSignals[i], &before_[i], nullptr);
+    restore();
     running_rank_count = 0;
     signal_passed_on = 0;
+  }
+  // The dispositions before: in a rank before it starts its program (a signal must not be passed
+  // on from there to its siblings; one ignored, as under nohup, stays ignored).
+  void restore() const {
+    for (size_t i = 0; i < std::size(kPassedOnSignals); ++i) ::sigaction(kPassedOnSignals[i], &before_[i], nullptr);
   }
   SignalsPassedOn(const SignalsPassedOn&) = delete;
   SignalsPassedOn& operator=(const SignalsPassedOn&) = delete;
@@ -126,7 +131,7 @@ int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
       throw std::runtime_error(std::string("fork: ") + std::strerror(errno));
     }
     if (pid == 0) {
-      for (const int signal_number : kPassedOnSignals) ::signal(signal_number, SIG_DFL);
+      passed_on.restore();
       // A launcher killed outright (SIGKILL) can pass nothing on: the kernel stops the rank then.
       ::prctl(PR_SET_PDEATHSIG, SIGTERM);
       if (::getppid() != launcher) ::_exit(128 + SIGTERM);
