@@ -424,7 +424,7 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
   // user who had asked for no replacement.
   testing::expectInputError([&] { buildMap(scene, manifest, options, no_model); },
                             {manifest.string() + ": append: the map cannot be read, so nothing is appended and the "
-                                                 "file is left as it is"});
+                                                 "file is left as it is (not an ffloc map"});
   std::ifstream unchanged_stream(manifest);
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(unchanged_stream), {}), before);
 
