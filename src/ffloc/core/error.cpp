@@ -14,6 +14,11 @@ std::string locate(const std::string& file, int line, const std::string& what) {
   return file + ": " + what;
 }
 
+std::string withoutFileName(const std::string& message, const std::string& file) {
+  const std::string named = file + ": ";
+  return message.rfind(named, 0) == 0 ? message.substr(named.size()) : message;
+}
+
 void throwInputError(const std::string& file, int line, const std::string& what) {
   throw InputError(locate(file, line, what));
 }

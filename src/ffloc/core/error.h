@@ -23,4 +23,8 @@ std::string locate(const std::string& file, int line, const std::string& what);
 
 [[noreturn]] void throwInputError(const std::string& file, int line, const std::string& what);
 
+// `message` without the "<file>: " that starts it, when it does: the reason of an error about
+// `file`, to be quoted in another that names the file itself.
+std::string withoutFileName(const std::string& message, const std::string& file);
+
 }  // namespace ffloc

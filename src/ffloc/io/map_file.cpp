@@ -218,9 +218,8 @@ MapHeader readMapHeader(const std::filesystem::path& path) {
   } catch (const InputError& error) {
     // A manifest given as the map was refused for a "header length 7308604848694364795", which
     // told the user nothing about what they had given.
-    std::string reason = error.what();
-    if (const std::string named = path.string() + ": "; reason.rfind(named, 0) == 0) reason.erase(0, named.size());
-    throwInputError(path.string(), 0, "not an ffloc map, or a damaged one: " + reason);
+    throwInputError(path.string(), 0,
+                    "not an ffloc map, or a damaged one: " + withoutFileName(error.what(), path.string()));
   }
   return mapHeader(readMapMetadata(*archive, path.string()), path.string());
 }
@@ -236,9 +235,8 @@ bool isMapFile(const std::filesystem::path& path) {
 
 InputError namingMapFile(const InputError& error, const std::filesystem::path& path) {
   const std::string what = error.what();
-  const std::string generic = "map: ";
-  if (what.rfind(generic, 0) != 0) return error;
-  return InputError(path.string() + ": " + what.substr(generic.size()));
+  const std::string reason = withoutFileName(what, "map");
+  return reason.size() == what.size() ? error : InputError(path.string() + ": " + reason);
 }
 
 MapFile readMapFile(const std::filesystem::path& path, const std::string& expected_model_id) {

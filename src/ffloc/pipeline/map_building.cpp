@@ -23,11 +23,10 @@ bool appendsTo(const std::filesystem::path& output, const MapBuildOptions& optio
     header = readMapHeader(output);
   } catch (const InputError& error) {
     // Said before: "exists and is not an ffloc map, so it is not replaced", to a user who asked
-    // for no replacement. The reason named the file again.
-    std::string reason = error.what();
-    if (const std::string named = output.string() + ": "; reason.rfind(named, 0) == 0) reason.erase(0, named.size());
+    // for no replacement.
     throwInputError(output.string(), 0,
-                    "append: the map cannot be read, so nothing is appended and the file is left as it is (" + reason + ")");
+                    "append: the map cannot be read, so nothing is appended and the file is left as it is (" +
+                        withoutFileName(error.what(), output.string()) + ")");
   }
   if (header.method != toString(options.method))
     throwInputError(output.string(), 0, "append: the map was built with the " + header.method + " method, not " +
