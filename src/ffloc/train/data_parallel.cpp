@@ -67,6 +67,12 @@ DistributedEnvironment DistributedEnvironment::fromProcessEnvironment() {
 
 namespace {
 
+// c10d's messages carry their C++ backtrace after the first line.
+std::string firstLineOf(const std::exception& error) {
+  const std::string what = error.what();
+  return what.substr(0, what.find('\n'));
+}
+
 // A rank that stopped or crashed fails the others' next collective inside gloo or NCCL, whose
 // message ("[./gloo/transport/tcp/pair.cc:598] Connection closed by peer") was reported as an
 // internal error.
@@ -74,10 +80,9 @@ void runCollective(int64_t rank, const char* collective, const std::function<voi
   try {
     run();
   } catch (const std::exception& e) {
-    const std::string what = e.what();
     throwInputError("rank " + std::to_string(rank), 0,
                     std::string(collective) + " failed: another rank stopped or lost its connection (its own output "
-                    "says why), or the collective timeout passed: " + what.substr(0, what.find('\n')));
+                    "says why), or the collective timeout passed: " + firstLineOf(e));
   }
 }
 
@@ -178,9 +183,7 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& e) {
-    // c10d's messages carry their C++ backtrace after the first line.
-    const std::string what = e.what();
-    cannotJoin(" could not join: " + what.substr(0, what.find('\n')));
+    cannotJoin(" could not join: " + firstLineOf(e));
   }
 }
 
