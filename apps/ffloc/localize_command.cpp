@@ -44,10 +44,11 @@ struct Query {
   std::string name;
   std::filesystem::path path;
   Intrinsics intrinsics;  // fx == 0: not given
+  std::string list_line;  // "list.txt:3" for a query from --images; empty for --image
+
   // "list.txt:3: query 'q.jpg'" for a query from --images, which its errors start with: a focal
   // length out of range named no line of a long list. Empty for --image.
-  std::string location;
-  std::string list_line;  // "list.txt:3" for a query from --images; empty for --image
+  std::string location() const { return list_line.empty() ? "" : list_line + ": query '" + name + "'"; }
 };
 
 // Four numbers apart by commas or spaces. A comma with no number on one side ("500,500,320,240,",
@@ -148,10 +149,9 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
     Query query;
     query.name = path;
     query.path = listedPath(list, path);
-    query.location = locate(list.string(), number, "query '" + path + "'");
     query.list_line = list.string() + ":" + std::to_string(number);
     if (given) {
-      query.intrinsics = parseIntrinsics(line.substr(starts[first_number]), query.location);
+      query.intrinsics = parseIntrinsics(line.substr(starts[first_number]), query.location());
     } else if (const size_t image_end = misgivenIntrinsicsStart(line, starts, first_number, list);
                image_end > 0) {
       throwInputError(list.string(), number,
@@ -300,9 +300,9 @@ int runLocalize(const LocalizeArguments& args) {
       const std::string what = withFlagName(e.what());
       const bool named = what.rfind("--", 0) == 0 || what.find(query.path.string()) != std::string::npos;
       // Named, it was named twice: "list.txt:3: query 'q.png': q.png: image: ...".
-      const std::string location = named                    ? query.list_line
-                                   : !query.location.empty() ? query.location
-                                                             : "query '" + query.path.string() + "'";
+      const std::string location = named                     ? query.list_line
+                                   : !query.list_line.empty() ? query.location()
+                                                              : "query '" + query.path.string() + "'";
       const std::string error = location.empty() ? what : location + ": " + what;
       if (queries.size() == 1) throw InputError(error);
       r = {{"name", query.name}, {"status", "error"}, {"error", error}};
