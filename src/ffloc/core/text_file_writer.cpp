@@ -9,6 +9,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/file_paths.h"
+#include "ffloc/core/temporary_file.h"
 
 namespace ffloc {
 namespace {
@@ -78,31 +79,22 @@ void writeTextFile(const std::filesystem::path& named, const std::string& text) 
   const std::filesystem::path path = followSymlinks(named);
   const std::filesystem::path folder = path.has_parent_path() ? path.parent_path() : ".";
   if (!std::filesystem::is_directory(folder)) throwInputError(path.string(), 0, "output folder does not exist");
-  const std::filesystem::path temporary =
-      folder / ("." + path.filename().string() + ".tmp-" + std::to_string(getpid()));
-  const int descriptor = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+  TemporaryFile temporary(folder / ("." + path.filename().string() + ".tmp-" + std::to_string(getpid())));
+  const int descriptor = ::open(temporary.path().c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (descriptor < 0)
     throwInputError(path.string(), 0, std::string("cannot make a file in its folder: ") + std::strerror(errno));
-  // Errors carry the system's reason (a full disk); the temporary file goes with them, its own
-  // removal failing (an append-only folder) left unsaid rather than hiding the reason.
-  std::error_code ignored;
+  // Errors carry the system's reason (a full disk); the temporary file goes with them (TemporaryFile).
   try {
     writeAll(descriptor, text, path.string());
   } catch (...) {
     ::close(descriptor);
-    std::filesystem::remove(temporary, ignored);
     throw;
   }
-  if (::close(descriptor) != 0) {
-    const int close_error = errno;
-    std::filesystem::remove(temporary, ignored);
-    throwInputError(path.string(), 0, std::string("write failed: ") + std::strerror(close_error));
-  }
-  std::filesystem::rename(temporary, path, error);
-  if (error) {
-    std::filesystem::remove(temporary, ignored);
-    throwInputError(path.string(), 0, "cannot replace file: " + error.message());
-  }
+  if (::close(descriptor) != 0)
+    throwInputError(path.string(), 0, std::string("write failed: ") + std::strerror(errno));
+  std::filesystem::rename(temporary.path(), path, error);
+  if (error) throwInputError(path.string(), 0, "cannot replace file: " + error.message());
+  temporary.keep();
 }
 
 }  // namespace ffloc
