@@ -3,8 +3,13 @@
 #ifdef FFLOC_WITH_TORCH
 
 #include <algorithm>
+#include <signal.h>
+#include <unistd.h>
+
 #include <chrono>
+#include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
@@ -26,6 +31,7 @@
 #include "commands.h"
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/temporary_file.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/core/writer_lock.h"
 #include "ffloc/data/dataset.h"
@@ -357,7 +363,47 @@ class RemoveNewFolderOnError {
   std::vector<fs::path> new_parents_;  // deepest first
 };
 
-void runTrain(const TrainArguments& args) {
+// The first SIGINT, SIGTERM or SIGHUP stops the run after the step in progress, with a checkpoint;
+// a second ends it at once. A Ctrl-C killed the run silently and lost every step since the
+// last checkpoint. Under the launcher every rank receives the signal and they agree on the step.
+volatile sig_atomic_t stop_signal = 0;
+volatile sig_atomic_t announce_stop = 0;
+
+void stopAfterThisStep(int signal_number) {
+  if (stop_signal != 0) removeTemporaryFilesAndRaise(signal_number);
+  stop_signal = signal_number;
+  if (announce_stop) {
+    constexpr char kMessage[] = "\nstopping after this step, with a checkpoint (the signal again stops at once)\n";
+    [[maybe_unused]] const ssize_t written = ::write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+  }
+}
+
+class StopOnSignal {
+ public:
+  explicit StopOnSignal(bool announce) {
+    announce_stop = announce ? 1 : 0;
+    for (size_t i = 0; i < std::size(kSignals); ++i) {
+      struct sigaction handler {};
+      handler.sa_handler = stopAfterThisStep;
+      sigemptyset(&handler.sa_mask);
+      // A signal ignored by whoever started the run (nohup, a background job) stays ignored.
+      if (::sigaction(kSignals[i], nullptr, &before_[i]) == 0 && before_[i].sa_handler != SIG_IGN)
+        ::sigaction(kSignals[i], &handler, nullptr);
+    }
+  }
+  ~StopOnSignal() {
+    for (size_t i = 0; i < std::size(kSignals); ++i) ::sigaction(kSignals[i], &before_[i], nullptr);
+  }
+  StopOnSignal(const StopOnSignal&) = delete;
+  StopOnSignal& operator=(const StopOnSignal&) = delete;
+
+ private:
+  static constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
+  struct sigaction before_[std::size(kSignals)] {};
+};
+
+// Exit code: 0, or 128 + the signal that stopped the run.
+int runTrain(const TrainArguments& args) {
   const DistributedEnvironment environment = DistributedEnvironment::fromProcessEnvironment();
   const CommandConfig command = effectiveConfig(args, environment);
   const TrainingConfig& config = command.config;
@@ -418,18 +464,19 @@ void runTrain(const TrainArguments& args) {
   Trainer& trainer = *made;
   using Clock = std::chrono::steady_clock;
   const Clock::time_point started = Clock::now();
+  const auto budgetSpent = [&] { return args.max_seconds > 0 && secondsSince(started) > args.max_seconds; };
+  const StopOnSignal stop_on_signal(lead && !args.quiet);
   // Each rank asks on its own clock; the stop takes effect on all of them at the same step.
   const auto trainStep = [&] {
-    if (args.max_seconds > 0 && secondsSince(started) > args.max_seconds) {
-      trainer.requestStop();
-    }
+    if (budgetSpent() || stop_signal != 0) trainer.requestStop();
     return trainer.step();
   };
+  const auto exitCode = [] { return stop_signal != 0 ? 128 + static_cast<int>(stop_signal) : 0; };
   if (!lead) {
     // The other ranks compute and keep in step through the collectives; rank 0 alone writes.
     while (trainer.stepsDone() < config.steps && !trainStep().stop_requested) {
     }
-    return;
+    return exitCode();
   }
   writeTextFile(run_dir / "config.json", toJson(config).dump(2) + "\n");
   const fs::path log_path = run_dir / "log.csv";
@@ -478,11 +525,7 @@ void runTrain(const TrainArguments& args) {
     const TrainingStepStats stats = trainStep();
     // Ranks agree on a stop inside the next step; a run of one rank stops after the step that
     // spent its budget rather than running one more.
-    const bool stop = stats.stop_requested || (!environment.distributed() && args.max_seconds > 0 &&
-                                               secondsSince(started) > args.max_seconds);
-    if (stop && !args.quiet) {
-      std::cerr << "time budget of " << args.max_seconds << " s spent at step " << stats.step << "\n";
-    }
+    bool stop = stats.stop_requested || (!environment.distributed() && (budgetSpent() || stop_signal != 0));
     ++window_steps;
     window_loss += stats.loss;
     window_step += stats.step_seconds;
@@ -500,7 +543,17 @@ void runTrain(const TrainArguments& args) {
       const double steps_in_window = static_cast<double>(window_steps);
       const double wait_share = window_step > 0 ? window_wait / window_step : 0.0;
       std::optional<ValidationStats> validation;
-      if (validate_now) validation = trainer.validate(args.quiet);
+      if (validate_now) {
+        validation = trainer.validate(args.quiet, [&] { return !budgetSpent() && stop_signal == 0; });
+        // Scores of part of the samples would not compare with the other rows.
+        if (validation->samples < config.validation_samples) {
+          if (!args.quiet)
+            std::cerr << "validation cut short after " << validation->samples << " of " << config.validation_samples
+                      << " samples; not logged\n";
+          validation.reset();
+        }
+        stop = stop || (!environment.distributed() && (budgetSpent() || stop_signal != 0));
+      }
       char row[512];
       std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
                     static_cast<long long>(stats.step), stats.loss, stats.query_loss, stats.map_loss, stats.match_loss,
@@ -538,11 +591,24 @@ void runTrain(const TrainArguments& args) {
       window_allreduce = 0;
       window_optimizer = 0;
     }
-    if (stop) break;
+    if (stop) {
+      if (!args.quiet) {
+        if (stop_signal != 0)
+          std::cerr << "stopped by signal " << stop_signal << " (" << ::strsignal(stop_signal) << ") at step "
+                    << stats.step << "; --resume continues from its checkpoint\n";
+        else if (budgetSpent())
+          std::cerr << "time budget of " << args.max_seconds << " s spent at step " << stats.step << "\n";
+        else
+          std::cerr << "stopped at step " << stats.step << ": another rank was stopped (a signal or its time "
+                    << "budget); --resume continues from its checkpoint\n";
+      }
+      break;
+    }
     if (stats.step % config.checkpoint_every == 0 && stats.step != config.steps) trainer.saveCheckpoint();
   }
   const fs::path folder = trainer.saveCheckpoint();
   if (!args.quiet) std::cerr << "checkpoint: " << (folder / "model.safetensors").string() << "\n";
+  return exitCode();
 }
 
 }  // namespace
@@ -602,8 +668,7 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
                              variable + " to start the ranks here");
         return runLocalRanks(rankArguments(), args->nproc_per_node);
       }
-      runTrain(*args);
-      return 0;
+      return runTrain(*args);
     };
   });
 }

@@ -18,13 +18,6 @@ char slot_paths[kSlots][kMaxPath];
 std::atomic<bool> slot_used[kSlots];
 constexpr int kCleanedSignals[] = {SIGINT, SIGTERM, SIGHUP};
 
-void removeTemporariesAndDie(int signal_number) {
-  for (int i = 0; i < kSlots; ++i)
-    if (slot_used[i].load(std::memory_order_acquire)) ::unlink(slot_paths[i]);
-  std::signal(signal_number, SIG_DFL);
-  std::raise(signal_number);
-}
-
 void installHandlersWhereDefault() {
   static std::once_flag once;
   std::call_once(once, [] {
@@ -32,7 +25,7 @@ void installHandlersWhereDefault() {
       struct sigaction current {};
       if (::sigaction(signal_number, nullptr, &current) != 0 || current.sa_handler != SIG_DFL) continue;
       struct sigaction cleanup {};
-      cleanup.sa_handler = removeTemporariesAndDie;
+      cleanup.sa_handler = removeTemporaryFilesAndRaise;
       sigemptyset(&cleanup.sa_mask);
       ::sigaction(signal_number, &cleanup, nullptr);
     }
@@ -53,6 +46,14 @@ int takeSlot(const std::string& path) {
 }
 
 }  // namespace
+
+void removeTemporaryFilesAndRaise(int signal_number) {
+  for (int i = 0; i < kSlots; ++i)
+    if (slot_used[i].load(std::memory_order_acquire)) ::unlink(slot_paths[i]);
+  std::signal(signal_number, SIG_DFL);
+  std::raise(signal_number);
+  ::_exit(128 + signal_number);  // the signal was blocked: end the same way
+}
 
 TemporaryFile::TemporaryFile(std::filesystem::path path) : path_(std::move(path)) {
   installHandlersWhereDefault();

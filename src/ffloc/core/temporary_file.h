@@ -11,6 +11,10 @@ namespace ffloc {
 // command that handles Ctrl-C itself stops by an exception, which removes the file here.
 // Removal by the signal covers a few files written at once and paths under 4096 bytes; any
 // other is still removed when the write fails and by the next write of its target.
+// Removes the temporaries being written, then ends the process by `signal_number` as its default
+// action would. Async-signal-safe: for a command's own handler of these signals.
+[[noreturn]] void removeTemporaryFilesAndRaise(int signal_number);
+
 class TemporaryFile {
  public:
   explicit TemporaryFile(std::filesystem::path path);

@@ -1,10 +1,17 @@
-// `ffloc train` refusing bad input before it writes anything, and the launcher's bound on ranks.
+// `ffloc train` refusing bad input before it writes anything, stopping on a signal or a time budget,
+// and the launcher's bound on ranks.
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -350,6 +357,68 @@ TEST_F(TrainCommandInput, OneRankStopsAfterTheStepThatSpentTheBudget) {
       << output();
   EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000001" / "model.safetensors")) << output();
   EXPECT_FALSE(fs::exists(run / "checkpoints" / "step_00000002")) << output();
+}
+
+// Validation ran 100000 samples (half an hour) past a spent --max-seconds, before the step's
+// checkpoint (found by an outside probe); cut short, it is not logged.
+TEST_F(TrainCommandInput, TheTimeBudgetAlsoBoundsValidation) {
+  TrainingConfig settings = settingsFor(5);
+  settings.validation_every = 1;
+  settings.validation_samples = 100000;
+  settings.log_every = 1;
+  const fs::path run = root_ / "run";
+  ASSERT_EQ(train("--config " + config(toJson(settings).dump()) + " --out " + run.string() +
+                  " --max-seconds 0.001"),
+            0)
+      << output();
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000001" / "model.safetensors")) << output();
+  std::ifstream log(run / "log.csv");
+  std::string header, row;
+  std::getline(log, header);
+  std::getline(log, row);
+  EXPECT_EQ(row.substr(0, 2), "1,");
+  EXPECT_EQ(row.substr(row.size() - 7), ",,,,,,,") << "no validation scores: " << row;
+}
+
+// A Ctrl-C or SIGTERM killed the run silently and lost every step since its last checkpoint; now
+// the run stops after the step in progress with a checkpoint, and exits 128 + the signal.
+TEST_F(TrainCommandInput, ASignalStopsTheRunAfterItsStepWithACheckpoint) {
+  TrainingConfig settings = settingsFor(1000000);
+  settings.log_every = 1;
+  settings.checkpoint_every = 1000000;
+  const fs::path run = root_ / "run";
+  const std::string settings_file = config(toJson(settings).dump());
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int null = ::open("/dev/null", O_WRONLY);
+    ::dup2(null, 1);
+    ::dup2(null, 2);
+    ::execl(FFLOC_CLI_PATH, FFLOC_CLI_PATH, "train", "--data", testing::smallScene().root.c_str(), "--config",
+            settings_file.c_str(), "--out", run.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  // Two logged steps: training is under way.
+  for (int waited = 0; waited < 600000; waited += 20) {
+    std::ifstream log(run / "log.csv");
+    const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+    if (std::count(text.begin(), text.end(), '\n') >= 3) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 128 + SIGTERM);
+  std::ifstream log(run / "log.csv");
+  std::string row, last;
+  while (std::getline(log, row)) last = row;
+  char expected[32];
+  std::snprintf(expected, sizeof(expected), "step_%08lld", std::stoll(last));
+  std::ifstream latest(run / "checkpoints" / "latest");
+  std::string name;
+  std::getline(latest, name);
+  EXPECT_EQ(name, expected) << "the checkpoint is of the last step logged";
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / name / "model.safetensors"));
 }
 
 // Validation datasets were read and never sampled under validation_every 0, without a word; a

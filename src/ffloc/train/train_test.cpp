@@ -98,6 +98,8 @@ TEST(TrainingConfig, RefusesNumbersAnIntegerFieldCannotHold) {
   // Too large, not "must be positive", as 1e20 once read.
   EXPECT_EQ(error({{"steps", 1e20}}), "cfg.json: field 'steps': 1e+20 is too large (at most 9223372036854775807)");
   EXPECT_EQ(error({{"steps", 1e12}}), "cfg.json: field 'steps': must be in [1, 1000000000], got 1000000000000");
+  EXPECT_EQ(error({{"overlap_stride", 100000}}),
+            "cfg.json: field 'overlap_stride': must be in [1, long_side (512)], got 100000");
   EXPECT_EQ(error({{"steps", true}}), "cfg.json: field 'steps': wrong type (true)");
   EXPECT_EQ(trainingConfigFromJson({{"steps", 2e3}}, "cfg.json").steps, 2000);
   EXPECT_EQ(trainingConfigFromJson({{"seed", 18446744073709551615ULL}}, "cfg.json").seed, 18446744073709551615ULL);
@@ -321,8 +323,39 @@ TEST(TrainingSampler, ReportsImpossibleOverlapRequests) {
   config.min_overlap = 0.999;
   config.max_overlap = 1.0;
   TrainingSampler sampler({smallScene()}, sampleOptions(config, 16));
-  EXPECT_TRUE(contains(errorOf([&] { sampler.sample(1, 80); }), "overlap in"));
+  const std::string impossible = errorOf([&] { sampler.sample(1, 80); });
+  EXPECT_TRUE(contains(impossible, "overlap in [0.999, 1] among 16 others (every frame with depth tried as the query)"))
+      << impossible;
   EXPECT_TRUE(contains(errorOf([] { TrainingSampler({Scene{}}, SampleOptions{}); }), "no frame has depth"));
+}
+
+// A scene where few queries qualify stopped a run at whichever step drew 32 that did not (found
+// by an outside probe): after the random tries every frame is tried, in an order of the seed.
+TEST(TrainingSampler, TriesEveryQueryBeforeGivingUp) {
+  const TrainingConfig config = smallConfig();
+  SampleOptions options = sampleOptions(config, 16);
+  options.max_attempts = 0;  // straight to trying every frame
+  TrainingSampler sampler({smallScene()}, options);
+  const TrainingSample sample = sampler.sample(5, 80);
+  ASSERT_EQ(sample.mapping.size(), 3u);
+  for (const double overlap : sample.overlaps) {
+    EXPECT_GE(overlap, config.min_overlap);
+    EXPECT_LE(overlap, config.max_overlap);
+  }
+  EXPECT_EQ(sampler.sample(5, 80).query, sample.query);
+}
+
+// long_side 17 passed the config's range and failed at the first draw, naming neither the field
+// nor the dataset.
+TEST(TrainingSampler, RefusesALongSideThatLeavesNoPatch) {
+  SampleOptions options = sampleOptions(smallConfig(), 16);
+  options.long_side = 17;
+  const std::string error = errorOf([&] { TrainingSampler({smallScene()}, options); });
+  EXPECT_TRUE(contains(error, smallScene().root.string() + ": field 'long_side': 17 leaves its 128x96 images no "
+                                                           "whole 16-pixel patch; use at least 21"))
+      << error;
+  options.long_side = 21;
+  EXPECT_EQ(TrainingSampler({smallScene()}, options).sample(3, 8).query_image.size(2), 16);
 }
 
 // A scene whose depth files held only zeros was skipped by every draw while the others trained.

@@ -455,12 +455,12 @@ TrainingSample Trainer::validationSample(int index) {
   return sampler.sample(seed, sampler.mapTokenCount(mix64(seed)));
 }
 
-ValidationStats Trainer::validate(bool quiet) {
+ValidationStats Trainer::validate(bool quiet, const std::function<bool()>& keep_going) {
   at::NoGradGuard no_grad;
   ValidationStats stats;
   std::vector<double> translation_errors, rotation_errors;
   ProgressBar progress("validating", static_cast<size_t>(config_.validation_samples), quiet);
-  for (int i = 0; i < config_.validation_samples; ++i) {
+  for (int i = 0; i < config_.validation_samples && (!keep_going || keep_going()); ++i) {
     progress.update(static_cast<size_t>(i));
     const TrainingSample sample = validationSample(i);
     const FastForwardPrediction prediction = predict({sample}).front();
@@ -488,6 +488,7 @@ ValidationStats Trainer::validate(bool quiet) {
     stats.within_25cm_5deg += (t <= 0.25 && r <= 5.0) ? 1 : 0;
   }
   progress.finish();
+  if (stats.samples == 0) return stats;
   stats.loss /= stats.samples;
   stats.query_error /= stats.samples;
   stats.map_error /= stats.samples;

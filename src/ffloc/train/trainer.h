@@ -2,6 +2,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -106,8 +107,10 @@ class Trainer {
   // The sample validate() uses as its `index`-th.
   TrainingSample validationSample(int index);
   // config.validation_samples fixed samples (validationSampleSeed), without gradients; a
-  // progress bar unless `quiet` (100000 samples ran half an hour in silence).
-  ValidationStats validate(bool quiet = true);
+  // progress bar unless `quiet` (100000 samples ran half an hour in silence). Stops early when
+  // `keep_going` says no before a sample (a time budget, a signal): `samples` then tells how many
+  // were scored.
+  ValidationStats validate(bool quiet = true, const std::function<bool()>& keep_going = {});
   // Rank 0 writes <run_dir>/checkpoints/step_<n>/ and points `latest` at it, keeping the newest
   // config.keep_checkpoints; other ranks write nothing. Returns the folder.
   std::filesystem::path saveCheckpoint();

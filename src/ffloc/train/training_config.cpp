@@ -155,7 +155,10 @@ std::optional<TrainingConfigProblem> TrainingConfig::settingsProblem() const {
     fail(min_overlap >= 0 && min_overlap <= 1 ? "max_overlap" : "min_overlap", "need 0 <= min_overlap <= max_overlap <= 1");
   }
   if (overlap_candidates < mapping_frames) fail("overlap_candidates", "must be at least mapping_frames");
-  if (overlap_stride < 1) fail("overlap_stride", "must be positive");
+  // A stride past the image sampled no pixel, and every draw failed on overlap.
+  if (overlap_stride < 1 || overlap_stride > long_side)
+    fail("overlap_stride", "must be in [1, long_side (" + std::to_string(long_side) + ")], got " +
+                               std::to_string(overlap_stride));
   if (long_side < 16 || long_side > 2048) fail("long_side", "must be in [16, 2048] pixels, got " + std::to_string(long_side));
   if (!(colour_jitter >= 0 && colour_jitter < 1)) fail("colour_jitter", "must be in [0, 1)");
   // The loss and the optimiser run in float32: the upper bounds below keep every product of a

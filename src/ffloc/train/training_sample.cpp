@@ -9,6 +9,7 @@
 #include <set>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 #include "ffloc/core/random.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/data/overlap.h"
@@ -49,6 +50,18 @@ Eigen::Vector3d normalizedPoint(const Frame& frame, const SceneNormalization& no
   return normalization.normalize(frame.camera_to_world * frame.intrinsics.backproject({u, v}, depth));
 }
 
+bool holdsAPatch(int width, int height, int long_side, int patch_size) {
+  PreprocessOptions preprocess;
+  preprocess.long_side = long_side;
+  preprocess.patch_size = patch_size;
+  try {
+    preprocessGeometry(width, height, preprocess);
+    return true;
+  } catch (const InputError&) {
+    return false;
+  }
+}
+
 }  // namespace
 
 TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options, std::string name)
@@ -84,6 +97,18 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
         throwInputError(scene.root.string(), 0, "the depth of its frames holds no valid value (read: " + read +
                                                     "); training needs depth");
       }
+    }
+    // Found at the first draw, the error named neither the field nor the dataset.
+    const Intrinsics& first = scene.frames[with_depth.front()].intrinsics;
+    if (first.width > 0 && first.height > 0 &&
+        !holdsAPatch(first.width, first.height, options_.long_side, options_.patch_size)) {
+      int enough = options_.long_side;
+      while (enough < 100000 && !holdsAPatch(first.width, first.height, enough, options_.patch_size)) ++enough;
+      throwInputError(scene.root.string(), 0, "field 'long_side': " + std::to_string(options_.long_side) +
+                                                  " leaves its " + std::to_string(first.width) + "x" +
+                                                  std::to_string(first.height) + " images no whole " +
+                                                  std::to_string(options_.patch_size) + "-pixel patch; use at least " +
+                                                  std::to_string(enough));
     }
     total += with_depth.size();
     frames_with_depth_.push_back(std::move(with_depth));
@@ -150,6 +175,24 @@ int64_t TrainingSampler::mapTokenCount(uint64_t seed) const {
   return rng.between(options_.min_map_tokens, options_.max_map_tokens);
 }
 
+std::optional<TrainingSampler::Draw> TrainingSampler::tryQuery(size_t scene, size_t query, Rng& rng) {
+  std::vector<size_t> candidates;
+  for (const size_t f : frames_with_depth_[scene]) {
+    if (f != query) candidates.push_back(f);
+  }
+  for (size_t i = candidates.size(); i > 1; --i) std::swap(candidates[i - 1], candidates[rng.below(i)]);
+  candidates.resize(std::min(candidates.size(), static_cast<size_t>(options_.overlap_candidates)));
+  Draw draw{scene, query, {}, {}};
+  for (const size_t f : candidates) {
+    const double value = overlap(scene, query, f);
+    if (value < options_.min_overlap || value > options_.max_overlap) continue;
+    draw.mapping.push_back(f);
+    draw.overlaps.push_back(value);
+    if (draw.mapping.size() == static_cast<size_t>(options_.mapping_frames)) return draw;
+  }
+  return std::nullopt;
+}
+
 TrainingSample TrainingSampler::sample(uint64_t seed, int64_t map_tokens) {
   Rng rng(seed);
   std::vector<size_t> usable_scenes;
@@ -160,91 +203,93 @@ TrainingSample TrainingSampler::sample(uint64_t seed, int64_t map_tokens) {
     throwInputError(source(), 0, "no scene has more than " + std::to_string(options_.mapping_frames) +
                                             " frames with depth (query + mapping frames)");
   }
-  for (int attempt = 0; attempt < options_.max_attempts; ++attempt) {
+  // Random queries first; when they all fail, every query of every scene in an order drawn from the
+  // seed, so that a scene where few queries qualify stops no run mid-way (an outside probe's run
+  // died at a later step on an unlucky draw) and one where none does fails at the first draw.
+  std::optional<Draw> draw;
+  for (int attempt = 0; attempt < options_.max_attempts && !draw; ++attempt) {
     const size_t scene = usable_scenes[rng.below(usable_scenes.size())];
     const std::vector<size_t>& frames = frames_with_depth_[scene];
-    const size_t query = frames[rng.below(frames.size())];
-    std::vector<size_t> candidates;
-    for (size_t f : frames) {
-      if (f != query) candidates.push_back(f);
-    }
-    for (size_t i = candidates.size(); i > 1; --i) std::swap(candidates[i - 1], candidates[rng.below(i)]);
-    candidates.resize(std::min(candidates.size(), static_cast<size_t>(options_.overlap_candidates)));
-    std::vector<size_t> mapping;
-    std::vector<double> overlaps;
-    for (size_t f : candidates) {
-      const double value = overlap(scene, query, f);
-      if (value < options_.min_overlap || value > options_.max_overlap) continue;
-      mapping.push_back(f);
-      overlaps.push_back(value);
-      if (mapping.size() == static_cast<size_t>(options_.mapping_frames)) break;
-    }
-    if (mapping.size() < static_cast<size_t>(options_.mapping_frames)) continue;
-
-    TrainingSample out;
-    const Scene& source = scenes_[scene];
-    out.scene = source.name;
-    out.query = source.frames[query].name;
-    out.overlaps = overlaps;
-    std::vector<const PreparedFrame*> mapping_frames;
-    std::vector<MapCamera> cameras;
-    for (size_t f : mapping) {
-      const PreparedFrame& m = prepared(scene, f);
-      mapping_frames.push_back(&m);
-      cameras.push_back({m.frame.name, m.frame.camera_to_world, m.frame.intrinsics});
-      out.mapping.push_back(m.frame.name);
-    }
-    const int patch = options_.patch_size;
-    out.layout = planMap(cameras, patch, map_tokens, rng.next());
-
-    // Query image and per-pixel ground truth.
-    const PreparedFrame& q = prepared(scene, query);
-    out.query_camera = q.frame.intrinsics;
-    out.query_pose = q.frame.camera_to_world;
-    out.query_image = normalizedImageTensor(jitterColour(q.rgb, options_.colour_jitter, rng));
-    const int height = q.depth.rows, width = q.depth.cols;
-    out.query_points = at::zeros({1, height, width, 3}, at::kFloat);
-    out.query_valid = at::zeros({1, height, width}, at::kBool);
-    float* points = out.query_points.data_ptr<float>();
-    bool* valid = out.query_valid.data_ptr<bool>();
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) {
-        const float d = q.depth(y, x);
-        if (d <= 0) continue;
-        const Eigen::Vector3d p = normalizedPoint(q.frame, out.layout.normalization, x, y, d);
-        const size_t i = static_cast<size_t>(y) * width + x;
-        for (int c = 0; c < 3; ++c) points[3 * i + c] = static_cast<float>(p[c]);
-        valid[i] = true;
-      }
-    }
-
-    // Mapping images and the ground truth of the sampled tokens.
-    for (const PreparedFrame* m : mapping_frames) {
-      out.mapping_images.push_back(normalizedImageTensor(jitterColour(m->rgb, options_.colour_jitter, rng)));
-    }
-    const int64_t n = out.layout.indices.size(0);
-    out.map_points = at::zeros({1, n, 3}, at::kFloat);
-    out.map_valid = at::zeros({1, n}, at::kBool);
-    const int64_t* pairs = out.layout.indices.data_ptr<int64_t>();
-    float* map_points = out.map_points.data_ptr<float>();
-    bool* map_valid = out.map_valid.data_ptr<bool>();
-    std::vector<std::vector<Eigen::Vector3d>> patch_points;
-    for (const PreparedFrame* m : mapping_frames) {
-      patch_points.push_back(patchCentrePoints(m->depth, m->frame.intrinsics, m->frame.camera_to_world, patch));
-    }
-    for (int64_t i = 0; i < n; ++i) {
-      const Eigen::Vector3d& world = patch_points[pairs[2 * i]][pairs[2 * i + 1]];
-      if (!world.allFinite()) continue;
-      const Eigen::Vector3d p = out.layout.normalization.normalize(world);
-      for (int c = 0; c < 3; ++c) map_points[3 * i + c] = static_cast<float>(p[c]);
-      map_valid[i] = true;
-    }
-    return out;
+    draw = tryQuery(scene, frames[rng.below(frames.size())], rng);
   }
-  throwInputError(source(), 0, "no query with " + std::to_string(options_.mapping_frames) +
-                                          " mapping frames of overlap in [" + std::to_string(options_.min_overlap) +
-                                          ", " + std::to_string(options_.max_overlap) + "] after " +
-                                          std::to_string(options_.max_attempts) + " tries");
+  if (!draw) {
+    std::vector<std::pair<size_t, size_t>> queries;
+    for (const size_t scene : usable_scenes)
+      for (const size_t frame : frames_with_depth_[scene]) queries.emplace_back(scene, frame);
+    for (size_t i = queries.size(); i > 1; --i) std::swap(queries[i - 1], queries[rng.below(i)]);
+    for (size_t i = 0; i < queries.size() && !draw; ++i) draw = tryQuery(queries[i].first, queries[i].second, rng);
+  }
+  if (!draw) {
+    throwInputError(source(), 0, "no frame has " + std::to_string(options_.mapping_frames) +
+                                     " mapping frames of overlap in [" + formatNumber(options_.min_overlap) + ", " +
+                                     formatNumber(options_.max_overlap) + "] among " +
+                                     std::to_string(options_.overlap_candidates) +
+                                     " others (every frame with depth tried as the query); widen min_overlap and "
+                                     "max_overlap or lower mapping_frames");
+  }
+  const size_t scene = draw->scene, query = draw->query;
+  const std::vector<size_t>& mapping = draw->mapping;
+  const std::vector<double>& overlaps = draw->overlaps;
+
+  TrainingSample out;
+  const Scene& source = scenes_[scene];
+  out.scene = source.name;
+  out.query = source.frames[query].name;
+  out.overlaps = overlaps;
+  std::vector<const PreparedFrame*> mapping_frames;
+  std::vector<MapCamera> cameras;
+  for (size_t f : mapping) {
+    const PreparedFrame& m = prepared(scene, f);
+    mapping_frames.push_back(&m);
+    cameras.push_back({m.frame.name, m.frame.camera_to_world, m.frame.intrinsics});
+    out.mapping.push_back(m.frame.name);
+  }
+  const int patch = options_.patch_size;
+  out.layout = planMap(cameras, patch, map_tokens, rng.next());
+
+  // Query image and per-pixel ground truth.
+  const PreparedFrame& q = prepared(scene, query);
+  out.query_camera = q.frame.intrinsics;
+  out.query_pose = q.frame.camera_to_world;
+  out.query_image = normalizedImageTensor(jitterColour(q.rgb, options_.colour_jitter, rng));
+  const int height = q.depth.rows, width = q.depth.cols;
+  out.query_points = at::zeros({1, height, width, 3}, at::kFloat);
+  out.query_valid = at::zeros({1, height, width}, at::kBool);
+  float* points = out.query_points.data_ptr<float>();
+  bool* valid = out.query_valid.data_ptr<bool>();
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const float d = q.depth(y, x);
+      if (d <= 0) continue;
+      const Eigen::Vector3d p = normalizedPoint(q.frame, out.layout.normalization, x, y, d);
+      const size_t i = static_cast<size_t>(y) * width + x;
+      for (int c = 0; c < 3; ++c) points[3 * i + c] = static_cast<float>(p[c]);
+      valid[i] = true;
+    }
+  }
+
+  // Mapping images and the ground truth of the sampled tokens.
+  for (const PreparedFrame* m : mapping_frames) {
+    out.mapping_images.push_back(normalizedImageTensor(jitterColour(m->rgb, options_.colour_jitter, rng)));
+  }
+  const int64_t n = out.layout.indices.size(0);
+  out.map_points = at::zeros({1, n, 3}, at::kFloat);
+  out.map_valid = at::zeros({1, n}, at::kBool);
+  const int64_t* pairs = out.layout.indices.data_ptr<int64_t>();
+  float* map_points = out.map_points.data_ptr<float>();
+  bool* map_valid = out.map_valid.data_ptr<bool>();
+  std::vector<std::vector<Eigen::Vector3d>> patch_points;
+  for (const PreparedFrame* m : mapping_frames) {
+    patch_points.push_back(patchCentrePoints(m->depth, m->frame.intrinsics, m->frame.camera_to_world, patch));
+  }
+  for (int64_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d& world = patch_points[pairs[2 * i]][pairs[2 * i + 1]];
+    if (!world.allFinite()) continue;
+    const Eigen::Vector3d p = out.layout.normalization.normalize(world);
+    for (int c = 0; c < 3; ++c) map_points[3 * i + c] = static_cast<float>(p[c]);
+    map_valid[i] = true;
+  }
+  return out;
 }
 
 }  // namespace ffloc

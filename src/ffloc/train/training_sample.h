@@ -6,6 +6,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -13,8 +14,9 @@
 
 #include <opencv2/core.hpp>
 
-#include "ffloc/geometry/preprocess.h"
+#include "ffloc/core/random.h"
 #include "ffloc/data/scene.h"
+#include "ffloc/geometry/preprocess.h"
 #include "ffloc/geometry/normalization.h"
 #include "ffloc/io/image.h"
 #include "ffloc/model/map_assembly.h"
@@ -32,7 +34,7 @@ struct SampleOptions {
   int long_side = 512;
   int patch_size = 16;
   double colour_jitter = 0.0;
-  int max_attempts = 32;  // queries tried before giving up on a draw
+  int max_attempts = 32;  // random queries tried before every frame is tried in turn
 };
 
 // One training example (paper, section 3 "Training" and appendix): a query with depth, K mapping
@@ -65,8 +67,8 @@ class TrainingSampler {
   TrainingSampler(std::vector<Scene> scenes, const SampleOptions& options, std::string name = "training data");
 
   // The sample of `seed` with `map_tokens` map tokens (at most all of the mapping images'). Safe to
-  // call from several threads. InputError naming the scene when no query with K overlapping
-  // mapping frames was found in options.max_attempts tries.
+  // call from several threads. When options.max_attempts random queries fail, every frame is tried
+  // as the query; InputError naming the scenes when none has K overlapping mapping frames.
   TrainingSample sample(uint64_t seed, int64_t map_tokens);
   // A map token count in [min_map_tokens, max_map_tokens] drawn from `seed`: samples that share a
   // forward pass share it (trainer.h).
@@ -85,6 +87,14 @@ class TrainingSampler {
   };
   const PreparedFrame& prepared(size_t scene, size_t frame);
   double overlap(size_t scene, size_t a, size_t b);
+  // A query and the first options.mapping_frames of its overlap candidates (drawn from `rng`)
+  // whose overlap lies in the bounds; none when too few do.
+  struct Draw {
+    size_t scene, query;
+    std::vector<size_t> mapping;
+    std::vector<double> overlaps;
+  };
+  std::optional<Draw> tryQuery(size_t scene, size_t query, Rng& rng);
 
   std::vector<Scene> scenes_;
   SampleOptions options_;
