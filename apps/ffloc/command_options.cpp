@@ -60,7 +60,7 @@ const std::map<std::string, std::string>& methodSettingOfFlag() {
   static const std::map<std::string, std::string> setting_of_flag = {
       {"--model", "model"},         {"--dtype", "dtype"},         {"--features", "features"},
       {"--selection", "selection"}, {"--retrieval", "retrieval"}, {"--no-verify", "verify"},
-      {"--no-pose-guided", "pose_guided"}};
+      {"--no-pose-guided", "pose_guided"}, {"--top-k", "top_k"},    {"--preset", "preset"}};
   return setting_of_flag;
 }
 

@@ -152,6 +152,15 @@ void refuseOutputsOverFramesOf(const Scene& scene, const EvalArguments& args) {
       throw InputError(flag + ": '" + path + "' is a file of the dataset " + scene.root.string() + "; write it elsewhere");
 }
 
+// Datasets of one name (every seed of `ffloc synth` has a scene_000_indoor) gave rows nothing told
+// apart: those are named by their folder as given instead.
+void nameScenesApart(std::vector<Scene>& scenes, const std::vector<std::string>& folders) {
+  std::map<std::string, int> uses;
+  for (const Scene& scene : scenes) ++uses[scene.name];
+  for (size_t i = 0; i < scenes.size(); ++i)
+    if (uses[scenes[i].name] > 1) scenes[i].name = folders[i];
+}
+
 int runEval(const EvalArguments& args) {
 #ifdef FFLOC_WITH_TORCH
   setLibraryThreadCount(args.model.threads);
@@ -234,6 +243,9 @@ int runEval(const EvalArguments& args) {
   std::vector<MethodSummary> summaries;
   std::vector<std::string> non_metric;
   std::vector<ReportDataset> report_datasets;
+  // Every dataset is read and checked before the first is evaluated: a bad last one was found
+  // only after the others' evaluation.
+  std::vector<Scene> scenes;
   for (const std::string& dataset : args.datasets) {
     Scene scene = loadDataset(dataset, args.format);
     refuseOutputsOverFramesOf(scene, args);
@@ -248,6 +260,10 @@ int runEval(const EvalArguments& args) {
           throwInputError(frame.image_path.string(), 0, "--poses: frame '" + frame.name + "': " + problem);
       }
     }
+    scenes.push_back(std::move(scene));
+  }
+  nameScenesApart(scenes, args.datasets);
+  for (Scene& scene : scenes) {
     if (!args.protocol.empty()) {
       // Thinned by the frames' capture numbers: said, as other data (renumbered, or not 7-Scenes)
       // lost most of its mapping frames without a word.
@@ -363,8 +379,8 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
           [](const std::string& input) { return methodListProblem(splitList(input)); },
           "LIST"));
   cmd->add_option("--map", args->map_path,
-                  "Also evaluate this map file from 'ffloc map' (any method), exactly as 'ffloc localize' runs it; "
-                  "its row is named <method>@map");
+                  "Evaluate this map file from 'ffloc map' (any method), exactly as 'ffloc localize' runs it; "
+                  "its row is named <method>@map; without --methods no other method runs");
   cmd->add_option("--json", args->json_path,
                   "Write the summary JSON here; the per-frame CSV (<stem>.frames.csv) and the markdown table "
                   "(<stem>.md) go beside it unless --csv/--markdown say otherwise");

@@ -26,13 +26,15 @@ std::string settingNoMethodUsesProblem(const std::vector<std::string>& methods, 
   const bool fastforward = methodUsesSetting(LocalizationMethod::kFastForward, setting);
   std::string names;
   for (const std::string& method : methods) {
-    // oracle-depth and sift-baseline take the settings both localizers share (seed, solver). A
-    // name none of them has is left to the method list's own error, which names it.
+    // oracle-depth and sift-baseline take the settings both localizers share (seed, solver) but
+    // retrieval's (top_k, and the preset that sets it). A name none of them has is left to the
+    // method list's own error, which names it.
     const bool known = method == "classical" || method == "fastforward" || method == "oracle-depth" ||
                        method == "sift-baseline";
+    const bool retrieval = setting == "top_k" || setting == "preset";
     const bool uses = method == "classical"     ? classical
                       : method == "fastforward" ? fastforward
-                                                : classical && fastforward;
+                                                : classical && fastforward && !retrieval;
     if (uses || !known) return "";
     names += (names.empty() ? "" : ", ") + method;
   }
