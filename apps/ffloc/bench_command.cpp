@@ -125,7 +125,7 @@ void registerBenchCommand(CLI::App& app, CommandRun& run) {
   bench->require_subcommand(1);
   auto args = std::make_shared<BenchModelArguments>();
   CLI::App* cmd = bench->add_subcommand(
-      "model", "CPU time, GFLOP/s and peak RSS of the encoder, the FastForward decoder + query head and "
+      "model", "Wall time, GFLOP/s and peak RSS of the encoder, the FastForward decoder + query head and "
                "DUSt3R's decoder + heads, with random weights, beside the Python reference timing");
   cmd->add_option("--config", args->config, "Network size: large (the official DUSt3R) or tiny")
       ->capture_default_str();

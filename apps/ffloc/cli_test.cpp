@@ -506,7 +506,9 @@ TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {
   }
   const CliRun run = runCli({"map", "--dataset", (dir_ / "data").string(), "-o", (dir_ / "out.ffmap").string()});
   EXPECT_EQ(run.exit_code, 2) << run.output;
-  EXPECT_TRUE(contains(run.output, "caf\xE9.color.png: image name 'train/rgb/caf\xE9.color.png' is not UTF-8")) << run.output;
+  // The bytes that are not UTF-8 are escaped: the error line was itself not valid text.
+  EXPECT_TRUE(contains(run.output, "caf\\xe9.color.png: image name 'train/rgb/caf\\xe9.color.png' is not UTF-8"))
+      << run.output;
   EXPECT_FALSE(fs::exists(dir_ / "out.ffmap"));
 }
 

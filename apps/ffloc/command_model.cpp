@@ -1,8 +1,10 @@
 #include "command_model.h"
 
-#include <iostream>
+#include <chrono>
+#include <cstdio>
 
 #include "command_options.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/model/model_options.h"
 #include "ffloc/model/torch_threads.h"
@@ -22,8 +24,11 @@ LoadedModel loadCommandModel(const ModelArguments& args) {
   const int used_threads = setTorchThreadCount(args.threads);
   ModelLoadOptions options;
   options.dtype = parseNetworkDtype(args.dtype);
+  const auto started = std::chrono::steady_clock::now();
   LoadedModel loaded = loadModel(args.model, options);
-  std::cerr << "model: " << loaded.description << " (" << used_threads << " threads, " << args.dtype << ")\n";
+  // The id is what a map records and another model is refused by; it showed only in errors.
+  std::fprintf(stderr, "model: %s (%d threads, %s), id %s, loaded in %.2f s\n", loaded.description.c_str(),
+               used_threads, args.dtype.c_str(), loaded.id.c_str(), secondsSince(started));
   return loaded;
 }
 

@@ -30,6 +30,7 @@ std::string withFlagName(const std::string& message) {
       {"pnp.inlier_threshold_px", "--inlier-threshold"},
       {"pnp.confidence_threshold", "--confidence-threshold"},
       {"pnp.max_correspondences", "--max-correspondences"},
+      {"pnp.solver", "--solver"},
       {"max_image_size", "--max-image-size"},
       {"max_features", "--max-features"},
       {"use_depth", "--no-depth"},

@@ -7,6 +7,7 @@
 #include "ffloc/core/allocator.h"
 #include "ffloc/core/crash_report.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
 
 int main(int argc, char** argv) {
   ffloc::installCrashReport("ffloc");
@@ -105,10 +106,10 @@ int main(int argc, char** argv) {
     }
     return code;
   } catch (const ffloc::InputError& e) {
-    std::cerr << "error: " << ffloc::cli::withFlagName(e.what()) << "\n";
+    std::cerr << "error: " << ffloc::escapeInvalidUtf8(ffloc::cli::withFlagName(e.what())) << "\n";
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "internal error: " << e.what() << "\n";
+    std::cerr << "internal error: " << ffloc::escapeInvalidUtf8(e.what()) << "\n";
     return 3;
   }
 }

@@ -271,10 +271,12 @@ void registerRetrievalCommand(CLI::App& app, CommandRun& run) {
   addModelOptions(*cmd, args->model, "The model the map was built with (same forms as for 'ffloc map')");
   cmd->add_option("--dataset", args->dataset, "Dataset folder; its query split is measured")->required();
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();
-  cmd->add_option("--top-k", args->top_k, "Comma-separated K values")
+  // CLI11 showed the default list space-separated and the type's range from 0, which is refused.
+  cmd->add_option("--top-k", args->top_k, "Comma-separated K values, each at least 1")
       ->delimiter(',')
-      ->check(wholeNumber())
-      ->capture_default_str();
+      ->check(wholeNumber().description(""))
+      ->type_name("K,...")
+      ->default_str("1,5,10,20");
   cmd->add_option("--max-queries", args->max_queries, "Measure at most this many evenly spaced queries (0 = all)")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Seed of the random selection")->check(wholeNumber())->capture_default_str();

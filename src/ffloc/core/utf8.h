@@ -10,6 +10,10 @@ namespace ffloc {
 // front rather than failing, or being replaced, after the work is done.
 bool isUtf8(std::string_view text);
 
+// `text` with each byte that is not part of well-formed UTF-8 written as \xhh: an error naming a
+// file whose name is not UTF-8 was itself not valid text for the terminal or a log.
+std::string escapeInvalidUtf8(std::string_view text);
+
 // `text` on one line: control characters and DEL written as \n, \r, \t or \xHH. A client's
 // newline in a log line would start a forged line, and a NUL ends a line (and an exception's
 // message) for many readers.

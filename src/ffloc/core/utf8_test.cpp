@@ -27,5 +27,12 @@ TEST(Utf8, RefusesMalformedText) {
   EXPECT_FALSE(isUtf8("\xF4\x90\x80\x80"));      // past U+10FFFF
 }
 
+TEST(Utf8, EscapesOnlyTheBytesThatAreNotUtf8) {
+  EXPECT_EQ(escapeInvalidUtf8("q/caf\xC3\xA9.png"), "q/caf\xC3\xA9.png");
+  EXPECT_EQ(escapeInvalidUtf8("q/q\xE9.png: not UTF-8"), "q/q\\xe9.png: not UTF-8");
+  EXPECT_EQ(escapeInvalidUtf8("a\nb\xC0\xAF"), "a\nb\\xc0\\xaf");  // newlines kept; an overlong '/' escaped
+  EXPECT_EQ(escapeInvalidUtf8("\xF0\x9F\x93"), "\\xf0\\x9f\\x93");  // cut short
+}
+
 }  // namespace
 }  // namespace ffloc

@@ -82,7 +82,7 @@ TEST(Verdict, AFocalLengthTheInliersDoNotFitMakesThePoseUncertain) {
   EXPECT_EQ(judged(1.3, 0.05).status, PoseStatus::kLocalized);    // 5.2 sigma
   EXPECT_EQ(judged(1.3, 0.04).status, PoseStatus::kUncertain);    // 6.6 sigma
   EXPECT_EQ(judged(1.6, 0.02).reason,
-            "the correspondences fit a focal length 1.600000 times the one given: check the query's intrinsics");
+            "the correspondences fit a focal length 1.6 times the one given: check the query's intrinsics");
   EXPECT_EQ(judged(0.6, 0.02).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged(1.6, 0.5).status, PoseStatus::kLocalized);  // a far plane: the focal length is not determined
   EXPECT_EQ(judged(1.6, std::numeric_limits<double>::infinity()).status, PoseStatus::kLocalized);
@@ -106,7 +106,7 @@ TEST(Verdict, ARatioOfFocalLengthsTheInliersDoNotFitMakesThePoseUncertain) {
   EXPECT_EQ(judged(1.105, 0.00512).status, PoseStatus::kLocalized);  // frame 840
   EXPECT_EQ(judged(1.046, 0.00155).status, PoseStatus::kLocalized);  // frame 644
   EXPECT_EQ(judged(0.85, 0.01).reason,
-            "the correspondences fit a ratio fy / fx 0.850000 times the one given: check the query's intrinsics");
+            "the correspondences fit a ratio fy / fx 0.85 times the one given: check the query's intrinsics");
   EXPECT_EQ(judged(0.85, 0.02).status, PoseStatus::kLocalized);   // 8 sigma
   EXPECT_EQ(judged(0.92, 0.002).status, PoseStatus::kUncertain);  // 8 % at 42 sigma
   EXPECT_EQ(judged(0.95, 0.001).status, PoseStatus::kLocalized);  // 5 %: within the certain tier
@@ -122,7 +122,7 @@ TEST(Verdict, AFocalLengthWithMoreInliersMakesThePoseUncertain) {
   EXPECT_EQ(judged(1.3, 0.9).status, PoseStatus::kLocalized);
   EXPECT_EQ(judged(1.2, 1.21).status, PoseStatus::kLocalized);  // the most a right pose of redkitchen had
   EXPECT_EQ(judged(1.2, 1.6).reason,
-            "a focal length 1.200000 times the one given gives 1.600000 times the inliers: check the query's intrinsics");
+            "a focal length 1.2 times the one given gives 1.6 times the inliers: check the query's intrinsics");
   EXPECT_EQ(judged(-1, -1).status, PoseStatus::kLocalized);  // no scan
 }
 
@@ -136,7 +136,7 @@ TEST(Verdict, APrincipalPointTheInliersDoNotFitMakesThePoseUncertain) {
   };
   EXPECT_EQ(judged(0.0, 0.0).status, PoseStatus::kLocalized);
   EXPECT_EQ(judged(0.26, 483).reason,
-            "the correspondences fit a principal point 0.260000 focal lengths from the one given: check the query's "
+            "the correspondences fit a principal point 0.26 focal lengths from the one given: check the query's "
             "intrinsics");
   EXPECT_EQ(judged(0.12, 9).status, PoseStatus::kUncertain);
   EXPECT_EQ(judged(0.12, 5).status, PoseStatus::kLocalized);   // a narrow view: not determined

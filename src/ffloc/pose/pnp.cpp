@@ -73,7 +73,7 @@ const char* toString(PnpSolver solver) {
 PnpSolver parsePnpSolver(const std::string& name) {
   if (name == "opencv-usac") return PnpSolver::kOpenCvUsac;
   if (name == "lo-ransac") return PnpSolver::kLoRansac;
-  throwInputError("pnp solver", 0, "unknown solver '" + name + "' (expected opencv-usac or lo-ransac)");
+  throwInputError("pnp.solver", 0, "unknown solver '" + name + "' (expected opencv-usac or lo-ransac)");
 }
 
 const char* toString(PnpStatus status) {
