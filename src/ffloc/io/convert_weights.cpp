@@ -42,6 +42,9 @@ ConvertWeightsSummary convertWeights(const std::filesystem::path& input,
   const std::unique_ptr<TensorArchive> archive = openTensorArchive(input);
   // Converted unchecked, a damaged checkpoint would come out as a file with nothing to check.
   verifyChecksums(*archive, resolveThreadCount(0));
+  // A safetensors file of metadata alone converted to another such file with exit 0; the .pth
+  // reader already refused a checkpoint without tensors.
+  if (archive->names().empty()) throwInputError(input.string(), 0, "holds no tensor; nothing to convert");
   ConvertWeightsSummary summary;
   summary.tensors_read = archive->names().size();
 

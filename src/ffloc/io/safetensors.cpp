@@ -100,6 +100,8 @@ SafetensorsArchive::SafetensorsArchive(const std::filesystem::path& path, FileMa
       readMetadata(value);
       continue;
     }
+    // What the writer refuses, so that `ffloc convert` blames the input, not its output.
+    if (key.empty()) fail("a tensor has the empty name ''");
     std::pair<uint64_t, uint64_t> range;
     views.push_back(readTensor(key, value, data_size, data_section, &range));
     placed.push_back({range.first, range.second, views.size() - 1});

@@ -8,14 +8,17 @@ std::array<int64_t, 4> Dust3rConfig::dptHooks() const {
   return {0, dec_depth * 2 / 4, dec_depth * 3 / 4, dec_depth};
 }
 
-void Dust3rConfig::validate() const {
-  const auto fail = [](const std::string& field, const std::string& what) {
-    throwInputError("Dust3rConfig", 0, field + ": " + what);
+void Dust3rConfig::validate(const std::string& origin) const {
+  const auto fail = [&](const std::string& field, const std::string& what) {
+    throwInputError(origin, 0, "field '" + field + "': " + what);
   };
   if (patch_size <= 0) fail("patch_size", "must be positive");
   // No encoder block is a valid network: a frozen classical encoder feeds the decoder directly.
-  if (enc_dim <= 0 || enc_depth < 0 || enc_heads <= 0) fail("enc", "width and heads must be positive, depth not negative");
-  if (dec_dim <= 0 || dec_heads <= 0) fail("dec", "sizes must be positive");
+  if (enc_dim <= 0) fail("enc_dim", "must be positive");
+  if (enc_depth < 0) fail("enc_depth", "must not be negative");
+  if (enc_heads <= 0) fail("enc_heads", "must be positive");
+  if (dec_dim <= 0) fail("dec_dim", "must be positive");
+  if (dec_heads <= 0) fail("dec_heads", "must be positive");
   // Fewer layers would make two DPT hooks read the same decoder layer.
   if (dec_depth < 4) fail("dec_depth", "must be at least 4 for the DPT hooks");
   if (mlp_ratio <= 0) fail("mlp_ratio", "must be positive");

@@ -36,7 +36,8 @@ struct Dust3rConfig {
   std::array<int64_t, 4> dptHooks() const;
   // InputError naming the field when the sizes cannot form a model (e.g. heads not dividing the
   // width, a head dim RoPE2D cannot split into four equal parts).
-  void validate() const;
+  // InputError naming `origin` (a file's metadata, say) and the field.
+  void validate(const std::string& origin = "Dust3rConfig") const;
 
   // "large" (the official model), "small" (the size of the shipped model, for training on small
   // hardware) or "tiny" (the fixture model in shared/fixtures/dust3r).

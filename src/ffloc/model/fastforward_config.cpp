@@ -5,7 +5,7 @@
 namespace ffloc {
 
 void FastForwardConfig::validate(const std::string& origin) const {
-  dust3r.validate();
+  dust3r.validate(origin);
   if (input_long_side < dust3r.patch_size || input_long_side > 8192) {
     throwInputError(origin, 0, "field 'input_long_side': must be in [patch size, 8192]");
   }

@@ -240,6 +240,12 @@ LoadedModel loadModel(const std::string& requested, const ModelLoadOptions& opti
   } else {
     const auto archive = openTensorArchive(spec);
     verifyChecksums(*archive, torchThreadCount());
+    // Given the optimizer state, the loader reported the model's first tensor missing.
+    if (const auto format = archive->metadata().find("format");
+        format != archive->metadata().end() && format->second == kTrainingStateFormat) {
+      throwInputError(spec, 0, "a training checkpoint's optimizer state, not a model; the model is the "
+                               "model.safetensors beside it");
+    }
     const auto architecture = archive->metadata().find("architecture");
     FastForwardConfig config;
     if (architecture != archive->metadata().end() && archive->contains("map_head.weight")) {

@@ -38,6 +38,10 @@ struct LoadedModel {
   std::string description;  // one line for logs
 };
 
+// The `format` metadata of a training checkpoint's optimizer state (train/training_checkpoint.h),
+// which loadModel names when it is given one.
+inline constexpr char kTrainingStateFormat[] = "ffloc-train-state";
+
 // The file "default" stands for.
 std::string defaultModelPath();
 

@@ -77,8 +77,9 @@ void loadParameters(const ParameterTable& table, const TensorArchive& archive,
       if (!archive.contains(name)) continue;
       const TensorView& view = archive.at(name);
       if (!isFloatWeight(view.dtype)) {
+        // F64 was called "not a floating-point weight type", though convert writes it.
         fail(name, std::string("dtype ") + toString(view.dtype) +
-                       " is not a floating-point weight type (F32, F16 or BF16)");
+                       " is not one a model loads (F32, F16 or BF16); 'ffloc convert --dtype f32' writes one");
       }
       if (at::IntArrayRef(view.shape) != at::IntArrayRef(entry.shape)) {
         fail(name, "shape " + view.shapeString() + " does not match the model's " +

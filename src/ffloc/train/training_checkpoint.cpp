@@ -90,7 +90,7 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   saveModel(model, partial / "model.safetensors",
             {{"step", std::to_string(step)}, {"world_size", std::to_string(world_size)}, {"training_config", config_json}});
   writeFloatTensors(partial / "optimizer.safetensors", optimizer.state(),
-               {{"format", "ffloc-train-state"}, {"step", std::to_string(step)}, {"training_config", config_json}});
+               {{"format", kTrainingStateFormat}, {"step", std::to_string(step)}, {"training_config", config_json}});
   // A folder of this step that `latest` does not name (left by a run that stopped before updating
   // `latest`) is replaced; `latest` names another folder meanwhile, so a crash here loses nothing.
   const fs::path replaced = root / (folderName(step) + ".replaced");
