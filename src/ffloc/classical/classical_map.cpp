@@ -148,7 +148,9 @@ void writeClassicalMap(const ClassicalMap& map, const std::filesystem::path& pat
 
 ClassicalMap readClassicalMap(const std::filesystem::path& path) {
   const std::string file = path.string();
-  const auto archive = openSafetensors(path);
+  // A copy, not the file mapped: a map written over in place while a server reloaded it ended
+  // the server (SIGBUS in the checksum pass); now the read fails as "changed while it was read".
+  const auto archive = openSafetensors(path, FileMapping::kSnapshot);
   const nlohmann::json header_json = readMapMetadata(*archive, file);
   const MapHeader header = mapHeader(header_json, file);
   if (header.method != kMethod)

@@ -1,16 +1,21 @@
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
+#include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
+#include <thread>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "ffloc/classical/classical_localizer.h"
 #include "ffloc/classical/classical_mapper.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/testing/child_process.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/depth.h"
@@ -123,6 +128,37 @@ TEST_F(ClassicalTest, MapRoundTripsThroughItsFile) {
     file.put(static_cast<char>(bytes[at + 3] ^ 1));
   }
   EXPECT_NE(inputErrorOf([&] { readClassicalMap(path); }).find("map metadata checksum mismatch"), std::string::npos);
+}
+
+// A server reloads a map written over in place (`cp` onto it): read through the file's own mapping,
+// a copy of a smaller map during the read ended the process with SIGBUS in the checksum pass
+// (found by an outside probe). Read from a snapshot, the read succeeds or says the file changed.
+TEST_F(ClassicalTest, AMapWrittenOverInPlaceWhileItIsReadNeverEndsTheProcess) {
+  const fs::path large = *dir_ / "large.ffmap", small = *dir_ / "small.ffmap", served = *dir_ / "served.ffmap";
+  writeClassicalMap(build(scene_->mappingIndices()), large);
+  writeClassicalMap(build({0, 1}), small);
+  fs::copy_file(large, served);
+  const testing::ChildOutput child = testing::runInChild([&] {
+    std::atomic<bool> done{false};
+    std::thread writer([&] {
+      for (bool big = false; !done; big = !big) {
+        std::error_code ignored;
+        fs::copy_file(big ? large : small, served, fs::copy_options::overwrite_existing, ignored);
+      }
+    });
+    int read = 0;
+    for (int attempt = 0; attempt < 300; ++attempt) {
+      try {
+        read += readClassicalMap(served).images.empty() ? 0 : 1;
+      } catch (const InputError&) {
+      }
+    }
+    done = true;
+    writer.join();
+    std::printf("read %d\n", read);
+  });
+  EXPECT_TRUE(WIFEXITED(child.status) && WEXITSTATUS(child.status) == 0)
+      << "ended by signal " << (WIFSIGNALED(child.status) ? WTERMSIG(child.status) : 0) << ": " << child.output;
 }
 
 // A small, weakly textured image is described again at the low contrast threshold up to
