@@ -11,6 +11,7 @@
 #include <set>
 #include <stdexcept>
 #include <thread>
+#include <variant>
 #include <vector>
 #include <nlohmann/json.hpp>
 
@@ -261,15 +262,13 @@ class QueryTicket {
   bool admitted_ = false;
 };
 
-// The map a request names: NAME of /maps/NAME/..., or the only map of the server for /map and
-// /localize. Empty with the error already set when there is none.
-std::string requestedMap(const httplib::Request& request, const MapCatalog& maps, httplib::Response& response) {
-  if (request.matches.size() > 1) return request.matches[1];
+// The map a request names: NAME of /maps/NAME/... (`matches` as its route matched the path), or
+// the only map of the server for /map and /localize; a 404 when there is none.
+std::variant<std::string, Refusal> requestedMap(const std::smatch& matches, const MapCatalog& maps) {
+  if (matches.size() > 1) return matches[1].str();
   if (maps.names().size() == 1) return maps.names().front();
-  replyError(response, 404,
-             "this server holds " + std::to_string(maps.names().size()) +
-                 " maps: name one, as GET /maps/NAME or POST /maps/NAME/localize (GET /maps lists them)");
-  return "";
+  return Refusal{404, "this server holds " + std::to_string(maps.names().size()) +
+                          " maps: name one, as GET /maps/NAME or POST /maps/NAME/localize (GET /maps lists them)"};
 }
 
 nlohmann::json mapSummary(const std::string& name, const ServedMap& map) {
@@ -363,27 +362,45 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     return request.get_header_value("Authorization");
   };
 
-  // The map of a request, when the client may use it; null with the refusal set otherwise.
-  auto authorizedMap = [this, authorization](const httplib::Request& request,
-                                             httplib::Response& response) -> std::shared_ptr<const ServedMap> {
-    const std::string name = requestedMap(request, maps_, response);
-    if (name.empty()) return nullptr;
+  // Whether the request may use the map its route names: its key (on a server with keys) and the
+  // map's existence. Decided from the headers, so a POST is refused before its body is read
+  // (twenty clients without a key uploading 30 MB each took 750 MiB before their 401s).
+  const auto accessRefusal = [this, authorization](const httplib::Request& request,
+                                                   const std::smatch& matches) -> std::variant<std::string, Refusal> {
+    std::variant<std::string, Refusal> named = requestedMap(matches, maps_);
+    if (std::holds_alternative<Refusal>(named)) return named;
+    const std::string& name = std::get<std::string>(named);
     if (options_.keys) {
-      const std::optional<std::string> key = authorization(request, response);
-      if (!key) return nullptr;
+      httplib::Response refused;
+      const std::optional<std::string> key = authorization(request, refused);
+      if (!key) return Refusal{400, "Authorization: given more than once"};
       switch (options_.keys->decide(*key, name)) {
         case ApiKeys::Decision::kAllowed: break;
         case ApiKeys::Decision::kUnauthenticated:
-          replyError(response, 401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server");
-          return nullptr;
+          return Refusal{401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server"};
         case ApiKeys::Decision::kForbidden:
-          replyError(response, 403, "forbidden: this key may not use map '" + name + "'");
-          return nullptr;
+          return Refusal{403, "forbidden: this key may not use map '" + name + "'"};
       }
     }
+    const std::vector<std::string>& names = maps_.names();
+    if (std::find(names.begin(), names.end(), name) == names.end())
+      return Refusal{404, "map '" + name + "': no such map (GET /maps lists them)"};
+    return named;
+  };
+
+  // The name and map of a request, when the client may use it; a null map with the refusal set
+  // otherwise.
+  auto authorizedMap = [this, accessRefusal](const httplib::Request& request, httplib::Response& response)
+      -> std::pair<std::string, std::shared_ptr<const ServedMap>> {
+    const std::variant<std::string, Refusal> access = accessRefusal(request, request.matches);
+    if (const Refusal* refusal = std::get_if<Refusal>(&access)) {
+      replyError(response, refusal->status, refusal->message);
+      return {};
+    }
+    const std::string& name = std::get<std::string>(access);
     std::shared_ptr<const ServedMap> map = maps_.get(name);
     if (!map) replyError(response, 404, "map '" + name + "': no such map (GET /maps lists them)");
-    return map;
+    return {name, map};
   };
 
   // Open to every client, for load balancers: says nothing a key would protect beyond the count.
@@ -412,12 +429,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   });
 
   const auto describeMap = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
-    const std::shared_ptr<const ServedMap> map = authorizedMap(request, response);
+    const auto [name, map] = authorizedMap(request, response);
     if (!map) return;
     const Localizer& localizer = *map->localizer;
     nlohmann::json names = nlohmann::json::array();
     for (const MapCamera& camera : localizer.cameras()) names.push_back(camera.name);
-    nlohmann::json body = mapSummary(requestedMap(request, maps_, response), *map);
+    nlohmann::json body = mapSummary(name, *map);
     body["names"] = names;
     body["metric"] = localizer.metric();
     body["model_id"] = localizer.modelId();
@@ -432,9 +449,8 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   get(R"(/maps/([^/]+))", describeMap);
 
   const auto describeScene = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
-    const std::shared_ptr<const ServedMap> map = authorizedMap(request, response);
+    const auto [name, map] = authorizedMap(request, response);
     if (!map) return;
-    const std::string name = requestedMap(request, maps_, response);
     std::deque<nlohmann::json> recent;
     {
       std::lock_guard<std::mutex> lock(http_->recent_mutex);
@@ -460,7 +476,13 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   // so is a body that cannot be an image. So are a path no route serves (404) and a method its
   // route does not answer (405): the library would read a PUT's body first, and refuse a form
   // body as too large (413).
-  const auto refusalBeforeBody = [this](const httplib::Request& request) -> Refusal {
+  const auto refusalBeforeBody = [this, accessRefusal](const httplib::Request& request) -> Refusal {
+    // The library reads no body of a GET: one sent was parsed as the next request, whose answer
+    // a proxy in front would hand to another client (found by an outside probe).
+    if ((request.method == "GET" || request.method == "HEAD") && request.has_header("Content-Length") &&
+        request.get_header_value("Content-Length") != "0")
+      return {400, "a " + request.method + " request carries no body; this one announced " +
+                       escapeControlCharacters(request.get_header_value("Content-Length")) + " bytes"};
     // The library reads a body that is both chunked and of a Content-Length as chunked: past
     // the body limit, and with a request hidden after the last chunk run as a second one, which
     // a proxy in front that goes by Content-Length never saw (request smuggling).
@@ -489,8 +511,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
         return {404, "map '" + httplib::detail::decode_url(match[1], false) +
                          "': no such map (map names hold no '/'; GET /maps lists them)"};
       }
-      if (method == request.method || (method == "GET" && request.method == "HEAD"))
-        return request.method == "POST" ? postRefusal(request, options_.max_body_bytes) : Refusal{};
+      if (method == request.method || (method == "GET" && request.method == "HEAD")) {
+        if (request.method != "POST") return Refusal{};
+        const std::variant<std::string, Refusal> access = accessRefusal(request, match);
+        if (const Refusal* refusal = std::get_if<Refusal>(&access)) return *refusal;
+        return postRefusal(request, options_.max_body_bytes);
+      }
       allow += (allow.empty() ? "" : ", ") + (method == "GET" ? std::string("GET, HEAD") : method);
     }
     if (allow.empty()) return {404, notFoundMessage(request, path)};
@@ -519,7 +545,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
 
   const auto localize = [this, log, authorizedMap](const httplib::Request& request, httplib::Response& response) {
     const auto start = std::chrono::steady_clock::now();
-    const std::shared_ptr<const ServedMap> map = authorizedMap(request, response);
+    const auto [name, map] = authorizedMap(request, response);
     if (!map) return;
     const QueryTicket ticket(queries_in_flight_, options_.max_waiting_queries);
     if (!ticket.admitted()) {
@@ -569,7 +595,6 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     }
     response.set_content(jsonText(body), kJson);
     if (options_.recent_answers > 0) {
-      const std::string name = requestedMap(request, maps_, response);
       std::lock_guard<std::mutex> lock(http_->recent_mutex);
       std::deque<nlohmann::json>& recent = http_->recent[name];
       recent.push_back({{"answer", body}, {"intrinsics", intrinsicsJson(query.intrinsics)}});

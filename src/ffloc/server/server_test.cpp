@@ -1,8 +1,4 @@
-#include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -28,6 +24,7 @@
 #include "ffloc/pipeline/mapper.h"
 #include "ffloc/server/localization_server.h"
 #include "ffloc/server/localize_request.h"
+#include "ffloc/server/testing/raw_exchange.h"
 
 // Last: it brings <resolv.h>, whose _res macro breaks Eigen headers included after it.
 #include <httplib.h>
@@ -65,25 +62,7 @@ std::string requestErrorOf(const std::map<std::string, std::string>& fields, con
   return "";
 }
 
-// Sends `request` as it is on a new connection and returns what comes back until the server
-// closes it (or 20 s pass).
-std::string rawExchange(int port, const std::string& request) {
-  const int socket_fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in address = {};
-  address.sin_family = AF_INET;
-  address.sin_port = htons(static_cast<uint16_t>(port));
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  std::string answer;
-  if (connect(socket_fd, reinterpret_cast<sockaddr*>(&address), sizeof(address)) == 0 &&
-      send(socket_fd, request.data(), request.size(), 0) == static_cast<ssize_t>(request.size())) {
-    timeval timeout = {20, 0};
-    setsockopt(socket_fd, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
-    char buffer[4096];
-    for (ssize_t got; (got = recv(socket_fd, buffer, sizeof(buffer), 0)) > 0;) answer.append(buffer, got);
-  }
-  close(socket_fd);
-  return answer;
-}
+using testing::rawExchange;
 
 TEST(LocalizeRequest, ReadsIntrinsicsOverridesAndTheImageInRgbOrder) {
   cv::Mat rgb(48, 64, CV_8UC3, cv::Scalar(0, 0, 0));
@@ -725,6 +704,23 @@ TEST_F(ServerTest, ARefusedBodyIsNotReadAsTheNextRequest) {
   EXPECT_NE(answer.find("Connection: close"), std::string::npos) << answer;
   EXPECT_EQ(answer.find("HTTP/1.1", 1), std::string::npos) << "answered more than one request: " << answer;
   EXPECT_EQ(log, "PUT /localize 405 method not allowed: PUT /localize; this route answers POST\n");
+}
+
+// The library reads no body of a GET: one sent was parsed as the next request, so a GET /health
+// carrying "GET /maps/NAME/scene" got both answers, which a proxy in front would hand to
+// another client (request smuggling; found by an outside probe).
+TEST_F(ServerTest, AGetWithABodyIsRefusedAndItsBodyNeverRuns) {
+  LoggingServer server(*catalog_, options_);
+  const std::string hidden = "GET /map HTTP/1.1\r\nHost: x\r\n\r\n";
+  const std::string answer = rawExchange(server.port(), "GET /health HTTP/1.1\r\nHost: x\r\nContent-Length: " +
+                                                            std::to_string(hidden.size()) + "\r\n\r\n" + hidden);
+  const std::string log = server.stopAndReadLog();
+  EXPECT_EQ(answer.rfind("HTTP/1.1 400", 0), 0u) << answer;
+  EXPECT_NE(answer.find("a GET request carries no body; this one announced " + std::to_string(hidden.size()) + " bytes"),
+            std::string::npos)
+      << answer;
+  EXPECT_EQ(answer.find("HTTP/1.1", 1), std::string::npos) << "answered more than one request: " << answer;
+  EXPECT_EQ(log.find("/map "), std::string::npos) << log;
 }
 
 // A client's name or path was logged as sent: a newline in it wrote a forged log line, a NUL a
