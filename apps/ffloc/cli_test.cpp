@@ -713,6 +713,26 @@ TEST_F(Cli, EvalRefusesOptionsItWouldIgnoreOrMisuseBeforeEvaluating) {
       << localize.output;
 }
 
+// Outputs were compared with the frames' images and depth maps only: --json onto the target of a
+// linked manifest.json replaced the dataset's ground truth (found by an outside probe).
+TEST_F(Cli, EvalNeverWritesOverAFileTheDatasetReadsThroughALink) {
+  const fs::path data = manifestDataset(dir_ / "data", "q.png");
+  const fs::path outside = dir_ / "outside" / "manifest.json";
+  fs::create_directories(outside.parent_path());
+  fs::rename(data / "manifest.json", outside);
+  fs::create_symlink(outside, data / "manifest.json");
+  std::ifstream before_file(outside);
+  const std::string before((std::istreambuf_iterator<char>(before_file)), {});
+  const CliRun run =
+      runCli({"eval", "--dataset", data.string(), "--methods", "oracle-depth", "--json", outside.string()});
+  EXPECT_EQ(run.exit_code, 2) << run.output;
+  EXPECT_TRUE(contains(run.output, "--json: '" + outside.string() + "' is a file of the dataset " + data.string() +
+                                       " (as " + (data / "manifest.json").string() + "); write it elsewhere"))
+      << run.output;
+  std::ifstream after_file(outside);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(after_file)), {}), before);
+}
+
 // Every seed of `ffloc synth` names its first scene scene_000_indoor: two of them evaluated together
 // gave rows nothing told apart (found by an outside probe). Such datasets are named by their folder.
 TEST_F(Cli, EvalNamesDatasetsOfOneNameByTheirFolders) {

@@ -1,8 +1,11 @@
+#include <sys/stat.h>
+
 #include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -141,15 +144,40 @@ void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
 
 // A manifest may name files outside its folder (../elsewhere/x.png), which the folder check
 // cannot see: an output given such a path replaced a query's image with the run's CSV, exit 0.
+// An output that already exists is refused when it is a file the dataset reads: a frame's image or
+// depth map wherever it lies, or any file under the dataset's folder, links followed. Only images
+// and depth were compared before, so an output that was the target of a linked manifest.json,
+// pose file or split list replaced the dataset's ground truth (found by an outside probe).
 void refuseOutputsOverFramesOf(const Scene& scene, const EvalArguments& args) {
-  std::set<std::filesystem::path> read;
-  for (const Frame& frame : scene.frames) {
-    read.insert(sameFolderKey(frame.image_path.string()));
-    if (frame.depth) read.insert(sameFolderKey(frame.depth->path.string()));
-  }
+  namespace fs = std::filesystem;
+  using FileId = std::pair<dev_t, ino_t>;
+  const auto idOf = [](const fs::path& path) -> std::optional<FileId> {
+    struct stat info {};
+    if (::stat(path.c_str(), &info) != 0 || !S_ISREG(info.st_mode)) return std::nullopt;
+    return FileId{info.st_dev, info.st_ino};
+  };
+  std::map<FileId, std::pair<std::string, std::string>> outputs;  // the flag and path of each
   for (const auto& [flag, path] : outputsWritten(args))
-    if (read.count(sameFolderKey(path)))
-      throw InputError(flag + ": '" + path + "' is a file of the dataset " + scene.root.string() + "; write it elsewhere");
+    if (const auto id = idOf(path)) outputs.emplace(*id, std::make_pair(flag, path));
+  if (outputs.empty()) return;
+  const auto refuseIfOutput = [&](const fs::path& file) {
+    const auto id = idOf(file);
+    if (!id || !outputs.count(*id)) return;
+    const auto& [flag, path] = outputs.at(*id);
+    throw InputError(flag + ": '" + path + "' is a file of the dataset " + scene.root.string() +
+                     (fs::path(path) == file ? "" : " (as " + file.string() + ")") + "; write it elsewhere");
+  };
+  for (const Frame& frame : scene.frames) {
+    refuseIfOutput(frame.image_path);
+    if (frame.depth) refuseIfOutput(frame.depth->path);
+  }
+  std::error_code error;
+  const auto options = fs::directory_options::follow_directory_symlink | fs::directory_options::skip_permission_denied;
+  for (fs::recursive_directory_iterator entry(scene.root, options, error), end; !error && entry != end;
+       entry.increment(error)) {
+    if (entry.depth() >= 8) entry.disable_recursion_pending();  // a loop of links ends here
+    refuseIfOutput(entry->path());
+  }
 }
 
 // Datasets of one name (every seed of `ffloc synth` has a scene_000_indoor) gave rows nothing told
