@@ -106,6 +106,8 @@ TEST(Report, CsvHasOneRowPerFrame) {
   // The predicted uncertainty and the intrinsics fits, the last evidence columns, as
   // scripts/calibrate_verdict.py reads them.
   const std::string header = csv.substr(0, csv.find('\n'));
+  // The pose is camera-to-world, and named so.
+  EXPECT_NE(header.find(",c2w_qw,c2w_qx,c2w_qy,c2w_qz,c2w_tx,c2w_ty,c2w_tz,"), std::string::npos) << header;
   EXPECT_NE(header.find(",predicted_centre_sigma,predicted_centre_sigma_relative,predicted_rotation_sigma_deg,"
                         "focal_scale,focal_scale_log_sigma,principal_point_shift,principal_point_shift_significance,"
                         "focal_aspect,focal_aspect_log_sigma,focal_scan_factor,focal_scan_inlier_gain"),

@@ -114,8 +114,10 @@ std::string markdownTable(const std::vector<MethodSummary>& summaries, const std
 std::string perFrameCsv(const std::vector<FrameResult>& frames) {
   std::ostringstream out;
   out.precision(9);
+  // The pose camera-to-world, the project's convention: named qw..tz, the columns were read as the
+  // world-to-camera pose --poses, the JSON and Python give under those names (an outside probe).
   out << "dataset,method,frame,status,translation_error,rotation_error_deg,correspondences,inliers,"
-         "source_ms,pnp_ms,qw,qx,qy,qz,tx,ty,tz,verdict,inlier_ratio,inlier_spread,agreement_translation,"
+         "source_ms,pnp_ms,c2w_qw,c2w_qx,c2w_qy,c2w_qz,c2w_tx,c2w_ty,c2w_tz,verdict,inlier_ratio,inlier_spread,agreement_translation,"
          "agreement_rotation_deg,agreement_distance,residual_sigma_px,predicted_centre_sigma,"
          "predicted_centre_sigma_relative,predicted_rotation_sigma_deg,focal_scale,focal_scale_log_sigma,"
          "principal_point_shift,principal_point_shift_significance,focal_aspect,focal_aspect_log_sigma,"
