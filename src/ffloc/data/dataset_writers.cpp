@@ -6,6 +6,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/data/format_io.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/data/manifest.h"
 #include "ffloc/io/input_file.h"
 
@@ -92,6 +93,11 @@ std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path
   Scene copy = scene;
   copy.root = out;
   const std::vector<std::string> paths = portableFrameNames(scene);
+  // Before anything is copied: the JSON writer's own error named no file (an internal error, exit 3).
+  for (size_t i = 0; i < paths.size(); ++i)
+    if (!isUtf8(paths[i]))
+      throwInputError(scene.frames[i].image_path.string(), 0,
+                      "image name '" + paths[i] + "' is not UTF-8, which a manifest (JSON) cannot hold; rename the file");
   std::vector<std::string> names;
   for (size_t i = 0; i < copy.frames.size(); ++i) {
     Frame& frame = copy.frames[i];

@@ -124,6 +124,34 @@ TEST_F(DatasetWriters, DepthBeyondSixteenBitMillimetresIsRefusedWhereItCannotBeS
   }
   writeDataset(scene, "kapture", dir_ / "out-kapture");
   EXPECT_FLOAT_EQ(readDepthMetres(readKapture(dir_ / "out-kapture").frames[0])(10, 10), 100.0f);
+
+  // A scene in small units: depth under half a millimetre was written as "no depth", exit 0.
+  scene.frames[0].depth->scale = 1e-8;
+  for (const std::string format : {"ace", "mapfree", "rio10"}) {
+    try {
+      writeDataset(scene, format, dir_ / ("near-" + format));
+      ADD_FAILURE() << format << " wrote depth of 0.1 mm as none";
+    } catch (const InputError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind("a.png: 3072 depth pixels lie nearer than 0.5 mm (down to 0.0001 m)", 0),
+                0u)
+          << format << ": " << e.what();
+    }
+  }
+}
+
+// A frame whose name is not UTF-8 failed in the JSON writer: "internal error", no file named.
+TEST_F(DatasetWriters, AManifestRefusesANameItCannotHold) {
+  writeImage(dir_ / "source" / "caf\xE9.png");
+  const Scene scene = sceneOfFrames(dir_ / "source", {"caf\xE9.png"});
+  try {
+    writeDataset(scene, "manifest", dir_ / "out");
+    ADD_FAILURE() << "written";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()), (dir_ / "source" / "caf\xE9.png").string() +
+                                         ": image name 'caf\xE9.png' is not UTF-8, which a manifest (JSON) cannot "
+                                         "hold; rename the file");
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "manifest.json"));
 }
 
 // Found by an outside probe: ACE files pair by the name up to its first '.', so frames in folders

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <fstream>
 #include <map>
 #include <opencv2/imgcodecs.hpp>
@@ -105,8 +106,8 @@ void copyFrameImage(const Frame& frame, const fs::path& destination, bool as_jpe
 void writeDepthMillimetrePng(const Frame& frame, const fs::path& destination) {
   const cv::Mat1f metres = readDepthMetres(frame);
   cv::Mat1w millimetres(metres.size());
-  int beyond = 0;
-  float farthest = 0;
+  int beyond = 0, nearer = 0;
+  float farthest = 0, nearest = std::numeric_limits<float>::infinity();
   for (int y = 0; y < metres.rows; ++y)
     for (int x = 0; x < metres.cols; ++x) {
       const double mm = std::round(metres(y, x) * 1000.0);
@@ -114,14 +115,23 @@ void writeDepthMillimetrePng(const Frame& frame, const fs::path& destination) {
       if (mm >= 65535 && std::isfinite(metres(y, x))) {
         ++beyond;
         farthest = std::max(farthest, metres(y, x));
+      } else if (mm == 0 && metres(y, x) > 0) {
+        ++nearer;
+        nearest = std::min(nearest, metres(y, x));
       }
     }
-  // Written as 0 they would read back as "no depth" without a word.
+  // Written as 0 they would read back as "no depth" without a word: beyond the largest value, or
+  // (a scene in small units, found by an outside probe) under half a millimetre.
+  const std::string remedy = ", which 16-bit millimetre depth cannot hold: convert to manifest or kapture, which "
+                             "store depth as floats";
   if (beyond > 0)
     throwInputError(frame.name, 0,
                     std::to_string(beyond) + " depth pixels lie beyond 65.534 m (up to " + formatNumber(farthest) +
-                        " m), which 16-bit millimetre depth cannot hold: convert to manifest or kapture, which "
-                        "store depth as floats");
+                        " m)" + remedy);
+  if (nearer > 0)
+    throwInputError(frame.name, 0,
+                    std::to_string(nearer) + " depth pixels lie nearer than 0.5 mm (down to " + formatSignificant(nearest) +
+                        " m)" + remedy);
   createParent(destination);
   if (!cv::imwrite(destination.string(), millimetres)) throwInputError(destination.string(), 0, "cannot write depth image");
 }

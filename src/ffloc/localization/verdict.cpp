@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <initializer_list>
 #include <limits>
 #include <stdexcept>
@@ -18,13 +17,6 @@
 
 namespace ffloc {
 namespace {
-
-// Reasons show three digits: "inlier ratio below 0.100000" read as machine output.
-std::string threeDigits(double value) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.3g", value);
-  return text;
-}
 
 void requireAtLeast(const char* field, double value, double lowest) {
   if (!(value >= lowest))  // NaN fails too
@@ -224,7 +216,7 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
   if (evidence.inliers < options.min_inliers)
     verdict.reason = std::to_string(evidence.inliers) + " inliers, fewer than " + std::to_string(options.min_inliers);
   else if (evidence.inlier_ratio < options.min_inlier_ratio)
-    verdict.reason = "inlier ratio below " + threeDigits(options.min_inlier_ratio);
+    verdict.reason = "inlier ratio below " + formatSignificant(options.min_inlier_ratio);
   else if (evidence.inlier_spread < options.min_inlier_spread)
     verdict.reason = "inliers cover too little of the image";
   else if (!(evidence.predicted_centre_sigma_relative <= options.max_centre_sigma_relative &&
@@ -232,16 +224,16 @@ PoseVerdict judgePose(const PoseEvidence& evidence, const PnpResult& pose, bool 
              (!metric || evidence.predicted_centre_sigma <= options.max_centre_sigma_m)))
     verdict.reason = "the inliers leave the pose too uncertain";
   else if (focalLengthMisfits(evidence, options))
-    verdict.reason = "the correspondences fit a focal length " + threeDigits(evidence.focal_scale) +
+    verdict.reason = "the correspondences fit a focal length " + formatSignificant(evidence.focal_scale) +
                      " times the one given: check the query's intrinsics";
   else if (focalAspectMisfits(evidence, options))
-    verdict.reason = "the correspondences fit a ratio fy / fx " + threeDigits(evidence.focal_aspect) +
+    verdict.reason = "the correspondences fit a ratio fy / fx " + formatSignificant(evidence.focal_aspect) +
                      " times the one given: check the query's intrinsics";
   else if (evidence.focal_scan_inlier_gain >= options.max_focal_scan_gain)
-    verdict.reason = "a focal length " + threeDigits(evidence.focal_scan_factor) + " times the one given gives " +
-                     threeDigits(evidence.focal_scan_inlier_gain) + " times the inliers: check the query's intrinsics";
+    verdict.reason = "a focal length " + formatSignificant(evidence.focal_scan_factor) + " times the one given gives " +
+                     formatSignificant(evidence.focal_scan_inlier_gain) + " times the inliers: check the query's intrinsics";
   else if (principalPointMisfits(evidence, options))
-    verdict.reason = "the correspondences fit a principal point " + threeDigits(evidence.principal_point_shift) +
+    verdict.reason = "the correspondences fit a principal point " + formatSignificant(evidence.principal_point_shift) +
                      " focal lengths from the one given: check the query's intrinsics";
   else if (!std::isfinite(evidence.agreement_translation) || evidence.agreement_translation < 0) {
     if (evidence.independent_second_estimate)
