@@ -382,6 +382,13 @@ TEST(BadInput, CambridgeReadsPosesAsCentreAndWorldToCameraRotation) {
   writeTextFile(dir / "dataset_test.txt", "Visual Landmark Dataset V1\nImageFile, Camera Position [X Y Z W P Q R]\n\n"
                                           "seq2/frame00009.png 0 0 -1 1 0 0 0\n");
   expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:4", "frame00009.png", "not found"});
+
+  // Without its three header lines a list lost its first three frames, without a word (found by
+  // an outside probe); a malformed first entry is still refused, not skipped as a header.
+  writeTextFile(dir / "dataset_test.txt", "seq2/frame00001.png 0 0 -1 1 0 0 0\n");
+  ASSERT_EQ(loadDataset(dir).frames.size(), 2u);
+  writeTextFile(dir / "dataset_test.txt", "seq2/frame00001.png 0 0 -1 1 0 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
 }
 
 }  // namespace

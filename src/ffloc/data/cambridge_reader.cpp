@@ -1,3 +1,5 @@
+#include <algorithm>
+#include <cstdlib>
 #include <map>
 #include <numeric>
 
@@ -50,8 +52,29 @@ std::map<std::string, double> readNvmFocals(const fs::path& file) {
 void readPoseList(const fs::path& file, const fs::path& dir, Split split, const std::map<std::string, double>& focals,
                   double fallback_focal, Scene& scene) {
   const auto lines = readTextLines(file);
-  // Three header lines: title, column names, blank.
-  for (size_t i = 3; i < lines.size(); ++i) {
+  // Up to three header lines (title, column names, blank) before the first entry: three were
+  // skipped whatever they held, so a list without its header lost its first three frames
+  // without a word (found by an outside probe).
+  const auto isEntry = [](const std::string& text) {
+    const auto tokens = splitWhitespace(text);
+    if (tokens.size() != 8) return false;
+    for (size_t k = 1; k < tokens.size(); ++k) {
+      char* end = nullptr;
+      std::strtod(tokens[k].c_str(), &end);
+      if (end == tokens[k].c_str() || *end != '\0') return false;
+    }
+    return true;
+  };
+  // A line naming an image is an entry, read (and refused) as one when it is malformed.
+  const auto namesAnImage = [&](const std::string& text) {
+    const auto tokens = splitWhitespace(text);
+    return !tokens.empty() && fs::is_regular_file(dir / tokens[0]);
+  };
+  size_t first = 0;
+  while (first < std::min<size_t>(3, lines.size()) && !isEntry(lines[first].text) &&
+         !namesAnImage(lines[first].text))
+    ++first;
+  for (size_t i = first; i < lines.size(); ++i) {
     const TextLine& line = lines[i];
     const auto tokens = splitWhitespace(line.text);
     if (tokens.empty()) continue;
