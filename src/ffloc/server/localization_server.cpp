@@ -1,6 +1,7 @@
 #include "ffloc/server/localization_server.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <condition_variable>
 #include <deque>
@@ -223,8 +224,14 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
   // The library would first read (and drop) the announced bytes: a client announcing more than
   // it sends was answered 408 at the body's deadline instead.
   if (std::stoull(length) > max_body_bytes) return {413, libraryErrorMessage(413, max_body_bytes)};
+  // Two types, like two lengths, may be read differently by a proxy in front.
+  if (request.get_header_value_count("Content-Type") > 1) return {400, "Content-Type: given more than once"};
   const std::string type = request.get_header_value("Content-Type");
-  const auto starts = [&](const char* prefix) { return type.rfind(prefix, 0) == 0; };
+  // Media types are case-insensitive: IMAGE/PNG was refused as 415.
+  std::string lower_type = type;
+  std::transform(lower_type.begin(), lower_type.end(), lower_type.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const auto starts = [&](const char* prefix) { return lower_type.rfind(prefix, 0) == 0; };
   // What curl --data-binary sends without -H: the library would read the image as form fields
   // and, past 8 KiB, refuse it as too large (413), which sent users hunting for a size limit.
   if (starts("application/x-www-form-urlencoded")) {
@@ -477,6 +484,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   // route does not answer (405): the library would read a PUT's body first, and refuse a form
   // body as too large (413).
   const auto refusalBeforeBody = [this, accessRefusal](const httplib::Request& request) -> Refusal {
+    // "Transfer-Encoding : chunked" is no header the library knows, but a lenient proxy in front
+    // may read it as one and split the body elsewhere (RFC 9112 5.1 asks for a 400).
+    for (const auto& [name, value] : request.headers)
+      if (name.find_first_of(" \t") != std::string::npos)
+        return {400, "header '" + escapeControlCharacters(cutForLog(name, kMaxLoggedNameBytes)) +
+                         "': whitespace in a field name"};
     // The library reads no body of a GET: one sent was parsed as the next request, whose answer
     // a proxy in front would hand to another client (found by an outside probe).
     if ((request.method == "GET" || request.method == "HEAD") && request.has_header("Content-Length") &&
@@ -560,7 +573,14 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     }
     LocalizeRequest query;
     try {
-      query = parseLocalizeRequest(requestFields(request), imageBytes(request), options_.localize, options_.limits);
+      const std::map<std::string, std::string> fields = requestFields(request);
+      // As the CLI and Python refuse their flag: a classical map ignored features= and
+      // selection= without a word.
+      const LocalizationMethod method = map->localizer->method();
+      for (const char* field : {"features", "selection"})
+        if (fields.count(field) && !methodUsesSetting(method, field))
+          throw InputError(std::string(field) + ": the map is a " + toString(method) + " map, which does not use it");
+      query = parseLocalizeRequest(fields, imageBytes(request), options_.localize, options_.limits);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());
       return;

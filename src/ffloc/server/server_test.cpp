@@ -598,6 +598,22 @@ TEST_F(ServerTest, ServesAClassicalMapAsTheLibraryLocalizesIt) {
   ASSERT_TRUE(outside);
   EXPECT_EQ(outside->status, 400);
   EXPECT_EQ(body(outside)["error"].get<std::string>().rfind("cx, cy:", 0), 0u);
+  // FastForward's fields were ignored here without a word, where the CLI and Python refuse them.
+  for (const std::string field : {"features=500", "selection=uniform"}) {
+    const auto ignored =
+        client.Post(("/localize?" + field + "&" + intrinsicsParameters()).c_str(), queryFileBytes(), "image/png");
+    ASSERT_TRUE(ignored);
+    EXPECT_EQ(ignored->status, 400) << field;
+    EXPECT_EQ(body(ignored)["error"], field.substr(0, field.find('=')) +
+                                          ": the map is a classical map, which does not use it");
+  }
+  // Media types are case-insensitive; two of them are refused as two lengths are.
+  EXPECT_EQ(client.Post(("/localize?" + intrinsicsParameters()).c_str(), queryFileBytes(), "IMAGE/PNG")->status, 200);
+  const httplib::Headers two_types = {{"Content-Type", "image/png"}, {"Content-Type", "text/plain"}};
+  const auto twice = client.Post(("/localize?" + intrinsicsParameters()).c_str(), two_types, queryFileBytes(), "");
+  ASSERT_TRUE(twice);
+  EXPECT_EQ(twice->status, 400);
+  EXPECT_EQ(body(twice)["error"], "Content-Type: given more than once");
   server.stop();
   serving.join();
 }
@@ -708,12 +724,18 @@ TEST_F(ServerTest, ARefusedBodyIsNotReadAsTheNextRequest) {
 
 // The library reads no body of a GET: one sent was parsed as the next request, so a GET /health
 // carrying "GET /maps/NAME/scene" got both answers, which a proxy in front would hand to
-// another client (request smuggling; found by an outside probe).
-TEST_F(ServerTest, AGetWithABodyIsRefusedAndItsBodyNeverRuns) {
+// another client (request smuggling; found by an outside probe). A field name with a space was
+// dropped, where a lenient proxy may read it as the header it spells.
+TEST_F(ServerTest, AGetWithABodyOrASpacedFieldNameIsRefusedAndNothingHiddenRuns) {
   LoggingServer server(*catalog_, options_);
   const std::string hidden = "GET /map HTTP/1.1\r\nHost: x\r\n\r\n";
   const std::string answer = rawExchange(server.port(), "GET /health HTTP/1.1\r\nHost: x\r\nContent-Length: " +
                                                             std::to_string(hidden.size()) + "\r\n\r\n" + hidden);
+  // A field name with a space, which a lenient proxy may read as Transfer-Encoding.
+  const std::string spaced = rawExchange(server.port(), "POST /localize HTTP/1.1\r\nHost: x\r\nTransfer-Encoding : "
+                                                          "chunked\r\nContent-Length: 5\r\n\r\nhello");
+  EXPECT_EQ(spaced.rfind("HTTP/1.1 400", 0), 0u) << spaced;
+  EXPECT_NE(spaced.find("header 'Transfer-Encoding ': whitespace in a field name"), std::string::npos) << spaced;
   const std::string log = server.stopAndReadLog();
   EXPECT_EQ(answer.rfind("HTTP/1.1 400", 0), 0u) << answer;
   EXPECT_NE(answer.find("a GET request carries no body; this one announced " + std::to_string(hidden.size()) + " bytes"),
