@@ -144,11 +144,15 @@ TEST_F(Cli, CommandLineErrorsExitWithTheBadInputCode) {
 }
 
 // "--data ," gave no values and CLI11 went on to read the next flags as dataset paths.
-TEST_F(Cli, AListOfCommasAloneIsRefusedNamingItsFlag) {
+TEST_F(Cli, AListOfCommasAloneOrWithAnEmptyEntryIsRefusedNamingItsFlag) {
   for (const auto& [arguments, expected] : std::vector<std::pair<std::vector<std::string>, std::string>>{
            {{"eval", "--dataset", ",", "--methods", "classical"}, "error: --dataset: ',' holds no value"},
            {{"eval", "--dataset=,", "--methods", "classical"}, "error: --dataset: ',' holds no value"},
-           {{"train", "--out", (dir_ / "run").string(), "--data", ",,", "--steps", "1"}, "error: --data: ',,' holds no value"}}) {
+           {{"train", "--out", (dir_ / "run").string(), "--data", ",,", "--steps", "1"}, "error: --data: ',,' holds no value"},
+           // An empty entry was dropped without a word.
+           {{"eval", "--dataset", "a", "--methods", "oracle-depth,,classical"},
+            "error: --methods: 'oracle-depth,,classical' has an empty entry"},
+           {{"eval", "--dataset=a,", "--methods", "classical"}, "error: --dataset: 'a,' has an empty entry"}}) {
     const CliRun run = runCli(arguments);
     EXPECT_EQ(run.exit_code, 2) << run.output;
     EXPECT_TRUE(contains(run.output, expected)) << run.output;

@@ -65,6 +65,11 @@ const std::map<std::string, std::string>& methodSettingOfFlag() {
   return setting_of_flag;
 }
 
+std::string emptyListEntryProblem(const std::string& value) {
+  if (value.empty() || (value.front() != ',' && value.back() != ',' && value.find(",,") == std::string::npos)) return "";
+  return "'" + value + "' has an empty entry";
+}
+
 std::vector<std::string> flagsGiven(const CLI::App& command, const std::map<std::string, std::string>& flags) {
   std::vector<std::string> given;
   for (const auto& [flag, meaning] : flags)

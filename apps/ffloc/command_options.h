@@ -63,6 +63,9 @@ void checkOutputFolder(const std::string& flag, const std::string& path);
 // (the server's bound on the same fields). CLI11 alone reads "-1" as 2^64 - 1, saturates a longer
 // number without a word, takes "" as 0 and "0x10" as 16.
 CLI::Validator wholeNumber();
+// "'a,,b' has an empty entry" when a comma-separated `value` has one (CLI11 dropped it without a
+// word: "oracle-depth,,classical" ran two methods), else "".
+std::string emptyListEntryProblem(const std::string& value);
 
 // The first argument of `arguments` (what follows the command's name) that looks like a long option
 // `command` does not have, named with the command's option it most likely meant: "--methds: not

@@ -404,7 +404,10 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
 #endif
                  "; classical and fastforward build their map of the mapping split in memory")
       ->check(CLI::Validator(
-          [](const std::string& input) { return methodListProblem(splitList(input)); },
+          [](const std::string& input) {
+            const std::string empty_entry = emptyListEntryProblem(input);
+            return empty_entry.empty() ? methodListProblem(splitList(input)) : empty_entry;
+          },
           "LIST"));
   cmd->add_option("--map", args->map_path,
                   "Evaluate this map file from 'ffloc map' (any method), exactly as 'ffloc localize' runs it; "

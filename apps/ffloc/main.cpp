@@ -65,6 +65,13 @@ int main(int argc, char** argv) {
         std::cerr << "error: " << flag << ": '" << value << "' holds no value\n";
         return 2;
       }
+      const CLI::Option* option = app.get_subcommand(argv[1])->get_option_no_throw(flag);
+      if (option != nullptr && option->get_delimiter() == ',') {
+        if (const std::string problem = ffloc::cli::emptyListEntryProblem(value); !problem.empty()) {
+          std::cerr << "error: " << flag << ": " << problem << "\n";
+          return 2;
+        }
+      }
     }
     const std::string one_dash = ffloc::cli::oneDashOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
     if (!one_dash.empty()) {

@@ -1,5 +1,6 @@
 #include "ffloc/core/temporary_file.h"
 
+#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -51,8 +52,14 @@ void removeTemporaryFilesAndRaise(int signal_number) {
   for (int i = 0; i < kSlots; ++i)
     if (slot_used[i].load(std::memory_order_acquire)) ::unlink(slot_paths[i]);
   std::signal(signal_number, SIG_DFL);
+  // Inside a handler the signal is blocked: unblocked, it ends the process here as its default
+  // action would, before this function could return.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, signal_number);
+  ::sigprocmask(SIG_UNBLOCK, &signals, nullptr);
   std::raise(signal_number);
-  ::_exit(128 + signal_number);  // the signal was blocked: end the same way
+  ::_exit(128 + signal_number);
 }
 
 TemporaryFile::TemporaryFile(std::filesystem::path path) : path_(std::move(path)) {

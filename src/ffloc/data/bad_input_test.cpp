@@ -47,6 +47,20 @@ TEST(BadInput, TinySevenScenesReads) {
   EXPECT_EQ(readDepthMetres(scene.frames[1])(2, 3), 1.5f);
 }
 
+// Found by an outside probe: with both a PNG and a JPEG the PNG was taken without a word; with the
+// documented intrinsics, a half-size image had its principal point in a corner, or its depth map
+// blamed.
+TEST(BadInput, SevenScenesFramesWithTwoImagesOrAnotherSizeThanTheDocumentedCamera) {
+  const auto dir = makeSevenScenes();
+  writeImage(dir / "frame-000001.color.jpg", 8, 6);
+  expectInputError([&] { loadDataset(dir); },
+                   {"frame-000001.pose.txt", "two colour images, frame-000001.color.png and frame-000001.color.jpg"});
+  fs::remove(dir / "frame-000001.color.jpg");
+  fs::remove(dir / "camera-intrinsics.txt");  // the documented 585 px camera of 640 x 480 images
+  expectInputError([&] { loadDataset(dir); },
+                   {"frame-000000.color.png", "image is 8x6, but 7-Scenes' intrinsics are of 640x480 images"});
+}
+
 TEST(BadInput, MalformedPoses) {
   struct Case {
     std::string text, expected;

@@ -275,6 +275,11 @@ TEST(Manifest, IntegersBeyondIntAreRefused) {
   writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1)" +
                                            std::string(R"(, "cameras": {"0": {"width": 4294967300, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}}, "frames": []})"));
   expectInputError([&] { readManifest(dir / "manifest.json"); }, {"manifest.json", "cameras.0.width"});
+  // 640.0 was told "expected an integer in [...]", a range 640 lies in.
+  writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1)" +
+                                           std::string(R"(, "cameras": {"0": {"width": 4.0, "height": 3, "fx": 2, "fy": 2, "cx": 1.5, "cy": 1}}, "frames": []})"));
+  expectInputError([&] { readManifest(dir / "manifest.json"); },
+                   {"manifest.json", "cameras.0.width", "(written 4.0: drop the decimal point)"});
 }
 
 }  // namespace

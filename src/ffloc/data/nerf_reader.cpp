@@ -59,7 +59,7 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
   if (keys.has("camera_model")) {
     const std::string model = keys.string("camera_model");
     if (model != "OPENCV" && model != "PINHOLE" && model != "SIMPLE_PINHOLE")
-      keys.owner("camera_model").fail("camera_model", "unsupported camera model '" + model + "' (supported: OPENCV, PINHOLE)");
+      keys.owner("camera_model").fail("camera_model", "unsupported camera model '" + model + "' (supported: OPENCV, PINHOLE, SIMPLE_PINHOLE)");
   }
   if (keys.has("is_fisheye") && keys.owner("is_fisheye").boolean("is_fisheye"))
     keys.owner("is_fisheye").fail("is_fisheye", "fisheye cameras are not supported");

@@ -91,16 +91,25 @@ std::vector<Frame> readFrameFolder(const fs::path& folder, const fs::path& name_
     const std::string stem = file_name.substr(0, file_name.find('.'));  // "frame-000000"
     Frame frame;
     for (const char* extension : {".color.png", ".color.jpg"}) {
-      if (fs::exists(folder / (stem + extension))) {
-        frame.image_path = folder / (stem + extension);
-        break;
-      }
+      if (!fs::exists(folder / (stem + extension))) continue;
+      // The PNG was taken without a word, and a split list naming the JPEG refused it as no frame.
+      if (!frame.image_path.empty())
+        throwInputError(pose_file.string(), 0, "two colour images, " + frame.image_path.filename().string() + " and " +
+                                                   stem + extension + "; keep one");
+      frame.image_path = folder / (stem + extension);
     }
     if (frame.image_path.empty())
       throwInputError(pose_file.string(), 0, "no colour image " + stem + ".color.png or .color.jpg beside it");
     frame.name = frameName(frame.image_path, name_root);
     frame.intrinsics = camera;
     const cv::Size size = readImageSize(frame.image_path);
+    // The documented camera is of 640 x 480 frames: another size got its principal point (320,
+    // 240) in a corner without a word, or had its depth map blamed.
+    if (isSevenScenesDepthCamera(camera) &&
+        (size.width != defaultIntrinsics().width || size.height != defaultIntrinsics().height))
+      throwInputError(frame.image_path.string(), 0,
+                      "image is " + std::to_string(size.width) + "x" + std::to_string(size.height) +
+                          ", but 7-Scenes' intrinsics are of 640x480 images; give this size's in camera-intrinsics.txt");
     frame.intrinsics.width = size.width;
     frame.intrinsics.height = size.height;
     // 7-Scenes' own intrinsics are the depth camera's: the colour camera gets its own, and the

@@ -178,7 +178,11 @@ int64_t JsonFields::integer(const std::string& key, int64_t lo, int64_t hi) cons
   const bool in_range = value.is_number_integer() &&
                         !(value.is_number_unsigned() && value.get<uint64_t>() > static_cast<uint64_t>(INT64_MAX)) &&
                         value.get<int64_t>() >= lo && value.get<int64_t>() <= hi;
-  if (!in_range) fail(key, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  if (!in_range) {
+    // 640.0 was told "expected an integer in [..]", though 640 is in the range.
+    const std::string written_as = value.is_number_float() ? " (written " + value.dump() + ": drop the decimal point)" : "";
+    fail(key, "expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]" + written_as);
+  }
   return value.get<int64_t>();
 }
 
