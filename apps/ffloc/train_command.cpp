@@ -2,15 +2,15 @@
 // Method, settings and file layout: docs/training.md.
 #ifdef FFLOC_WITH_TORCH
 
-#include <algorithm>
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
-#include <cstring>
 #include <cstdlib>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>

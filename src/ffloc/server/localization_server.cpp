@@ -358,33 +358,29 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     http_->routes.emplace_back("POST", std::regex(pattern));
   };
 
-  // The request's Authorization header, or nullopt with 400 set when it is given twice: the first
-  // decided, and a proxy in front may read the other (as for Content-Length).
-  const auto authorization = [](const httplib::Request& request,
-                                httplib::Response& response) -> std::optional<std::string> {
-    if (request.get_header_value_count("Authorization") > 1) {
-      replyError(response, 400, "Authorization: given more than once");
-      return std::nullopt;
-    }
+  // The request's Authorization header, or a 400 when it is given twice: the first decided, and a
+  // proxy in front may read the other (as for Content-Length).
+  const auto authorization = [](const httplib::Request& request) -> std::variant<std::string, Refusal> {
+    if (request.get_header_value_count("Authorization") > 1) return Refusal{400, "Authorization: given more than once"};
     return request.get_header_value("Authorization");
   };
+  const char* const unauthorized = "unauthorized: send 'Authorization: Bearer <key>' with a key of this server";
 
   // Whether the request may use the map its route names: its key (on a server with keys) and the
   // map's existence. Decided from the headers, so a POST is refused before its body is read
   // (twenty clients without a key uploading 30 MB each took 750 MiB before their 401s).
-  const auto accessRefusal = [this, authorization](const httplib::Request& request,
+  const auto accessRefusal = [this, authorization, unauthorized](const httplib::Request& request,
                                                    const std::smatch& matches) -> std::variant<std::string, Refusal> {
     std::variant<std::string, Refusal> named = requestedMap(matches, maps_);
     if (std::holds_alternative<Refusal>(named)) return named;
     const std::string& name = std::get<std::string>(named);
     if (options_.keys) {
-      httplib::Response refused;
-      const std::optional<std::string> key = authorization(request, refused);
-      if (!key) return Refusal{400, "Authorization: given more than once"};
-      switch (options_.keys->decide(*key, name)) {
+      const std::variant<std::string, Refusal> key = authorization(request);
+      if (std::holds_alternative<Refusal>(key)) return key;
+      switch (options_.keys->decide(std::get<std::string>(key), name)) {
         case ApiKeys::Decision::kAllowed: break;
         case ApiKeys::Decision::kUnauthenticated:
-          return Refusal{401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server"};
+          return Refusal{401, unauthorized};
         case ApiKeys::Decision::kForbidden:
           return Refusal{403, "forbidden: this key may not use map '" + name + "'"};
       }
@@ -418,16 +414,20 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     log(request, "200");
   });
 
-  get("/maps", [this, log, authorization](const httplib::Request& request, httplib::Response& response) {
+  get("/maps", [this, log, authorization, unauthorized](const httplib::Request& request, httplib::Response& response) {
     std::vector<std::string> names = maps_.names();
     if (options_.keys) {
-      const std::optional<std::string> key = authorization(request, response);
-      if (!key) return;
-      if (options_.keys->decide(*key, "") != ApiKeys::Decision::kAllowed) {
-        replyError(response, 401, "unauthorized: send 'Authorization: Bearer <key>' with a key of this server");
+      const std::variant<std::string, Refusal> given = authorization(request);
+      if (const Refusal* refusal = std::get_if<Refusal>(&given)) {
+        replyError(response, refusal->status, refusal->message);
         return;
       }
-      names = options_.keys->allowedMaps(*key, names);
+      const std::string& key = std::get<std::string>(given);
+      if (options_.keys->decide(key, "") != ApiKeys::Decision::kAllowed) {
+        replyError(response, 401, unauthorized);
+        return;
+      }
+      names = options_.keys->allowedMaps(key, names);
     }
     nlohmann::json list = nlohmann::json::array();
     for (const std::string& name : names) list.push_back(mapSummary(name, *maps_.get(name)));
