@@ -5,10 +5,12 @@
 #include <ATen/ops/tensor.h>
 #include <ATen/ops/zeros.h>
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <cstdio>
 #include <fstream>
@@ -17,6 +19,7 @@
 #include <map>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/testing/child_process.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/convert_weights.h"
 #include "ffloc/io/tensor_checksums.h"
@@ -483,6 +486,29 @@ TEST(Trainer, CheckpointsCarryTheInputSize) {
   EXPECT_EQ(by_default.model->config().input_long_side, 128);
   EXPECT_EQ(by_default.id, loadModel(weights.string()).id);
   EXPECT_EQ(loadModel("random:tiny").model->config().input_long_side, 512);
+}
+
+// A checkpoint write that failed (a full disk) left its half-written step_N.partial folder on that
+// disk until the next resume (found by an outside probe). A file size limit stands in for the disk.
+TEST(Trainer, AFailedCheckpointWriteLeavesNoPartialFolder) {
+  const fs::path run = testing::makeTempDir("ffloc-train-full-disk");
+  const testing::ChildOutput child = testing::runInChild([&] {
+    Trainer trainer(smallConfigOfSteps(1), {smallScene()}, run);
+    trainer.step();
+    std::signal(SIGXFSZ, SIG_IGN);  // the write fails with EFBIG instead of ending the process
+    const rlimit small{4096, 4096};
+    ::setrlimit(RLIMIT_FSIZE, &small);
+    try {
+      trainer.saveCheckpoint();
+      std::printf("written\n");
+    } catch (const InputError& error) {
+      std::printf("refused: %s\n", error.what());
+    }
+    std::fflush(stdout);
+  });
+  EXPECT_NE(child.output.find("refused: "), std::string::npos) << child.output;
+  EXPECT_FALSE(fs::exists(run / "checkpoints" / "step_00000001.partial")) << child.output;
+  EXPECT_FALSE(fs::exists(run / "checkpoints" / "latest"));
 }
 
 std::vector<std::pair<std::string, at::Tensor>> parameterSnapshot(FastForwardModel& model) {

@@ -87,10 +87,18 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   fs::remove_all(partial);
   fs::create_directories(partial);
   const std::string config_json = toJson(config).dump();
-  saveModel(model, partial / "model.safetensors",
-            {{"step", std::to_string(step)}, {"world_size", std::to_string(world_size)}, {"training_config", config_json}});
-  writeFloatTensors(partial / "optimizer.safetensors", optimizer.state(),
-               {{"format", kTrainingStateFormat}, {"step", std::to_string(step)}, {"training_config", config_json}});
+  try {
+    saveModel(model, partial / "model.safetensors",
+              {{"step", std::to_string(step)}, {"world_size", std::to_string(world_size)}, {"training_config", config_json}});
+    writeFloatTensors(partial / "optimizer.safetensors", optimizer.state(),
+                      {{"format", kTrainingStateFormat}, {"step", std::to_string(step)}, {"training_config", config_json}});
+  } catch (...) {
+    // A write that failed (a full disk) left the half-written folder on that disk until the next
+    // resume (found by an outside probe).
+    std::error_code ignored;
+    fs::remove_all(partial, ignored);
+    throw;
+  }
   // A folder of this step that `latest` does not name (left by a run that stopped before updating
   // `latest`) is replaced; `latest` names another folder meanwhile, so a crash here loses nothing.
   const fs::path replaced = root / (folderName(step) + ".replaced");
