@@ -163,7 +163,7 @@ TEST_F(Cli, AListOfCommasAloneOrWithAnEmptyEntryIsRefusedNamingItsFlag) {
 TEST_F(Cli, ConvertNamesItsInputFlag) {
   for (const auto& [input, expected] : std::vector<std::pair<std::string, std::string>>{
            {"random:bogus", "error: --input: 'random:bogus': unknown preset 'bogus'"},
-           {"random:tiny:x", "error: --input: 'random:tiny:x': seed must be an integer"}}) {
+           {"random:tiny:x", "error: --input: 'random:tiny:x': seed must be a whole number in [0, 18446744073709551615]"}}) {
     const CliRun run = runCli({"convert", "--input", input, "--output", (dir_ / "x.safetensors").string()});
     EXPECT_EQ(run.exit_code, 2) << run.output;
     EXPECT_TRUE(contains(run.output, expected)) << run.output;

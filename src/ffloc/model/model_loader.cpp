@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <charconv>
 #include <cstring>
 #include <filesystem>
 
@@ -93,10 +94,10 @@ RandomModelSpec parseRandomModelSpec(const std::string& spec) {
   parsed.preset = rest.substr(0, colon);
   if (colon != std::string::npos) {
     const std::string text = rest.substr(colon + 1);
-    char* end = nullptr;
-    parsed.seed = std::strtoull(text.c_str(), &end, 10);
-    if (text.empty() || *end != '\0') {
-      parsed.problem = "'" + spec + "': seed must be an integer";
+    // strtoull wrapped -1 to 2^64 - 1 and clamped larger numbers to it: two specs, one model.
+    const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), parsed.seed);
+    if (text.empty() || error != std::errc() || end != text.data() + text.size()) {
+      parsed.problem = "'" + spec + "': seed must be a whole number in [0, 18446744073709551615]";
       return parsed;
     }
   }

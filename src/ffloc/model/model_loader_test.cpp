@@ -79,7 +79,12 @@ TEST(ModelLoader, AMissingDefaultModelSaysWhereItWasLookedFor) {
   ::unsetenv("FFLOC_MODEL");
   EXPECT_EQ(modelSpecProblem("default"), "");  // the shipped one
   if (!before.empty()) ::setenv("FFLOC_MODEL", before.c_str(), 1);
-  EXPECT_EQ(modelSpecProblem("random:tiny:x"), "'random:tiny:x': seed must be an integer");
+  EXPECT_EQ(modelSpecProblem("random:tiny:x"), "'random:tiny:x': seed must be a whole number in [0, 18446744073709551615]");
+  // -1 wrapped to 2^64 - 1, and 2^64 and beyond were clamped to it: two specs, one model.
+  EXPECT_EQ(modelSpecProblem("random:tiny:-1"), "'random:tiny:-1': seed must be a whole number in [0, 18446744073709551615]");
+  EXPECT_EQ(modelSpecProblem("random:tiny:18446744073709551616"),
+            "'random:tiny:18446744073709551616': seed must be a whole number in [0, 18446744073709551615]");
+  EXPECT_EQ(modelSpecProblem("random:tiny:18446744073709551615"), "");
   EXPECT_EQ(modelSpecProblem("/nonexistent.pth"), "'/nonexistent.pth': no such file");
 }
 
