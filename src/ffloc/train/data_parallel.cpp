@@ -136,6 +136,9 @@ DataParallel::DataParallel(const DistributedEnvironment& environment, bool cuda,
                     "rank " + std::to_string(environment.rank) + " of " + std::to_string(environment.world_size) + why +
                         " (did every rank start, with the same MASTER_ADDR and MASTER_PORT?)");
   };
+  // A name that resolves to nothing was reported as the rendezvous timing out, after the timeout.
+  if (const std::string problem = hostResolutionProblem(environment.master_addr); !problem.empty())
+    throwInputError("MASTER_ADDR", 0, "'" + environment.master_addr + "' does not resolve: " + problem);
   try {
     backend_->store = c10::make_intrusive<c10d::TCPStore>(environment.master_addr, store_options);
     // Every rank counts itself in and waits for the others here, within the rendezvous timeout:

@@ -5,8 +5,6 @@
 #include <ATen/ops/ones.h>
 #include <ATen/ops/zeros_like.h>
 #include <gtest/gtest.h>
-
-#include <chrono>
 #include <future>
 
 #include <sys/wait.h>
@@ -159,6 +157,20 @@ TEST(DataParallelTraining, ACollectiveWithARankGoneSaysSo) {
   EXPECT_NE(error_of_rank_zero.find("rank 0: all-reduce failed: another rank stopped or lost its connection"),
             std::string::npos)
       << error_of_rank_zero;
+}
+
+// A MASTER_ADDR that resolves to nothing was reported as the rendezvous timing out, after it.
+TEST(DataParallelTraining, AMasterAddressThatDoesNotResolveIsNamedAtOnce) {
+  DistributedEnvironment environment;
+  environment.world_size = environment.local_world_size = 2;
+  environment.master_addr = "no-such-host.invalid";  // RFC 2606: never resolves
+  environment.master_port = freeLoopbackPort();
+  try {
+    DataParallel parallel(environment, /*cuda=*/false, /*rendezvous_timeout_s=*/30);
+    ADD_FAILURE() << "joined";
+  } catch (const InputError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("MASTER_ADDR: 'no-such-host.invalid' does not resolve: ", 0), 0u) << e.what();
+  }
 }
 
 TEST(DataParallelTraining, EnvironmentIsReadAsTorchrunWritesIt) {
