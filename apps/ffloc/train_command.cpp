@@ -135,11 +135,18 @@ void requireHeldOut(const std::vector<std::string>& validation, const std::vecto
   }
 }
 
-std::string validationSummary(const ValidationStats& stats) {
+// ", match 42%" for a model with the matching head; "" for the others, whose 0 % read as a failure.
+std::string matchText(bool matching, double accuracy) {
+  if (!matching) return "";
+  char text[32];
+  std::snprintf(text, sizeof(text), ", match %.0f%%", 100.0 * accuracy);
+  return text;
+}
+
+std::string validationSummary(const ValidationStats& stats, bool matching) {
   char text[256];
-  std::snprintf(text, sizeof(text),
-                "  val loss %.4f, match %.0f%%, pose median %.3g / %.3g deg, %.0f%% in 10cm/10deg, %.0f%% in 25cm/5deg",
-                stats.loss, 100.0 * stats.match_accuracy, stats.median_translation_error,
+  std::snprintf(text, sizeof(text), "  val loss %.4f%s, pose median %.3g / %.3g deg, %.0f%% in 10cm/10deg, %.0f%% in 25cm/5deg",
+                stats.loss, matchText(matching, stats.match_accuracy).c_str(), stats.median_translation_error,
                 stats.median_rotation_error_deg, 100.0 * stats.within_10cm_10deg, 100.0 * stats.within_25cm_5deg);
   return text;
 }
@@ -574,14 +581,15 @@ int runTrain(const TrainArguments& args) {
       log << "\n" << std::flush;
       if (!args.quiet) {
         const double eta = rate > 0 ? static_cast<double>(config.steps - stats.step) / rate : 0.0;
+        const bool matching = trainer.model().config().query_head == QueryHeadKind::kMatching;
         std::fprintf(stderr,
-                     "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f  match %.0f%%  lr %.2e  |g| %.3g"
+                     "step %lld/%lld  loss %.4f (mean %.4f)  err q %.3f m %.3f%s  lr %.2e  |g| %.3g"
                      "  %.2f samples/s (%.0f%% waiting for data)  eta %.0f s%s\n",
                      static_cast<long long>(stats.step), static_cast<long long>(config.steps), stats.loss,
                      window_loss / static_cast<double>(window_steps), stats.query_error, stats.map_error,
-                     100.0 * stats.match_accuracy,
-                     stats.learning_rate, stats.grad_norm, sample_rate, 100.0 * wait_share, eta,
-                     validation ? validationSummary(*validation).c_str() : "");
+                     matchText(matching, stats.match_accuracy).c_str(), stats.learning_rate, stats.grad_norm,
+                     sample_rate, 100.0 * wait_share, eta,
+                     validation ? validationSummary(*validation, matching).c_str() : "");
       }
       window_start = Clock::now();
       window_steps = 0;
