@@ -32,19 +32,31 @@ std::string knownFieldList() {
   return list;
 }
 
+// A client's text as an answer shows it: on one line, and cut after 64 bytes (a 1 MB value was
+// quoted whole).
+std::string shownText(const std::string& text) {
+  constexpr size_t kShown = 64;
+  if (text.size() <= kShown) return escapeControlCharacters(text);
+  size_t cut = kShown;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
+  return escapeControlCharacters(text.substr(0, cut)) + "... (" + std::to_string(text.size()) + " bytes)";
+}
+
+std::string quotedValue(const std::string& text) { return "'" + shownText(text) + "'"; }
+
 // Plain decimal only: strtod alone would also take leading blanks, hexadecimal and "inf".
 bool isDecimalText(const std::string& text) {
   return !text.empty() && text.find_first_not_of("0123456789+-.eE") == std::string::npos;
 }
 
 double parseFiniteNumber(const std::string& field, const std::string& text) {
-  if (!isDecimalText(text)) throw InputError(field + ": expected a finite number, got '" + escapeControlCharacters(text) + "'");
+  if (!isDecimalText(text)) throw InputError(field + ": expected a finite number, got " + quotedValue(text));
   const char* begin = text.c_str();
   char* end = nullptr;
   errno = 0;
   const double value = std::strtod(begin, &end);
   if (text.empty() || end != begin + text.size() || errno == ERANGE || !std::isfinite(value))
-    throw InputError(field + ": expected a finite number, got '" + escapeControlCharacters(text) + "'");
+    throw InputError(field + ": expected a finite number, got " + quotedValue(text));
   return value;
 }
 
@@ -55,7 +67,7 @@ long long parseInteger(const std::string& field, const std::string& text, long l
   const long long value = std::strtoll(begin, &end, 10);
   if (!isDecimalText(text) || end != begin + text.size() || errno == ERANGE || value < min || value > max) {
     throw InputError(field + ": expected an integer in [" + std::to_string(min) + ", " + std::to_string(max) +
-                     "], got '" + escapeControlCharacters(text) + "'");
+                     "], got " + quotedValue(text));
   }
   return value;
 }
@@ -68,7 +80,7 @@ double requiredNumber(const std::map<std::string, std::string>& fields, const st
 
 std::vector<double> parseDistortion(const std::string& text) {
   std::vector<double> coefficients;
-  if (!text.empty() && text.back() == ',') throw InputError("distortion: trailing comma in '" + text + "'");
+  if (!text.empty() && text.back() == ',') throw InputError("distortion: trailing comma in " + quotedValue(text));
   std::stringstream stream(text);
   std::string item;
   while (std::getline(stream, item, ',')) coefficients.push_back(parseFiniteNumber("distortion", item));
@@ -132,7 +144,7 @@ LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& f
                                      const LocalizeOptions& defaults, const RequestLimits& limits) {
   for (const auto& [field, value] : fields) {
     if (!knownFields().count(field)) {
-      throw InputError(field + ": unknown field (known: " + knownFieldList() + ")");
+      throw InputError(shownText(field) + ": unknown field (known: " + knownFieldList() + ")");
     }
   }
   LocalizeRequest request;

@@ -120,6 +120,14 @@ TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
     const std::string error = requestErrorOf(fields, image);
     EXPECT_EQ(error.rfind(c.expected_prefix, 0), 0u) << c.field << "=" << c.value << " gave '" << error << "'";
   }
+  // A client's long value, or a field name holding control characters, was quoted whole and raw.
+  auto long_value = pinholeFields();
+  long_value["fx"] = std::string(100000, '7') + "x";
+  EXPECT_EQ(requestErrorOf(long_value, image),
+            "fx: expected a finite number, got '" + std::string(64, '7') + "... (100001 bytes)'");
+  auto odd_name = pinholeFields();
+  odd_name["a\nb"] = "1";
+  EXPECT_EQ(requestErrorOf(odd_name, image).rfind("a\\nb: unknown field (known: ", 0), 0u);
   auto missing = pinholeFields();
   missing.erase("cy");
   EXPECT_EQ(requestErrorOf(missing, image).rfind("cy: missing", 0), 0u);
