@@ -183,6 +183,7 @@ std::string libraryErrorMessage(int status, size_t max_body_bytes) {
     case 400: return "bad request: the HTTP library could not parse the request (malformed headers or multipart form)";
     case 413:
       return "payload too large: the body is over the server's limit of " + std::to_string(max_body_bytes) + " bytes";
+    case 414: return "URI too long: the path and query string are over the HTTP library's limit of 8 KiB";
     default: return "HTTP " + std::to_string(status);
   }
 }

@@ -454,6 +454,12 @@ TEST_F(ServerTest, RefusalsAreJsonNamingTheCause) {
   EXPECT_EQ(no_fx->status, 400);
   EXPECT_EQ(body(no_fx)["error"].get<std::string>().rfind("fx: missing", 0), 0u) << no_fx->body;
 
+  // The library's 414 said only "HTTP 414".
+  const auto long_path = client_->Get(("/maps/" + std::string(9000, 'a')).c_str());
+  ASSERT_TRUE(long_path);
+  EXPECT_EQ(long_path->status, 414);
+  EXPECT_EQ(body(long_path)["error"], "URI too long: the path and query string are over the HTTP library's limit of 8 KiB");
+
   const auto garbage = client_->Post(("/localize?" + intrinsicsParameters()).c_str(), "%PDF-1.4", "image/png");
   ASSERT_TRUE(garbage);
   EXPECT_EQ(garbage->status, 400);
