@@ -757,6 +757,20 @@ TEST_F(Cli, EvalNamesDatasetsOfOneNameByTheirFolders) {
   std::vector<std::string> datasets;
   for (const auto& row : summary.at("results")) datasets.push_back(row.at("dataset").get<std::string>());
   EXPECT_EQ(datasets, (std::vector<std::string>{folders[0], folders[1], "all 2 datasets"}));
+
+  // Folders whose names are not UTF-8: the JSON writer failed after the evaluation (exit 3), and
+  // every output was lost. Named with \xhh escapes.
+  const fs::path odd = dir_ / "no\xffpe";
+  fs::create_directories(odd);
+  fs::create_directory_symlink(folders[0], odd / "scene");
+  fs::create_directories(dir_ / "second" / "no\xffpe");
+  fs::create_directory_symlink(folders[1], dir_ / "second" / "no\xffpe" / "scene");
+  const CliRun odd_run = runCli({"eval", "--dataset", (odd / "scene").string() + "," + (dir_ / "second" / "no\xffpe" / "scene").string(),
+                                 "--methods", "oracle-depth", "--json", report.string(), "--quiet"});
+  ASSERT_EQ(odd_run.exit_code, 0) << odd_run.output;
+  std::ifstream odd_in(report);
+  const nlohmann::json odd_summary = nlohmann::json::parse(odd_in);
+  EXPECT_EQ(odd_summary.at("results")[0].at("dataset"), (dir_ / "no\\xffpe" / "scene").string());
 }
 
 // synth wrote over a dataset, mixing its stale frames with new ones, and ran --scenes 2e9 (or

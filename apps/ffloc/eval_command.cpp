@@ -15,6 +15,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/core/threads.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/data/dataset.h"
 #include "ffloc/data/splits.h"
 #include "ffloc/eval/evaluator.h"
@@ -181,12 +182,16 @@ void refuseOutputsOverFramesOf(const Scene& scene, const EvalArguments& args) {
 }
 
 // Datasets of one name (every seed of `ffloc synth` has a scene_000_indoor) gave rows nothing told
-// apart: those are named by their folder as given instead.
+// apart: those are named by their folder as given instead. A name that is not UTF-8 (a folder's)
+// is written with \xhh escapes: the summary JSON cannot hold it, and its writer failed after the
+// whole evaluation, losing every output.
 void nameScenesApart(std::vector<Scene>& scenes, const std::vector<std::string>& folders) {
   std::map<std::string, int> uses;
   for (const Scene& scene : scenes) ++uses[scene.name];
-  for (size_t i = 0; i < scenes.size(); ++i)
+  for (size_t i = 0; i < scenes.size(); ++i) {
     if (uses[scenes[i].name] > 1) scenes[i].name = folders[i];
+    scenes[i].name = escapeInvalidUtf8(scenes[i].name);
+  }
 }
 
 int runEval(const EvalArguments& args) {

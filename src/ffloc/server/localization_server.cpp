@@ -241,6 +241,14 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
             "image/png or application/octet-stream (curl: -H 'Content-Type: image/jpeg' --data-binary @query.jpg), "
             "or as the 'image' part of a multipart form (curl: -F image=@query.jpg)"};
   }
+  // The HTTP library parses a form only when its type and boundary are written in lower case: any
+  // other spelling passed here and the form was read as an image ("fx: missing").
+  if (starts("multipart/form-data") &&
+      (type.rfind("multipart/form-data", 0) != 0 || type.find("boundary=") == std::string::npos)) {
+    return {415, "Content-Type '" + escapeControlCharacters(cutForLog(type, kMaxLoggedNameBytes)) +
+                     "': write it 'multipart/form-data; boundary=...' in lower case, the only spelling the HTTP "
+                     "library reads as a form"};
+  }
   if (!type.empty() && !starts("image/") && !starts("application/octet-stream") && !starts("multipart/form-data")) {
     return {415, "Content-Type '" + type +
                      "': send an encoded image (image/jpeg, image/png, application/octet-stream) or a multipart form"};
@@ -493,10 +501,14 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
                          "': whitespace in a field name"};
     // The library reads no body of a GET: one sent was parsed as the next request, whose answer
     // a proxy in front would hand to another client (found by an outside probe).
-    if ((request.method == "GET" || request.method == "HEAD") && request.has_header("Content-Length") &&
-        request.get_header_value("Content-Length") != "0")
-      return {400, "a " + request.method + " request carries no body; this one announced " +
-                       escapeControlCharacters(request.get_header_value("Content-Length")) + " bytes"};
+    if (request.method == "GET" || request.method == "HEAD") {
+      const std::string length = request.get_header_value("Content-Length");
+      if (request.has_header("Transfer-Encoding") || length.find_first_not_of('0') != std::string::npos)
+        return {400, "a " + request.method + " request carries no body; this one announced " +
+                         (request.has_header("Transfer-Encoding")
+                              ? std::string("a chunked one")
+                              : escapeControlCharacters(cutForLog(length, kMaxLoggedNameBytes)) + " bytes")};
+    }
     // The library reads a body that is both chunked and of a Content-Length as chunked: past
     // the body limit, and with a request hidden after the last chunk run as a second one, which
     // a proxy in front that goes by Content-Length never saw (request smuggling).

@@ -623,6 +623,13 @@ TEST_F(ServerTest, ServesAClassicalMapAsTheLibraryLocalizesIt) {
   }
   // Media types are case-insensitive; two of them are refused as two lengths are.
   EXPECT_EQ(client.Post(("/localize?" + intrinsicsParameters()).c_str(), queryFileBytes(), "IMAGE/PNG")->status, 200);
+  // The library parses a form only when its type is written in lower case: another spelling
+  // passed, and the form was read as an image ("fx: missing").
+  const auto mixed_form =
+      client.Post("/localize", queryFileBytes(), "Multipart/Form-Data; boundary=xyz");
+  ASSERT_TRUE(mixed_form);
+  EXPECT_EQ(mixed_form->status, 415);
+  EXPECT_NE(body(mixed_form)["error"].get<std::string>().find("in lower case"), std::string::npos) << mixed_form->body;
   const httplib::Headers two_types = {{"Content-Type", "image/png"}, {"Content-Type", "text/plain"}};
   const auto twice = client.Post(("/localize?" + intrinsicsParameters()).c_str(), two_types, queryFileBytes(), "");
   ASSERT_TRUE(twice);
@@ -745,6 +752,14 @@ TEST_F(ServerTest, AGetWithABodyOrASpacedFieldNameIsRefusedAndNothingHiddenRuns)
   const std::string hidden = "GET /map HTTP/1.1\r\nHost: x\r\n\r\n";
   const std::string answer = rawExchange(server.port(), "GET /health HTTP/1.1\r\nHost: x\r\nContent-Length: " +
                                                             std::to_string(hidden.size()) + "\r\n\r\n" + hidden);
+  // A chunked GET was told to send a Content-Length; a length of "00" is none.
+  const std::string chunked_get = rawExchange(server.port(), "GET /health HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: "
+                                                               "chunked\r\n\r\n0\r\n\r\n");
+  EXPECT_NE(chunked_get.find("a GET request carries no body; this one announced a chunked one"), std::string::npos)
+      << chunked_get;
+  EXPECT_EQ(rawExchange(server.port(), "GET /health HTTP/1.1\r\nHost: x\r\nContent-Length: 00\r\nConnection: close\r\n\r\n")
+                .rfind("HTTP/1.1 200", 0),
+            0u);
   // A field name with a space, which a lenient proxy may read as Transfer-Encoding.
   const std::string spaced = rawExchange(server.port(), "POST /localize HTTP/1.1\r\nHost: x\r\nTransfer-Encoding : "
                                                           "chunked\r\nContent-Length: 5\r\n\r\nhello");
