@@ -31,6 +31,7 @@
 #include "commands.h"
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 #include "ffloc/core/temporary_file.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/core/writer_lock.h"
@@ -528,6 +529,7 @@ int runTrain(const TrainArguments& args) {
   double window_loss = 0;
   // Rank 0's time per step over the window: whole step, waiting for data, all-reduce, optimiser.
   double window_step = 0, window_wait = 0, window_allreduce = 0, window_optimizer = 0;
+  std::string stopped;  // why the run ends before config.steps
   while (trainer.stepsDone() < config.steps) {
     const TrainingStepStats stats = trainStep();
     // Ranks agree on a stop inside the next step; a run of one rank stops after the step that
@@ -600,22 +602,24 @@ int runTrain(const TrainArguments& args) {
       window_optimizer = 0;
     }
     if (stop) {
-      if (!args.quiet) {
-        if (stop_signal != 0)
-          std::cerr << "stopped by signal " << stop_signal << " (" << ::strsignal(stop_signal) << ") at step "
-                    << stats.step << "; --resume continues from its checkpoint\n";
-        else if (budgetSpent())
-          std::cerr << "time budget of " << args.max_seconds << " s spent at step " << stats.step << "\n";
-        else
-          std::cerr << "stopped at step " << stats.step << ": another rank was stopped (a signal or its time "
-                    << "budget); --resume continues from its checkpoint\n";
-      }
+      // Said once the checkpoint is written: a second signal during the write leaves none.
+      if (stop_signal != 0)
+        stopped = "stopped by signal " + std::to_string(stop_signal) + " (" + ::strsignal(stop_signal) +
+                  ") at step " + std::to_string(stats.step) + "; --resume continues from this checkpoint";
+      else if (budgetSpent())
+        stopped = "time budget of " + formatNumber(args.max_seconds) + " s spent at step " + std::to_string(stats.step);
+      else
+        stopped = "stopped at step " + std::to_string(stats.step) +
+                  ": another rank was stopped (a signal or its time budget); --resume continues from this checkpoint";
       break;
     }
     if (stats.step % config.checkpoint_every == 0 && stats.step != config.steps) trainer.saveCheckpoint();
   }
   const fs::path folder = trainer.saveCheckpoint();
-  if (!args.quiet) std::cerr << "checkpoint: " << (folder / "model.safetensors").string() << "\n";
+  if (!args.quiet) {
+    if (!stopped.empty()) std::cerr << stopped << "\n";
+    std::cerr << "checkpoint: " << (folder / "model.safetensors").string() << "\n";
+  }
   return exitCode();
 }
 

@@ -49,10 +49,10 @@ void ProgressBar::update(std::size_t done) {
   draw(done, false);
 }
 
-void ProgressBar::finish() {
+void ProgressBar::finish(std::size_t done) {
   if (quiet_ || finished_) return;
   finished_ = true;
-  draw(total_, true);
+  draw(done, true);
 }
 
 void ProgressBar::draw(std::size_t done, bool final_line) {

@@ -44,7 +44,10 @@ class ProgressBar {
               std::chrono::steady_clock::duration log_interval = kLogInterval);
   // Throws Stopped when a StopCheck on this thread asks (quiet or not).
   void update(std::size_t done);
-  void finish();
+  void finish() { finish(total_); }
+  // The last line, at `done`: work stopped early ends its bar where it stopped (a validation cut
+  // short by a time budget showed a full bar).
+  void finish(std::size_t done);
   double elapsedSeconds() const;
 
  private:

@@ -29,6 +29,16 @@ TEST(ProgressBar, ALogGetsALineEachIntervalAndOneAtTheEnd) {
   EXPECT_NE(log.find("eta"), std::string::npos) << log;
 }
 
+TEST(ProgressBar, WorkStoppedEarlyEndsItsBarWhereItStopped) {
+  ::testing::internal::CaptureStderr();
+  ProgressBar bar("validating", 100000, false, std::chrono::hours(1));
+  bar.update(208);
+  bar.finish(208);
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  EXPECT_NE(log.find("validating [                              ] 208/100000"), std::string::npos) << log;
+  EXPECT_EQ(log.find("100000/100000"), std::string::npos) << log;
+}
+
 TEST(ProgressBar, QuietPrintsNothing) {
   ::testing::internal::CaptureStderr();
   ProgressBar bar("mapping", 3, true, std::chrono::milliseconds(0));

@@ -487,7 +487,7 @@ ValidationStats Trainer::validate(bool quiet, const std::function<bool()>& keep_
     stats.within_10cm_10deg += (t <= 0.10 && r <= 10.0) ? 1 : 0;
     stats.within_25cm_5deg += (t <= 0.25 && r <= 5.0) ? 1 : 0;
   }
-  progress.finish();
+  progress.finish(static_cast<size_t>(stats.samples));
   if (stats.samples == 0) return stats;
   stats.loss /= stats.samples;
   stats.query_error /= stats.samples;
