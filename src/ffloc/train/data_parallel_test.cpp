@@ -361,6 +361,33 @@ TEST_F(TrainCommandRanks, StoppingTheLauncherStopsItsRanks) {
   std::ifstream left(out + ".left");
   const std::string orphans((std::istreambuf_iterator<char>(left)), {});
   EXPECT_EQ(orphans, "") << "ranks left running: " << orphans;
+  // The ranks stop after one step with a checkpoint, as one rank does: the launcher no longer
+  // sends a second SIGTERM on, which ended rank 0 in the middle of writing it.
+  std::ifstream latest(fs::path(out) / "checkpoints" / "latest");
+  std::string name;
+  std::getline(latest, name);
+  EXPECT_TRUE(fs::exists(fs::path(out) / "checkpoints" / name / "model.safetensors")) << output("stopped");
+}
+
+// A rank stopped by a signal sent to it alone ends after a step the others agree on: it was
+// reported as "failed" and the others were sent SIGTERM.
+TEST_F(TrainCommandRanks, ARankStoppedBySignalIsSaidSoAndTheOthersStopWithIt) {
+  testing::writeShortRunConfig(root_ / "long.json", 100000, 100000, 1);
+  const std::string out = (root_ / "one").string();
+  const std::string launcher = std::string(FFLOC_CLI_PATH) + " train --config " + (root_ / "long.json").string() +
+                               " --data " + smallScene().root.string() + " --out " + out + " --nproc-per-node 2";
+  const std::string script = launcher + " > " + out + ".log 2>&1 & launcher=$!; sleep 4; " +
+                             "kill -TERM $(pgrep -P $launcher | tail -1); wait $launcher; echo $? > " + out + ".rc; true";
+  ASSERT_EQ(std::system(("timeout 120 /bin/sh -c '" + script + "'").c_str()), 0);
+  std::ifstream log(out + ".log");
+  const std::string text((std::istreambuf_iterator<char>(log)), {});
+  EXPECT_NE(text.find("rank 1 stopped by signal 15 (Terminated); the other ranks stop at the same step"), std::string::npos)
+      << text;
+  EXPECT_EQ(text.find("failed"), std::string::npos) << text;
+  std::ifstream latest(fs::path(out) / "checkpoints" / "latest");
+  std::string name;
+  std::getline(latest, name);
+  EXPECT_TRUE(fs::exists(fs::path(out) / "checkpoints" / name / "model.safetensors")) << text;
 }
 #endif
 

@@ -169,14 +169,25 @@ int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
     const int code = exitStatusOf(status);
     if (code != 0 && result == 0) {
       result = code;
-      // A rank that failed leaves the others waiting in a collective: stop them. A rank killed
-      // outright said nothing itself.
-      if (signal_passed_on != 0)
+      // A rank stopped by one of these signals ends after a step the others agree on (they stop
+      // at it too, rank 0 writing the checkpoint): a SIGTERM sent on to them would be their
+      // second signal, which ends rank 0 in the middle of that write.
+      const bool stopped_by_signal =
+          WIFEXITED(status) && std::find(std::begin(kPassedOnSignals), std::end(kPassedOnSignals), code - 128) !=
+                                   std::end(kPassedOnSignals);
+      if (signal_passed_on != 0) {
         std::fprintf(stderr, "stopping: signal %d passed on to every rank\n", static_cast<int>(signal_passed_on));
-      else
+      } else if (stopped_by_signal) {
+        const char* name = ::strsignal(code - 128);
+        std::fprintf(stderr, "rank %d stopped by signal %d (%s); the other ranks stop at the same step\n", rank,
+                     code - 128, name ? name : "?");
+      } else {
+        // A rank that failed leaves the others waiting in a collective: stop them. A rank killed
+        // outright said nothing itself.
         std::fprintf(stderr, "rank %d %s; stopping the other ranks\n", rank, howItEnded(status).c_str());
-      for (pid_t child : children) {
-        if (child > 0) ::kill(child, SIGTERM);
+        for (pid_t child : children) {
+          if (child > 0) ::kill(child, SIGTERM);
+        }
       }
     }
   }
