@@ -514,6 +514,11 @@ TEST_F(Cli, MapRefusesImageNamesThatAreNotUtf8BeforeMapping) {
   EXPECT_TRUE(contains(run.output, "caf\\xe9.color.png: image name 'train/rgb/caf\\xe9.color.png' is not UTF-8"))
       << run.output;
   EXPECT_FALSE(fs::exists(dir_ / "out.ffmap"));
+  // CLI11's own messages too: an unknown option was printed with its raw bytes.
+  const CliRun option = runCli({"eval", "--dataset", "x", "--no\xffpe"});
+  EXPECT_EQ(option.exit_code, 2) << option.output;
+  EXPECT_TRUE(contains(option.output, "no\\xffpe")) << option.output;
+  EXPECT_FALSE(contains(option.output, "no\xffpe")) << option.output;
 }
 
 // Unbounded before: 65537 crashed inside TBB (OpenCV's pool), 1000 made a one-image map 25 times

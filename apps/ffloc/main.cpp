@@ -18,7 +18,7 @@ int main(int argc, char** argv) {
   // CLI11's own errors ("Could not convert: --max-features = 99999999999") lacked the "error: "
   // that starts every other.
   app.failure_message([](const CLI::App* command, const CLI::Error& error) {
-    return "error: " + CLI::FailureMessage::simple(command, error);
+    return "error: " + ffloc::escapeInvalidUtf8(CLI::FailureMessage::simple(command, error));
   });
   ffloc::cli::CommandRun run;
   ffloc::cli::registerEvalCommand(app, run);
@@ -62,20 +62,20 @@ int main(int argc, char** argv) {
                                 : i + 1 < command_arguments.size() ? command_arguments[i + 1]
                                                                     : std::string();
       if (!value.empty() && value.find_first_not_of(',') == std::string::npos) {
-        std::cerr << "error: " << flag << ": '" << value << "' holds no value\n";
+        std::cerr << "error: " << flag << ": '" << ffloc::escapeInvalidUtf8(value) << "' holds no value\n";
         return 2;
       }
       const CLI::Option* option = app.get_subcommand(argv[1])->get_option_no_throw(flag);
       if (option != nullptr && option->get_delimiter() == ',') {
         if (const std::string problem = ffloc::cli::emptyListEntryProblem(value); !problem.empty()) {
-          std::cerr << "error: " << flag << ": " << problem << "\n";
+          std::cerr << "error: " << flag << ": " << ffloc::escapeInvalidUtf8(problem) << "\n";
           return 2;
         }
       }
     }
     const std::string one_dash = ffloc::cli::oneDashOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
     if (!one_dash.empty()) {
-      std::cerr << "error: " << one_dash << "\n";
+      std::cerr << "error: " << ffloc::escapeInvalidUtf8(one_dash) << "\n";
       return 2;
     }
   }
@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
   if (argc > 1 && !command_named) {
     const std::string first = argv[1];
     if (first != "--help" && first != "-h" && first != "--version") {
-      std::cerr << "error: " << first << ": not an option of 'ffloc'; options go after the command ('ffloc <command> "
+      std::cerr << "error: " << ffloc::escapeInvalidUtf8(first) << ": not an option of 'ffloc'; options go after the command ('ffloc <command> "
                    "--help' lists them)\n";
       return 2;
     }
@@ -97,7 +97,7 @@ int main(int argc, char** argv) {
     if (e.get_exit_code() != 0 && command_named) {
       const std::string unknown = ffloc::cli::unknownOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
       if (!unknown.empty()) {
-        std::cerr << "error: " << unknown << "\n";
+        std::cerr << "error: " << ffloc::escapeInvalidUtf8(unknown) << "\n";
         return 2;
       }
     }

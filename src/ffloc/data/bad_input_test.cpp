@@ -403,6 +403,11 @@ TEST(BadInput, CambridgeReadsPosesAsCentreAndWorldToCameraRotation) {
   ASSERT_EQ(loadDataset(dir).frames.size(), 2u);
   writeTextFile(dir / "dataset_test.txt", "seq2/frame00001.png 0 0 -1 1 0 0\n");
   expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
+  // Nor one written with commas, or naming an image that is not there.
+  writeTextFile(dir / "dataset_test.txt", "seq2/frame00001.png,0,0,-1,1,0,0,0\n");
+  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
+  writeTextFile(dir / "dataset_test.txt", "seq2/frame00009.png 0 0 -1 1 0 0\n");
+  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
 }
 
 }  // namespace

@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <cctype>
 #include <cstdlib>
 #include <map>
 #include <numeric>
@@ -65,10 +66,17 @@ void readPoseList(const fs::path& file, const fs::path& dir, Split split, const 
     }
     return true;
   };
-  // A line naming an image is an entry, read (and refused) as one when it is malformed.
+  // A line naming an image (an existing file, or a first word that ends as an image name before
+  // any comma) is an entry, read (and refused) as one when it is malformed.
   const auto namesAnImage = [&](const std::string& text) {
     const auto tokens = splitWhitespace(text);
-    return !tokens.empty() && fs::is_regular_file(dir / tokens[0]);
+    if (tokens.empty()) return false;
+    std::string first = tokens[0].substr(0, tokens[0].find(','));
+    std::transform(first.begin(), first.end(), first.begin(), [](unsigned char c) { return std::tolower(c); });
+    const auto endsWith = [&](const std::string& suffix) {
+      return first.size() >= suffix.size() && first.compare(first.size() - suffix.size(), suffix.size(), suffix) == 0;
+    };
+    return endsWith(".png") || endsWith(".jpg") || endsWith(".jpeg") || fs::is_regular_file(dir / tokens[0]);
   };
   size_t first = 0;
   while (first < std::min<size_t>(3, lines.size()) && !isEntry(lines[first].text) &&

@@ -126,7 +126,7 @@ void writeDepthMillimetrePng(const Frame& frame, const fs::path& destination) {
                              "store depth as floats";
   if (beyond > 0)
     throwInputError(frame.name, 0,
-                    std::to_string(beyond) + " depth pixels lie beyond 65.534 m (up to " + formatNumber(farthest) +
+                    std::to_string(beyond) + " depth pixels lie beyond 65.534 m (up to " + formatSignificant(farthest) +
                         " m)" + remedy);
   if (nearer > 0)
     throwInputError(frame.name, 0,
