@@ -359,6 +359,13 @@ TEST(TrainingSampler, RefusesALongSideThatLeavesNoPatch) {
       << error;
   options.long_side = 21;
   EXPECT_EQ(TrainingSampler({smallScene()}, options).sample(3, 8).query_image.size(2), 16);
+  // A stride of the whole short side measured one pixel, and the draws failed "on overlap".
+  options.long_side = 64;
+  options.overlap_stride = 48;
+  const std::string stride = errorOf([&] { TrainingSampler({smallScene()}, options); });
+  EXPECT_TRUE(contains(stride, "field 'overlap_stride': 48 measures too few pixels of its 64x48 preprocessed images; "
+                               "use at most 12"))
+      << stride;
 }
 
 // A scene whose depth files held only zeros was skipped by every draw while the others trained.

@@ -50,15 +50,15 @@ Eigen::Vector3d normalizedPoint(const Frame& frame, const SceneNormalization& no
   return normalization.normalize(frame.camera_to_world * frame.intrinsics.backproject({u, v}, depth));
 }
 
-bool holdsAPatch(int width, int height, int long_side, int patch_size) {
+// The preprocessed size of a width x height image; none when it holds no whole patch.
+std::optional<PreprocessGeometry> preprocessedSize(int width, int height, int long_side, int patch_size) {
   PreprocessOptions preprocess;
   preprocess.long_side = long_side;
   preprocess.patch_size = patch_size;
   try {
-    preprocessGeometry(width, height, preprocess);
-    return true;
+    return preprocessGeometry(width, height, preprocess);
   } catch (const InputError&) {
-    return false;
+    return std::nullopt;
   }
 }
 
@@ -100,15 +100,25 @@ TrainingSampler::TrainingSampler(std::vector<Scene> scenes, const SampleOptions&
     }
     // Found at the first draw, the error named neither the field nor the dataset.
     const Intrinsics& first = scene.frames[with_depth.front()].intrinsics;
-    if (first.width > 0 && first.height > 0 &&
-        !holdsAPatch(first.width, first.height, options_.long_side, options_.patch_size)) {
-      int enough = options_.long_side;
-      while (enough < 100000 && !holdsAPatch(first.width, first.height, enough, options_.patch_size)) ++enough;
-      throwInputError(scene.root.string(), 0, "field 'long_side': " + std::to_string(options_.long_side) +
-                                                  " leaves its " + std::to_string(first.width) + "x" +
-                                                  std::to_string(first.height) + " images no whole " +
-                                                  std::to_string(options_.patch_size) + "-pixel patch; use at least " +
-                                                  std::to_string(enough));
+    if (first.width > 0 && first.height > 0) {
+      const auto size = preprocessedSize(first.width, first.height, options_.long_side, options_.patch_size);
+      if (!size) {
+        int enough = options_.long_side;
+        while (enough < 100000 && !preprocessedSize(first.width, first.height, enough, options_.patch_size)) ++enough;
+        throwInputError(scene.root.string(), 0, "field 'long_side': " + std::to_string(options_.long_side) +
+                                                    " leaves its " + std::to_string(first.width) + "x" +
+                                                    std::to_string(first.height) + " images no whole " +
+                                                    std::to_string(options_.patch_size) +
+                                                    "-pixel patch; use at least " + std::to_string(enough));
+      }
+      // A stride past a quarter of the short side measures a handful of pixels, and every draw
+      // failed "on overlap" (found by an outside probe: 64 on 64 x 48 measured one).
+      const int most = std::max(1, std::min(size->width, size->height) / 4);
+      if (options_.overlap_stride > most)
+        throwInputError(scene.root.string(), 0, "field 'overlap_stride': " + std::to_string(options_.overlap_stride) +
+                                                    " measures too few pixels of its " + std::to_string(size->width) +
+                                                    "x" + std::to_string(size->height) +
+                                                    " preprocessed images; use at most " + std::to_string(most));
     }
     total += with_depth.size();
     frames_with_depth_.push_back(std::move(with_depth));
