@@ -1,5 +1,9 @@
 #include "ffloc/model/fastforward_config.h"
 
+#include <array>
+#include <cstdint>
+#include <type_traits>
+
 #include "ffloc/core/error.h"
 
 namespace ffloc {
@@ -53,11 +57,22 @@ std::string headName(QueryHeadKind kind) { return kind == QueryHeadKind::kDpt ? 
 
 template <typename T>
 T field(const nlohmann::json& json, const std::string& key, const std::string& origin) {
-  if (!json.is_object() || !json.contains(key)) throwInputError(origin, 0, "field '" + key + "' is missing");
+  if (!json.contains(key)) throwInputError(origin, 0, "field '" + key + "' is missing");
+  const nlohmann::json& value = json.at(key);
+  // get<int64_t> truncated 10.9 to 10 and wrapped 2^70, so a damaged architecture loaded as
+  // another network without a word (found by an outside probe).
+  const auto requireInteger = [&](const nlohmann::json& number) {
+    if (!number.is_number_integer() || (number.is_number_unsigned() && number.get<uint64_t>() > INT64_MAX))
+      throwInputError(origin, 0, "field '" + key + "': expected an integer, got " + value.dump());
+  };
+  if constexpr (std::is_same_v<T, int64_t>) requireInteger(value);
+  if constexpr (std::is_same_v<T, std::array<int64_t, 4>>)
+    if (value.is_array())
+      for (const nlohmann::json& entry : value) requireInteger(entry);
   try {
-    return json.at(key).get<T>();
+    return value.get<T>();
   } catch (const nlohmann::json::exception&) {
-    throwInputError(origin, 0, "field '" + key + "' has the wrong type: " + json.at(key).dump());
+    throwInputError(origin, 0, "field '" + key + "' has the wrong type: " + value.dump());
   }
 }
 
@@ -95,6 +110,11 @@ nlohmann::json toJson(const FastForwardConfig& c) {
 }
 
 FastForwardConfig fastForwardConfigFromJson(const nlohmann::json& json, const std::string& origin) {
+  if (!json.is_object()) throwInputError(origin, 0, "expected an object of the architecture's fields, got " + std::string(json.type_name()));
+  // A field this version does not know was taken without a word.
+  const nlohmann::json known = toJson(FastForwardConfig{});
+  for (const auto& [key, value] : json.items())
+    if (!known.contains(key)) throwInputError(origin, 0, "field '" + key + "': not a field of the architecture");
   FastForwardConfig c;
   const auto encoder = field<std::string>(json, "encoder", origin);
   if (encoder != "vit" && encoder != "dense-sift") throwInputError(origin, 0, "field 'encoder': expected vit or dense-sift, got '" + encoder + "'");

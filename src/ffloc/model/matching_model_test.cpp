@@ -256,6 +256,32 @@ TEST(FastForwardConfigJson, RoundTripsEveryPreset) {
   EXPECT_THROW(fastForwardConfigFromJson(broken, "test"), InputError);
   broken.erase("dec_dim");
   EXPECT_THROW(fastForwardConfigFromJson(broken, "test"), InputError);
+
+  // Found by an outside probe: fractions were truncated, 2^70 called "must be positive", an array
+  // "missing a field", and an unknown field taken; a damaged architecture loaded as another network.
+  const auto errorFor = [](const nlohmann::json& json) {
+    try {
+      fastForwardConfigFromJson(json, "m.safetensors: metadata 'architecture'");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  const nlohmann::json good = toJson(FastForwardConfig::preset("sift-tiny"));
+  nlohmann::json changed = good;
+  changed["dec_depth"] = 10.9;
+  EXPECT_EQ(errorFor(changed), "m.safetensors: metadata 'architecture': field 'dec_depth': expected an integer, got 10.9");
+  changed = good;
+  changed["enc_dim"] = 1180591620717411303424.0;
+  EXPECT_NE(errorFor(changed).find("field 'enc_dim': expected an integer"), std::string::npos) << errorFor(changed);
+  changed = good;
+  changed["dpt_layer_dims"][1] = 96.5;
+  EXPECT_NE(errorFor(changed).find("field 'dpt_layer_dims': expected an integer"), std::string::npos) << errorFor(changed);
+  changed = good;
+  changed["bogus"] = 1;
+  EXPECT_EQ(errorFor(changed), "m.safetensors: metadata 'architecture': field 'bogus': not a field of the architecture");
+  EXPECT_EQ(errorFor(nlohmann::json::array({1, 2})),
+            "m.safetensors: metadata 'architecture': expected an object of the architecture's fields, got array");
 }
 
 }  // namespace
