@@ -149,7 +149,7 @@ void refuseOutputsOverInputsOrEachOther(const EvalArguments& args) {
 // depth map wherever it lies, or any file under the dataset's folder, links followed. Only images
 // and depth were compared before, so an output that was the target of a linked manifest.json,
 // pose file or split list replaced the dataset's ground truth (found by an outside probe).
-void refuseOutputsOverFramesOf(const Scene& scene, const EvalArguments& args) {
+void refuseOutputsOverFilesOf(const Scene& scene, const EvalArguments& args) {
   namespace fs = std::filesystem;
   using FileId = std::pair<dev_t, ino_t>;
   const auto idOf = [](const fs::path& path) -> std::optional<FileId> {
@@ -281,7 +281,7 @@ int runEval(const EvalArguments& args) {
   std::vector<Scene> scenes;
   for (const std::string& dataset : args.datasets) {
     Scene scene = loadDataset(dataset, args.format);
-    refuseOutputsOverFramesOf(scene, args);
+    refuseOutputsOverFilesOf(scene, args);
     // Up front: classical would map an empty split and blame the features ("no mapping image has
     // usable features"), and map a full one before finding no query to evaluate.
     if (!methods.empty()) requireSplits(scene);

@@ -9,6 +9,17 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/utf8.h"
 
+namespace {
+
+// Exit code 2 for bad input, its message on one "error:" line; bytes that are not UTF-8 (a file's
+// name) written as \xhh, as the message would not be valid text otherwise.
+int badInput(const std::string& message) {
+  std::cerr << "error: " << ffloc::escapeInvalidUtf8(message) << "\n";
+  return 2;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   ffloc::installCrashReport("ffloc");
   CLI::App app{"ffloc: visual localization against posed images (classical and FastForward) in C++.\n"
@@ -47,10 +58,7 @@ int main(int argc, char** argv) {
       known = known || command->get_name() == argv[1];
       commands += (commands.empty() ? "" : ", ") + command->get_name();
     }
-    if (!known) {
-      std::cerr << "error: unknown command '" << argv[1] << "' (commands: " << commands << ")\n";
-      return 2;
-    }
+    if (!known) return badInput("unknown command '" + std::string(argv[1]) + "' (commands: " + commands + ")");
     // CLI11 split "--data ," into no values and went on to take the next flags as paths
     // ("/tmp/--methods: dataset folder not found", or "--out is required" with --out given).
     for (size_t i = 0; i < command_arguments.size(); ++i) {
@@ -61,33 +69,24 @@ int main(int argc, char** argv) {
       const std::string value = equals != std::string::npos ? argument.substr(equals + 1)
                                 : i + 1 < command_arguments.size() ? command_arguments[i + 1]
                                                                     : std::string();
-      if (!value.empty() && value.find_first_not_of(',') == std::string::npos) {
-        std::cerr << "error: " << flag << ": '" << ffloc::escapeInvalidUtf8(value) << "' holds no value\n";
-        return 2;
-      }
+      if (!value.empty() && value.find_first_not_of(',') == std::string::npos)
+        return badInput(flag + ": '" + value + "' holds no value");
       const CLI::Option* option = app.get_subcommand(argv[1])->get_option_no_throw(flag);
       if (option != nullptr && option->get_delimiter() == ',') {
-        if (const std::string problem = ffloc::cli::emptyListEntryProblem(value); !problem.empty()) {
-          std::cerr << "error: " << flag << ": " << ffloc::escapeInvalidUtf8(problem) << "\n";
-          return 2;
-        }
+        if (const std::string problem = ffloc::cli::emptyListEntryProblem(value); !problem.empty())
+          return badInput(flag + ": " + problem);
       }
     }
     const std::string one_dash = ffloc::cli::oneDashOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
-    if (!one_dash.empty()) {
-      std::cerr << "error: " << ffloc::escapeInvalidUtf8(one_dash) << "\n";
-      return 2;
-    }
+    if (!one_dash.empty()) return badInput(one_dash);
   }
   // Before the command, only --help and --version: CLI11 said "A subcommand is required", or the
   // command's own complaint, for "ffloc --typo eval".
   if (argc > 1 && !command_named) {
     const std::string first = argv[1];
-    if (first != "--help" && first != "-h" && first != "--version") {
-      std::cerr << "error: " << ffloc::escapeInvalidUtf8(first) << ": not an option of 'ffloc'; options go after the command ('ffloc <command> "
-                   "--help' lists them)\n";
-      return 2;
-    }
+    if (first != "--help" && first != "-h" && first != "--version")
+      return badInput(first + ": not an option of 'ffloc'; options go after the command ('ffloc <command> --help' "
+                              "lists them)");
   }
   try {
     app.parse(argc, argv);
@@ -96,10 +95,7 @@ int main(int argc, char** argv) {
     // and --version end here too, with 0.
     if (e.get_exit_code() != 0 && command_named) {
       const std::string unknown = ffloc::cli::unknownOptionMessage(*app.get_subcommand(argv[1]), command_arguments);
-      if (!unknown.empty()) {
-        std::cerr << "error: " << ffloc::escapeInvalidUtf8(unknown) << "\n";
-        return 2;
-      }
+      if (!unknown.empty()) return badInput(unknown);
     }
     return app.exit(e) == 0 ? 0 : 2;
   }
@@ -113,8 +109,7 @@ int main(int argc, char** argv) {
     }
     return code;
   } catch (const ffloc::InputError& e) {
-    std::cerr << "error: " << ffloc::escapeInvalidUtf8(ffloc::cli::withFlagName(e.what())) << "\n";
-    return 2;
+    return badInput(ffloc::cli::withFlagName(e.what()));
   } catch (const std::exception& e) {
     std::cerr << "internal error: " << ffloc::escapeInvalidUtf8(e.what()) << "\n";
     return 3;
