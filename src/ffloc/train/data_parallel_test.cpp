@@ -21,6 +21,7 @@
 #include "ffloc/model/model_loader.h"
 #include "ffloc/train/data_parallel.h"
 #include "ffloc/train/local_launcher.h"
+#include "ffloc/train/training_checkpoint.h"
 #include "ffloc/train/trainer.h"
 #include "ffloc/train/training_test_util.h"
 
@@ -217,6 +218,25 @@ class TrainCommandRanks : public ::testing::Test {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
 
+  // `ffloc train --nproc-per-node 2` on a long run into the folder `name`.
+  static std::string launcherCommand(const std::string& name) {
+    return std::string(FFLOC_CLI_PATH) + " train --config " + (root_ / "long.json").string() + " --data " +
+           smallScene().root.string() + " --out " + (root_ / name).string() + " --nproc-per-node 2";
+  }
+
+  // Starts launcherCommand(name), sends SIGTERM to `target` (shell, $launcher the launcher's pid)
+  // after 4 s, waits for the launcher (its exit code to <out>.rc, its output to <out>.log), runs
+  // the shell `then`; returns the run folder <out>.
+  static std::string stopLauncherAfterFourSeconds(const std::string& name, const std::string& target,
+                                                  const std::string& then = "") {
+    testing::writeShortRunConfig(root_ / "long.json", 100000, 100000, 1);
+    const std::string out = (root_ / name).string();
+    const std::string script = launcherCommand(name) + " > " + out + ".log 2>&1 & launcher=$!; sleep 4; kill -TERM " +
+                               target + "; wait $launcher; echo $? > " + out + ".rc" + then + "; true";
+    EXPECT_EQ(std::system(("timeout 120 /bin/sh -c '" + script + "'").c_str()), 0);
+    return out;
+  }
+
   static std::string output(const std::string& out) {
     std::ifstream in(root_ / (out + ".log"));
     std::stringstream text;
@@ -347,13 +367,9 @@ TEST_F(TrainCommandRanks, RanksOfOtherSettingsAreRefusedAndAMissingRankIsWaitedF
 // Found by an outside probe: `kill` of the --nproc-per-node launcher (as a scheduler stops a job)
 // ended it alone, and its ranks trained on as orphans.
 TEST_F(TrainCommandRanks, StoppingTheLauncherStopsItsRanks) {
-  testing::writeShortRunConfig(root_ / "long.json", 100000, 100000, 1);
-  const std::string out = (root_ / "stopped").string();
-  const std::string launcher = std::string(FFLOC_CLI_PATH) + " train --quiet --config " + (root_ / "long.json").string() +
-                               " --data " + smallScene().root.string() + " --out " + out + " --nproc-per-node 2";
-  const std::string script = launcher + " > " + out + ".log 2>&1 & launcher=$!; sleep 4; kill -TERM $launcher; wait $launcher; " +
-                             "echo $? > " + out + ".rc; sleep 2; pgrep -f \"^" + launcher + "\" > " + out + ".left; true";
-  ASSERT_EQ(std::system(("timeout 120 /bin/sh -c '" + script + "'").c_str()), 0);
+  const std::string out = stopLauncherAfterFourSeconds("stopped", "$launcher", "; sleep 2; pgrep -f \"^" +
+                                                                                  launcherCommand("stopped") + "\" > " +
+                                                                                  (root_ / "stopped").string() + ".left");
   std::ifstream code(out + ".rc");
   int exit_code = -1;
   code >> exit_code;
@@ -363,31 +379,22 @@ TEST_F(TrainCommandRanks, StoppingTheLauncherStopsItsRanks) {
   EXPECT_EQ(orphans, "") << "ranks left running: " << orphans;
   // The ranks stop after one step with a checkpoint, as one rank does: the launcher no longer
   // sends a second SIGTERM on, which ended rank 0 in the middle of writing it.
-  std::ifstream latest(fs::path(out) / "checkpoints" / "latest");
-  std::string name;
-  std::getline(latest, name);
-  EXPECT_TRUE(fs::exists(fs::path(out) / "checkpoints" / name / "model.safetensors")) << output("stopped");
+  const auto checkpoint = latestTrainingCheckpoint(out);
+  ASSERT_TRUE(checkpoint) << output("stopped");
+  EXPECT_TRUE(fs::exists(checkpoint->folder / "model.safetensors")) << output("stopped");
 }
 
 // A rank stopped by a signal sent to it alone ends after a step the others agree on: it was
 // reported as "failed" and the others were sent SIGTERM.
 TEST_F(TrainCommandRanks, ARankStoppedBySignalIsSaidSoAndTheOthersStopWithIt) {
-  testing::writeShortRunConfig(root_ / "long.json", 100000, 100000, 1);
-  const std::string out = (root_ / "one").string();
-  const std::string launcher = std::string(FFLOC_CLI_PATH) + " train --config " + (root_ / "long.json").string() +
-                               " --data " + smallScene().root.string() + " --out " + out + " --nproc-per-node 2";
-  const std::string script = launcher + " > " + out + ".log 2>&1 & launcher=$!; sleep 4; " +
-                             "kill -TERM $(pgrep -P $launcher | tail -1); wait $launcher; echo $? > " + out + ".rc; true";
-  ASSERT_EQ(std::system(("timeout 120 /bin/sh -c '" + script + "'").c_str()), 0);
-  std::ifstream log(out + ".log");
-  const std::string text((std::istreambuf_iterator<char>(log)), {});
+  const std::string out = stopLauncherAfterFourSeconds("one", "$(pgrep -P $launcher | tail -1)");
+  const std::string text = output("one");
   EXPECT_NE(text.find("rank 1 stopped by signal 15 (Terminated); the other ranks stop at the same step"), std::string::npos)
       << text;
   EXPECT_EQ(text.find("failed"), std::string::npos) << text;
-  std::ifstream latest(fs::path(out) / "checkpoints" / "latest");
-  std::string name;
-  std::getline(latest, name);
-  EXPECT_TRUE(fs::exists(fs::path(out) / "checkpoints" / name / "model.safetensors")) << text;
+  const auto checkpoint = latestTrainingCheckpoint(out);
+  ASSERT_TRUE(checkpoint) << text;
+  EXPECT_TRUE(fs::exists(checkpoint->folder / "model.safetensors")) << text;
 }
 #endif
 
