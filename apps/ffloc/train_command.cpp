@@ -7,10 +7,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -32,6 +30,7 @@
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/number_text.h"
+#include "ffloc/core/stop_signals.h"
 #include "ffloc/core/temporary_file.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/core/writer_lock.h"
@@ -371,9 +370,9 @@ class RemoveNewFolderOnError {
   std::vector<fs::path> new_parents_;  // deepest first
 };
 
-// The first SIGINT, SIGTERM or SIGHUP stops the run after the step in progress, with a checkpoint;
-// a second ends it at once. A Ctrl-C killed the run silently and lost every step since the
-// last checkpoint. Under the launcher every rank receives the signal and they agree on the step.
+// The first stop signal (SIGINT, SIGTERM, SIGHUP) stops the run after the step in progress, with
+// a checkpoint; a second ends it at once. A Ctrl-C killed the run silently and lost every step
+// since the last checkpoint. Under the launcher every rank receives the signal and they agree on the step.
 volatile sig_atomic_t stop_signal = 0;
 volatile sig_atomic_t announce_stop = 0;
 
@@ -385,30 +384,6 @@ void stopAfterThisStep(int signal_number) {
     [[maybe_unused]] const ssize_t written = ::write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
   }
 }
-
-class StopOnSignal {
- public:
-  explicit StopOnSignal(bool announce) {
-    announce_stop = announce ? 1 : 0;
-    for (size_t i = 0; i < std::size(kSignals); ++i) {
-      struct sigaction handler {};
-      handler.sa_handler = stopAfterThisStep;
-      sigemptyset(&handler.sa_mask);
-      // A signal ignored by whoever started the run (nohup, a background job) stays ignored.
-      if (::sigaction(kSignals[i], nullptr, &before_[i]) == 0 && before_[i].sa_handler != SIG_IGN)
-        ::sigaction(kSignals[i], &handler, nullptr);
-    }
-  }
-  ~StopOnSignal() {
-    for (size_t i = 0; i < std::size(kSignals); ++i) ::sigaction(kSignals[i], &before_[i], nullptr);
-  }
-  StopOnSignal(const StopOnSignal&) = delete;
-  StopOnSignal& operator=(const StopOnSignal&) = delete;
-
- private:
-  static constexpr int kSignals[] = {SIGINT, SIGTERM, SIGHUP};
-  struct sigaction before_[std::size(kSignals)] {};
-};
 
 // Exit code: 0, or 128 + the signal that stopped the run.
 int runTrain(const TrainArguments& args) {
@@ -473,10 +448,12 @@ int runTrain(const TrainArguments& args) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point started = Clock::now();
   const auto budgetSpent = [&] { return args.max_seconds > 0 && secondsSince(started) > args.max_seconds; };
-  const StopOnSignal stop_on_signal(lead && !args.quiet);
+  const auto stopAsked = [&] { return budgetSpent() || stop_signal != 0; };
+  announce_stop = lead && !args.quiet ? 1 : 0;
+  const StopSignalHandler stop_on_signal(stopAfterThisStep, StopSignalHandler::Ignored::kKept);
   // Each rank asks on its own clock; the stop takes effect on all of them at the same step.
   const auto trainStep = [&] {
-    if (budgetSpent() || stop_signal != 0) trainer.requestStop();
+    if (stopAsked()) trainer.requestStop();
     return trainer.step();
   };
   const auto exitCode = [] { return stop_signal != 0 ? 128 + static_cast<int>(stop_signal) : 0; };
@@ -534,7 +511,7 @@ int runTrain(const TrainArguments& args) {
     const TrainingStepStats stats = trainStep();
     // Ranks agree on a stop inside the next step; a run of one rank stops after the step that
     // spent its budget rather than running one more.
-    bool stop = stats.stop_requested || (!environment.distributed() && (budgetSpent() || stop_signal != 0));
+    bool stop = stats.stop_requested || (!environment.distributed() && stopAsked());
     ++window_steps;
     window_loss += stats.loss;
     window_step += stats.step_seconds;
@@ -553,7 +530,7 @@ int runTrain(const TrainArguments& args) {
       const double wait_share = window_step > 0 ? window_wait / window_step : 0.0;
       std::optional<ValidationStats> validation;
       if (validate_now) {
-        validation = trainer.validate(args.quiet, [&] { return !budgetSpent() && stop_signal == 0; });
+        validation = trainer.validate(args.quiet, [&] { return !stopAsked(); });
         // Scores of part of the samples would not compare with the other rows.
         if (validation->samples < config.validation_samples) {
           if (!args.quiet)
@@ -561,7 +538,7 @@ int runTrain(const TrainArguments& args) {
                       << " samples; not logged\n";
           validation.reset();
         }
-        stop = stop || (!environment.distributed() && (budgetSpent() || stop_signal != 0));
+        stop = stop || (!environment.distributed() && stopAsked());
       }
       char row[512];
       std::snprintf(row, sizeof(row), "%lld,%.6g,%.6g,%.6g,%.6g,%.4g,%.6g,%.6g,%.6g,%.6g,%.4g,%.4g,%.4g,%.4g,%.4g,",
@@ -604,8 +581,8 @@ int runTrain(const TrainArguments& args) {
     if (stop) {
       // Said once the checkpoint is written: a second signal during the write leaves none.
       if (stop_signal != 0)
-        stopped = "stopped by signal " + std::to_string(stop_signal) + " (" + ::strsignal(stop_signal) +
-                  ") at step " + std::to_string(stats.step) + "; --resume continues from this checkpoint";
+        stopped = "stopped by " + signalName(stop_signal) + " at step " + std::to_string(stats.step) +
+                  "; --resume continues from this checkpoint";
       else if (budgetSpent())
         stopped = "time budget of " + formatNumber(args.max_seconds) + " s spent at step " + std::to_string(stats.step);
       else

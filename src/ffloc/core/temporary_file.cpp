@@ -8,6 +8,8 @@
 #include <cstring>
 #include <mutex>
 
+#include "ffloc/core/stop_signals.h"
+
 namespace ffloc {
 namespace {
 
@@ -17,12 +19,11 @@ constexpr size_t kMaxPath = 4096;
 // before it is reused.
 char slot_paths[kSlots][kMaxPath];
 std::atomic<bool> slot_used[kSlots];
-constexpr int kCleanedSignals[] = {SIGINT, SIGTERM, SIGHUP};
 
 void installHandlersWhereDefault() {
   static std::once_flag once;
   std::call_once(once, [] {
-    for (const int signal_number : kCleanedSignals) {
+    for (const int signal_number : kStopSignals) {
       struct sigaction current {};
       if (::sigaction(signal_number, nullptr, &current) != 0 || current.sa_handler != SIG_DFL) continue;
       struct sigaction cleanup {};

@@ -13,11 +13,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <iterator>
 #include <stdexcept>
 #include <thread>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/stop_signals.h"
 
 namespace ffloc {
 
@@ -52,7 +52,6 @@ int exitStatusOf(int status) {
 constexpr int kMaxLocalRanks = 4096;
 pid_t running_ranks[kMaxLocalRanks];
 volatile sig_atomic_t running_rank_count = 0;
-constexpr int kPassedOnSignals[] = {SIGINT, SIGTERM, SIGHUP};
 
 volatile sig_atomic_t signal_passed_on = 0;
 
@@ -62,38 +61,25 @@ void passOnToRanks(int signal_number) {
     if (running_ranks[i] > 0) ::kill(running_ranks[i], signal_number);
 }
 
-// Installed while the ranks run; the dispositions before are put back when they have ended.
+// Passes the stop signals on to the ranks while they run; afterwards the dispositions before are
+// put back and the ranks forgotten.
 class SignalsPassedOn {
  public:
-  SignalsPassedOn() {
-    struct sigaction pass {};
-    pass.sa_handler = passOnToRanks;
-    sigemptyset(&pass.sa_mask);
-    for (size_t i = 0; i < std::size(kPassedOnSignals); ++i) ::sigaction(kPassedOnSignals[i], &pass, &before_[i]);
-  }
   ~SignalsPassedOn() {
-    restore();
+    handler_.restore();
     running_rank_count = 0;
     signal_passed_on = 0;
   }
   // The dispositions before: in a rank before it starts its program (a signal must not be passed
   // on from there to its siblings; one ignored, as under nohup, stays ignored).
-  void restore() const {
-    for (size_t i = 0; i < std::size(kPassedOnSignals); ++i) ::sigaction(kPassedOnSignals[i], &before_[i], nullptr);
-  }
-  SignalsPassedOn(const SignalsPassedOn&) = delete;
-  SignalsPassedOn& operator=(const SignalsPassedOn&) = delete;
+  void restore() const { handler_.restore(); }
 
  private:
-  struct sigaction before_[std::size(kPassedOnSignals)] {};
+  const StopSignalHandler handler_{passOnToRanks, StopSignalHandler::Ignored::kTaken};
 };
 
 std::string howItEnded(int status) {
-  if (WIFSIGNALED(status)) {
-    const int signal_number = WTERMSIG(status);
-    const char* name = ::strsignal(signal_number);
-    return "was ended by signal " + std::to_string(signal_number) + (name ? std::string(" (") + name + ")" : "");
-  }
+  if (WIFSIGNALED(status)) return "was ended by " + signalName(WTERMSIG(status));
   return "failed (exit status " + std::to_string(exitStatusOf(status)) + ")";
 }
 
@@ -169,18 +155,14 @@ int runLocalRanks(const std::vector<std::string>& arguments, int ranks) {
     const int code = exitStatusOf(status);
     if (code != 0 && result == 0) {
       result = code;
-      // A rank stopped by one of these signals ends after a step the others agree on (they stop
+      // A rank stopped by a stop signal ends after a step the others agree on (they stop
       // at it too, rank 0 writing the checkpoint): a SIGTERM sent on to them would be their
       // second signal, which ends rank 0 in the middle of that write.
-      const bool stopped_by_signal =
-          WIFEXITED(status) && std::find(std::begin(kPassedOnSignals), std::end(kPassedOnSignals), code - 128) !=
-                                   std::end(kPassedOnSignals);
       if (signal_passed_on != 0) {
         std::fprintf(stderr, "stopping: signal %d passed on to every rank\n", static_cast<int>(signal_passed_on));
-      } else if (stopped_by_signal) {
-        const char* name = ::strsignal(code - 128);
-        std::fprintf(stderr, "rank %d stopped by signal %d (%s); the other ranks stop at the same step\n", rank,
-                     code - 128, name ? name : "?");
+      } else if (WIFEXITED(status) && isStopSignal(code - 128)) {
+        std::fprintf(stderr, "rank %d stopped by %s; the other ranks stop at the same step\n", rank,
+                     signalName(code - 128).c_str());
       } else {
         // A rank that failed leaves the others waiting in a collective: stop them. A rank killed
         // outright said nothing itself.
