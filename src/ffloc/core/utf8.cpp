@@ -63,6 +63,20 @@ std::string escapeInvalidUtf8(std::string_view text) {
   return escaped;
 }
 
+std::string asciiLowercase(std::string_view text) {
+  std::string lower(text);
+  for (char& c : lower)
+    if (c >= 'A' && c <= 'Z') c = static_cast<char>(c - 'A' + 'a');
+  return lower;
+}
+
+std::string cutText(std::string_view text, size_t max_bytes) {
+  if (text.size() <= max_bytes) return std::string(text);
+  size_t cut = max_bytes;
+  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;
+  return std::string(text.substr(0, cut)) + "... (" + std::to_string(text.size()) + " bytes, cut)";
+}
+
 std::string escapeControlCharacters(std::string_view line) {
   std::string escaped;
   escaped.reserve(line.size());

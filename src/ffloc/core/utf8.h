@@ -1,5 +1,6 @@
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <string_view>
 
@@ -13,6 +14,13 @@ bool isUtf8(std::string_view text);
 // `text` with each byte that is not part of well-formed UTF-8 written as \xhh: an error naming a
 // file whose name is not UTF-8 was itself not valid text for the terminal or a log.
 std::string escapeInvalidUtf8(std::string_view text);
+
+// `text` cut after at most `max_bytes` bytes, not inside a UTF-8 character, with its length said
+// ("... (5000 bytes, cut)"): a client's 5000-byte name filled log lines and answers at its will.
+std::string cutText(std::string_view text, size_t max_bytes);
+
+// `text` with A-Z as a-z (media types, URL schemes, file extensions: ASCII and case-blind).
+std::string asciiLowercase(std::string_view text);
 
 // `text` on one line: control characters and DEL written as \n, \r, \t or \xHH. A client's
 // newline in a log line would start a forged line, and a NUL ends a line (and an exception's

@@ -34,5 +34,16 @@ TEST(Utf8, EscapesOnlyTheBytesThatAreNotUtf8) {
   EXPECT_EQ(escapeInvalidUtf8("\xF0\x9F\x93"), "\\xf0\\x9f\\x93");  // cut short
 }
 
+TEST(Utf8, AsciiLowercaseLeavesOtherBytes) {
+  EXPECT_EQ(asciiLowercase("IMAGE/Png; Boundary=X"), "image/png; boundary=x");
+  EXPECT_EQ(asciiLowercase("CAF\xC3\x89.JPG"), "caf\xC3\x89.jpg");  // the E-acute's bytes as they were
+}
+
+TEST(Utf8, CutTextSaysItsLengthAndKeepsWholeCharacters) {
+  EXPECT_EQ(cutText("short", 5), "short");
+  EXPECT_EQ(cutText("abcdef", 3), "abc... (6 bytes, cut)");
+  EXPECT_EQ(cutText("ab\xC3\xA9z", 3), "ab... (5 bytes, cut)");  // not between the two bytes of e-acute
+}
+
 }  // namespace
 }  // namespace ffloc

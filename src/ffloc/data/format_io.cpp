@@ -9,6 +9,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/number_text.h"
+#include "ffloc/core/utf8.h"
 #include "ffloc/core/text_file_writer.h"
 #include "ffloc/data/depth.h"
 #include "ffloc/io/image_format.h"
@@ -211,9 +212,7 @@ void requireNoDistortion(const Scene& scene, const std::string& format) {
 }
 
 std::string imageExtension(const Frame& frame) {
-  std::string extension = frame.image_path.extension().string();
-  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  return extension;
+  return asciiLowercase(frame.image_path.extension().string());
 }
 
 bool endsWith(const std::string& text, const std::string& suffix) {

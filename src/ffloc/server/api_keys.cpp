@@ -1,11 +1,11 @@
 #include "ffloc/server/api_keys.h"
 
 #include <algorithm>
-#include <cctype>
 #include <fstream>
 #include <sstream>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
 
 namespace ffloc {
 
@@ -26,9 +26,7 @@ bool equalInConstantTime(const std::string& a, const std::string& b) {
 std::string bearerToken(const std::string& authorization) {
   const std::string scheme = "Bearer ";
   if (authorization.size() <= scheme.size()) return "";
-  std::string prefix = authorization.substr(0, scheme.size());
-  std::transform(prefix.begin(), prefix.end(), prefix.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (prefix != "bearer ") return "";
+  if (asciiLowercase(authorization.substr(0, scheme.size())) != "bearer ") return "";
   std::string token = authorization.substr(scheme.size());
   const size_t first = token.find_first_not_of(' ');
   return first == std::string::npos ? "" : token.substr(first);

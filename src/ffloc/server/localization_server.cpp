@@ -1,7 +1,6 @@
 #include "ffloc/server/localization_server.h"
 
 #include <algorithm>
-#include <cctype>
 #include <chrono>
 #include <condition_variable>
 #include <deque>
@@ -202,13 +201,6 @@ struct Refusal {
 constexpr size_t kMaxLoggedNameBytes = 200;
 constexpr size_t kMaxLoggedMessageBytes = 600;
 
-std::string cutForLog(const std::string& text, size_t max_bytes) {
-  if (text.size() <= max_bytes) return text;
-  size_t cut = max_bytes;
-  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
-  return text.substr(0, cut) + "... (" + std::to_string(text.size()) + " bytes, cut)";
-}
-
 
 const char* const kLengthRequired = "length required: send the body with a Content-Length header (no chunked transfer)";
 
@@ -229,9 +221,7 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
   if (request.get_header_value_count("Content-Type") > 1) return {400, "Content-Type: given more than once"};
   const std::string type = request.get_header_value("Content-Type");
   // Media types are case-insensitive: IMAGE/PNG was refused as 415.
-  std::string lower_type = type;
-  std::transform(lower_type.begin(), lower_type.end(), lower_type.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  const std::string lower_type = asciiLowercase(type);
   const auto starts = [&](const char* prefix) { return lower_type.rfind(prefix, 0) == 0; };
   // What curl --data-binary sends without -H: the library would read the image as form fields
   // and, past 8 KiB, refuse it as too large (413), which sent users hunting for a size limit.
@@ -245,7 +235,7 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
   // other spelling passed here and the form was read as an image ("fx: missing").
   if (starts("multipart/form-data") &&
       (type.rfind("multipart/form-data", 0) != 0 || type.find("boundary=") == std::string::npos)) {
-    return {415, "Content-Type '" + escapeControlCharacters(cutForLog(type, kMaxLoggedNameBytes)) +
+    return {415, "Content-Type '" + escapeControlCharacters(cutText(type, kMaxLoggedNameBytes)) +
                      "': write it 'multipart/form-data; boundary=...' in lower case, the only spelling the HTTP "
                      "library reads as a form"};
   }
@@ -353,7 +343,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
   // One line a request: its method, its path and what came of it.
   auto log = [this](const httplib::Request& request, const std::string& outcome) {
     if (!options_.log) return;
-    const std::string line = request.method + " " + cutForLog(request.path, kMaxLoggedNameBytes) + " " + outcome;
+    const std::string line = request.method + " " + cutText(request.path, kMaxLoggedNameBytes) + " " + outcome;
     std::lock_guard<std::mutex> lock(http_->log_mutex);
     *options_.log << escapeControlCharacters(line) << std::endl;
   };
@@ -497,7 +487,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     // may read it as one and split the body elsewhere (RFC 9112 5.1 asks for a 400).
     for (const auto& [name, value] : request.headers)
       if (name.find_first_of(" \t") != std::string::npos)
-        return {400, "header '" + escapeControlCharacters(cutForLog(name, kMaxLoggedNameBytes)) +
+        return {400, "header '" + escapeControlCharacters(cutText(name, kMaxLoggedNameBytes)) +
                          "': whitespace in a field name"};
     // The library reads no body of a GET: one sent was parsed as the next request, whose answer
     // a proxy in front would hand to another client (found by an outside probe).
@@ -507,7 +497,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
         return {400, "a " + request.method + " request carries no body; this one announced " +
                          (request.has_header("Transfer-Encoding")
                               ? std::string("a chunked one")
-                              : escapeControlCharacters(cutForLog(length, kMaxLoggedNameBytes)) + " bytes")};
+                              : escapeControlCharacters(cutText(length, kMaxLoggedNameBytes)) + " bytes")};
     }
     // The library reads a body that is both chunked and of a Content-Length as chunked: past
     // the body limit, and with a request hidden after the last chunk run as a second one, which
@@ -634,7 +624,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       while (recent.size() > options_.recent_answers) recent.pop_front();
     }
     const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    log(request, "200 " + cutForLog(query.name, kMaxLoggedNameBytes) + " " + body["status"].get<std::string>() + " " +
+    log(request, "200 " + cutText(query.name, kMaxLoggedNameBytes) + " " + body["status"].get<std::string>() + " " +
         std::to_string(body["inliers"].get<int>()) + " inliers, " + std::to_string(static_cast<int>(ms)) + " ms");
   };
   post("/localize", localize);
@@ -656,7 +646,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     }
     const nlohmann::json body = nlohmann::json::parse(response.body, nullptr, false);
     const std::string message = body.is_object() && body.contains("error") ? body["error"].get<std::string>() : "";
-    log(request, std::to_string(response.status) + " " + cutForLog(message, kMaxLoggedMessageBytes));
+    log(request, std::to_string(response.status) + " " + cutText(message, kMaxLoggedMessageBytes));
   });
 
   server.set_exception_handler([](const httplib::Request&, httplib::Response& response, std::exception_ptr exception) {

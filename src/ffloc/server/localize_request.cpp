@@ -34,13 +34,7 @@ std::string knownFieldList() {
 
 // A client's text as an answer shows it: on one line, and cut after 64 bytes (a 1 MB value was
 // quoted whole).
-std::string shownText(const std::string& text) {
-  constexpr size_t kShown = 64;
-  if (text.size() <= kShown) return escapeControlCharacters(text);
-  size_t cut = kShown;
-  while (cut > 0 && (static_cast<unsigned char>(text[cut]) & 0xC0) == 0x80) --cut;  // not inside a UTF-8 character
-  return escapeControlCharacters(text.substr(0, cut)) + "... (" + std::to_string(text.size()) + " bytes)";
-}
+std::string shownText(const std::string& text) { return escapeControlCharacters(cutText(text, 64)); }
 
 std::string quotedValue(const std::string& text) { return "'" + shownText(text) + "'"; }
 

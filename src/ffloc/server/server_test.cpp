@@ -124,7 +124,7 @@ TEST(LocalizeRequest, RefusesBadInputNamingTheField) {
   auto long_value = pinholeFields();
   long_value["fx"] = std::string(100000, '7') + "x";
   EXPECT_EQ(requestErrorOf(long_value, image),
-            "fx: expected a finite number, got '" + std::string(64, '7') + "... (100001 bytes)'");
+            "fx: expected a finite number, got '" + std::string(64, '7') + "... (100001 bytes, cut)'");
   auto odd_name = pinholeFields();
   odd_name["a\nb"] = "1";
   EXPECT_EQ(requestErrorOf(odd_name, image).rfind("a\\nb: unknown field (known: ", 0), 0u);
