@@ -401,13 +401,12 @@ TEST(BadInput, CambridgeReadsPosesAsCentreAndWorldToCameraRotation) {
   // an outside probe); a malformed first entry is still refused, not skipped as a header.
   writeTextFile(dir / "dataset_test.txt", "seq2/frame00001.png 0 0 -1 1 0 0 0\n");
   ASSERT_EQ(loadDataset(dir).frames.size(), 2u);
-  writeTextFile(dir / "dataset_test.txt", "seq2/frame00001.png 0 0 -1 1 0 0\n");
-  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
   // Nor one written with commas, or naming an image that is not there.
-  writeTextFile(dir / "dataset_test.txt", "seq2/frame00001.png,0,0,-1,1,0,0,0\n");
-  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
-  writeTextFile(dir / "dataset_test.txt", "seq2/frame00009.png 0 0 -1 1 0 0\n");
-  expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
+  for (const char* malformed : {"seq2/frame00001.png 0 0 -1 1 0 0\n", "seq2/frame00001.png,0,0,-1,1,0,0,0\n",
+                                "seq2/frame00009.png 0 0 -1 1 0 0\n"}) {
+    writeTextFile(dir / "dataset_test.txt", malformed);
+    expectInputError([&] { loadDataset(dir); }, {"dataset_test.txt:1", "expected 'ImageFile X Y Z W P Q R'"});
+  }
 }
 
 }  // namespace

@@ -1,10 +1,11 @@
 #include <algorithm>
-#include <cctype>
 #include <cstdlib>
 #include <map>
 #include <numeric>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/utf8.h"
+#include "ffloc/data/format_io.h"
 #include "ffloc/io/image_size.h"
 #include "ffloc/data/readers.h"
 #include "ffloc/data/text_file.h"
@@ -71,12 +72,9 @@ void readPoseList(const fs::path& file, const fs::path& dir, Split split, const 
   const auto namesAnImage = [&](const std::string& text) {
     const auto tokens = splitWhitespace(text);
     if (tokens.empty()) return false;
-    std::string first = tokens[0].substr(0, tokens[0].find(','));
-    std::transform(first.begin(), first.end(), first.begin(), [](unsigned char c) { return std::tolower(c); });
-    const auto endsWith = [&](const std::string& suffix) {
-      return first.size() >= suffix.size() && first.compare(first.size() - suffix.size(), suffix.size(), suffix) == 0;
-    };
-    return endsWith(".png") || endsWith(".jpg") || endsWith(".jpeg") || fs::is_regular_file(dir / tokens[0]);
+    const std::string first = asciiLowercase(tokens[0].substr(0, tokens[0].find(',')));
+    return endsWith(first, ".png") || endsWith(first, ".jpg") || endsWith(first, ".jpeg") ||
+           fs::is_regular_file(dir / tokens[0]);
   };
   size_t first = 0;
   while (first < std::min<size_t>(3, lines.size()) && !isEntry(lines[first].text) &&
