@@ -225,14 +225,16 @@ class TrainCommandRanks : public ::testing::Test {
   }
 
   // Starts launcherCommand(name), sends SIGTERM to `target` (shell, $launcher the launcher's pid)
-  // after 4 s, waits for the launcher (its exit code to <out>.rc, its output to <out>.log), runs
-  // the shell `then`; returns the run folder <out>.
-  static std::string stopLauncherAfterFourSeconds(const std::string& name, const std::string& target,
-                                                  const std::string& then = "") {
+  // once a step is logged (every rank is then training; a fixed 4 s sometimes caught a loaded
+  // machine's rank still joining), waits for the launcher (its exit code to <out>.rc, its output
+  // to <out>.log), runs the shell `then`; returns the run folder <out>.
+  static std::string stopLauncherWhileTraining(const std::string& name, const std::string& target,
+                                               const std::string& then = "") {
     testing::writeShortRunConfig(root_ / "long.json", 100000, 100000, 1);
     const std::string out = (root_ / name).string();
-    const std::string script = launcherCommand(name) + " > " + out + ".log 2>&1 & launcher=$!; sleep 4; kill -TERM " +
-                               target + "; wait $launcher; echo $? > " + out + ".rc" + then + "; true";
+    const std::string script = launcherCommand(name) + " > " + out + ".log 2>&1 & launcher=$!; for i in $(seq 500); do " +
+                               "[ $(cat " + out + "/log.csv 2>/dev/null | wc -l) -ge 2 ] && break; sleep 0.2; done; " +
+                               "kill -TERM " + target + "; wait $launcher; echo $? > " + out + ".rc" + then + "; true";
     EXPECT_EQ(std::system(("timeout 120 /bin/sh -c '" + script + "'").c_str()), 0);
     return out;
   }
@@ -367,7 +369,7 @@ TEST_F(TrainCommandRanks, RanksOfOtherSettingsAreRefusedAndAMissingRankIsWaitedF
 // Found by an outside probe: `kill` of the --nproc-per-node launcher (as a scheduler stops a job)
 // ended it alone, and its ranks trained on as orphans.
 TEST_F(TrainCommandRanks, StoppingTheLauncherStopsItsRanks) {
-  const std::string out = stopLauncherAfterFourSeconds("stopped", "$launcher", "; sleep 2; pgrep -f \"^" +
+  const std::string out = stopLauncherWhileTraining("stopped", "$launcher", "; sleep 2; pgrep -f \"^" +
                                                                                   launcherCommand("stopped") + "\" > " +
                                                                                   (root_ / "stopped").string() + ".left");
   std::ifstream code(out + ".rc");
@@ -387,7 +389,7 @@ TEST_F(TrainCommandRanks, StoppingTheLauncherStopsItsRanks) {
 // A rank stopped by a signal sent to it alone ends after a step the others agree on: it was
 // reported as "failed" and the others were sent SIGTERM.
 TEST_F(TrainCommandRanks, ARankStoppedBySignalIsSaidSoAndTheOthersStopWithIt) {
-  const std::string out = stopLauncherAfterFourSeconds("one", "$(pgrep -P $launcher | tail -1)");
+  const std::string out = stopLauncherWhileTraining("one", "$(pgrep -P $launcher | tail -1)");
   const std::string text = output("one");
   EXPECT_NE(text.find("rank 1 stopped by signal 15 (Terminated); the other ranks stop at the same step"), std::string::npos)
       << text;
