@@ -18,6 +18,7 @@
 #include <torch/cuda.h>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/stop_signals.h"
 #include "ffloc/core/testing/child_process.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/io/testing/exif_jpeg.h"
@@ -812,41 +813,47 @@ TEST_F(Cli, OutputFoldersAndServerCountsAreRefusedNamingTheFlag) {
 }
 
 // With --port 0 the start said "every client that reaches 127.0.0.1:0", not the port it took.
-TEST_F(Cli, ServeOnAnyPortNamesThePortItTookAndStopsOnSigterm) {
+// A closed terminal (SIGHUP) ended the server without an orderly stop.
+TEST_F(Cli, ServeOnAnyPortNamesThePortItTookAndStopsOnSigtermOrSighup) {
   const fs::path scenes = dir_ / "synth";
   ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--mapping-frames", "4", "--query-frames", "0", "--size",
                     "160x120", "--quiet"}).exit_code, 0);
   const fs::path map = dir_ / "m.ffmap";
   ASSERT_EQ(runCli({"map", "--dataset", (scenes / "scene_000_indoor").string(), "-o", map.string(), "--quiet"}).exit_code, 0);
-  std::vector<std::string> arguments = {FFLOC_CLI_PATH, "serve", "--map", map.string(), "--port", "0"};
-  std::vector<char*> argv;
-  for (std::string& argument : arguments) argv.push_back(argument.data());
-  argv.push_back(nullptr);
-  int pipe_fds[2];
-  ASSERT_EQ(pipe(pipe_fds), 0);
-  const pid_t pid = fork();
-  if (pid == 0) {
-    dup2(pipe_fds[1], 2);
+  for (const int signal_number : {SIGTERM, SIGHUP}) {
+    SCOPED_TRACE(signalName(signal_number));
+    std::vector<std::string> arguments = {FFLOC_CLI_PATH, "serve", "--map", map.string(), "--port", "0"};
+    std::vector<char*> argv;
+    for (std::string& argument : arguments) argv.push_back(argument.data());
+    argv.push_back(nullptr);
+    int pipe_fds[2];
+    ASSERT_EQ(pipe(pipe_fds), 0);
+    const pid_t pid = fork();
+    if (pid == 0) {
+      dup2(pipe_fds[1], 2);
+      close(pipe_fds[0]);
+      execv(argv[0], argv.data());
+      _exit(127);
+    }
+    close(pipe_fds[1]);
+    std::string output;
+    char buffer[4096];
+    for (ssize_t got; !contains(output, "map viewer") && (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;)
+      output.append(buffer, got);
+    kill(pid, signal_number);
+    for (ssize_t got; (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;) output.append(buffer, got);
     close(pipe_fds[0]);
-    execv(argv[0], argv.data());
-    _exit(127);
+    int status = 0;
+    waitpid(pid, &status, 0);
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+    EXPECT_TRUE(contains(output, signalName(signal_number) + ": stopping once the query being localized is answered"))
+        << output;
+    const size_t at = output.find("listening on http://127.0.0.1:");
+    ASSERT_NE(at, std::string::npos) << output;
+    const std::string port = output.substr(at + 30, output.find(' ', at + 30) - at - 30);
+    EXPECT_NE(port, "0") << output;
+    EXPECT_TRUE(contains(output, "every client that reaches 127.0.0.1:" + port + " may use every map")) << output;
   }
-  close(pipe_fds[1]);
-  std::string output;
-  char buffer[4096];
-  for (ssize_t got; !contains(output, "map viewer") && (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;)
-    output.append(buffer, got);
-  kill(pid, SIGTERM);
-  for (ssize_t got; (got = read(pipe_fds[0], buffer, sizeof(buffer))) > 0;) output.append(buffer, got);
-  close(pipe_fds[0]);
-  int status = 0;
-  waitpid(pid, &status, 0);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
-  const size_t at = output.find("listening on http://127.0.0.1:");
-  ASSERT_NE(at, std::string::npos) << output;
-  const std::string port = output.substr(at + 30, output.find(' ', at + 30) - at - 30);
-  EXPECT_NE(port, "0") << output;
-  EXPECT_TRUE(contains(output, "every client that reaches 127.0.0.1:" + port + " may use every map")) << output;
 }
 
 }  // namespace

@@ -5,7 +5,6 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
-#include <csignal>
 #include <cstdlib>
 #include <iostream>
 #include <memory>
@@ -19,6 +18,7 @@
 #include "ffloc/core/allocator.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/host_address.h"
+#include "ffloc/core/stop_signals.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/pipeline/map_localizer.h"
 #include "ffloc/model/model_loader.h"
@@ -43,9 +43,10 @@ struct ServeArguments {
   double body_timeout_s = 60;
 };
 
-// SIGINT and SIGTERM stop the server through a pipe: the handler only writes one byte (all a
-// signal handler may safely do), and a waiting thread reads it and stops the server. Masks
-// would not do, as OpenBLAS starts its threads before main() with nothing blocked.
+// A stop signal (SIGINT, SIGTERM, SIGHUP) stops the server through a pipe: the handler only
+// writes one byte (all a signal handler may safely do), and a waiting thread reads it and stops
+// the server. Masks would not do, as OpenBLAS starts its threads before main() with nothing
+// blocked.
 int stop_pipe[2] = {-1, -1};
 
 extern "C" void writeStopByte(int signal) {
@@ -55,32 +56,30 @@ extern "C" void writeStopByte(int signal) {
   errno = saved_errno;
 }
 
+int openStopPipe() {
+  if (pipe2(stop_pipe, O_CLOEXEC) != 0 || fcntl(stop_pipe[1], F_SETFL, O_NONBLOCK) != 0)
+    throw std::runtime_error("serve: cannot create the signal pipe");
+  return stop_pipe[0];
+}
+
 class StopOnSignal {
  public:
-  explicit StopOnSignal(LocalizationServer& server) {
-    if (pipe2(stop_pipe, O_CLOEXEC) != 0 || fcntl(stop_pipe[1], F_SETFL, O_NONBLOCK) != 0)
-      throw std::runtime_error("serve: cannot create the signal pipe");
-    struct sigaction action = {};
-    action.sa_handler = writeStopByte;
-    action.sa_flags = SA_RESTART;
-    sigemptyset(&action.sa_mask);
-    sigaction(SIGINT, &action, &previous_interrupt_);
-    sigaction(SIGTERM, &action, &previous_terminate_);
+  explicit StopOnSignal(LocalizationServer& server)
+      : read_end_(openStopPipe()), handler_(writeStopByte, StopSignalHandler::Ignored::kKept) {
     waiter_ = std::thread([this, &server] {
       char signal = 0;
       ssize_t got = 0;
       do {
-        got = read(stop_pipe[0], &signal, 1);
+        got = read(read_end_, &signal, 1);
       } while (got < 0 && errno == EINTR);
       if (got != 1 || signal == 0) return;
-      restoreHandlers();  // a second Ctrl-C ends the process at once
-      std::cerr << "signal " << int(signal)
-                << ": stopping once the query being localized is answered (again to quit now)\n";
+      handler_.restore();  // a second Ctrl-C ends the process at once
+      std::cerr << signalName(signal) << ": stopping once the query being localized is answered (again to quit now)\n";
       server.stop();
     });
   }
   ~StopOnSignal() {
-    restoreHandlers();
+    handler_.restore();
     const char wake = 0;
     [[maybe_unused]] const ssize_t written = write(stop_pipe[1], &wake, 1);
     waiter_.join();
@@ -89,12 +88,8 @@ class StopOnSignal {
   }
 
  private:
-  void restoreHandlers() {
-    sigaction(SIGINT, &previous_interrupt_, nullptr);
-    sigaction(SIGTERM, &previous_terminate_, nullptr);
-  }
-
-  struct sigaction previous_interrupt_ = {}, previous_terminate_ = {};
+  const int read_end_;
+  const StopSignalHandler handler_;
   std::thread waiter_;
 };
 

@@ -17,6 +17,9 @@ std::string signalName(int signal_number) {
 StopSignalHandler::StopSignalHandler(void (*handler)(int), Ignored ignored) {
   struct sigaction taking {};
   taking.sa_handler = handler;
+  // Without it a read or write in progress fails with EINTR, and a checkpoint being written or a
+  // request being read would fail for a signal that asked for an orderly stop.
+  taking.sa_flags = SA_RESTART;
   sigemptyset(&taking.sa_mask);
   for (size_t i = 0; i < std::size(kStopSignals); ++i) {
     if (::sigaction(kStopSignals[i], nullptr, &before_[i]) != 0) continue;
