@@ -246,6 +246,14 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
   return {};
 }
 
+// As the CLI and Python refuse their flag: a classical map ignored features= and selection=
+// without a word.
+void refuseSettingsTheMethodIgnores(const std::map<std::string, std::string>& fields, LocalizationMethod method) {
+  for (const char* field : {"features", "selection"})
+    if (fields.count(field) && !methodUsesSetting(method, field))
+      throw InputError(std::string(field) + ": the map is a " + toString(method) + " map, which does not use it");
+}
+
 const std::string& imageBytes(const httplib::Request& request) {
   if (!request.is_multipart_form_data()) return request.body;
   const size_t parts = request.files.count("image");
@@ -531,7 +539,20 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
         if (request.method != "POST") return Refusal{};
         const std::variant<std::string, Refusal> access = accessRefusal(request, match);
         if (const Refusal* refusal = std::get_if<Refusal>(&access)) return *refusal;
-        return postRefusal(request, options_.max_body_bytes);
+        const Refusal refusal = postRefusal(request, options_.max_body_bytes);
+        if (refusal.status != 0 || request.is_multipart_form_data()) return refusal;
+        // The body is the image alone, so every field is in the URL: a query missing fx was
+        // refused only once its image had arrived.
+        const std::shared_ptr<const ServedMap> map = maps_.get(std::get<std::string>(access));
+        if (!map) return Refusal{};  // gone since: the route answers 404
+        try {
+          const std::map<std::string, std::string> fields = requestFields(request);
+          refuseSettingsTheMethodIgnores(fields, map->localizer->method());
+          parseLocalizeFields(fields, options_.localize, options_.limits);
+        } catch (const InputError& e) {
+          return {400, e.what()};
+        }
+        return Refusal{};
       }
       allow += (allow.empty() ? "" : ", ") + (method == "GET" ? std::string("GET, HEAD") : method);
     }
@@ -577,12 +598,7 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     LocalizeRequest query;
     try {
       const std::map<std::string, std::string> fields = requestFields(request);
-      // As the CLI and Python refuse their flag: a classical map ignored features= and
-      // selection= without a word.
-      const LocalizationMethod method = map->localizer->method();
-      for (const char* field : {"features", "selection"})
-        if (fields.count(field) && !methodUsesSetting(method, field))
-          throw InputError(std::string(field) + ": the map is a " + toString(method) + " map, which does not use it");
+      refuseSettingsTheMethodIgnores(fields, map->localizer->method());
       query = parseLocalizeRequest(fields, imageBytes(request), options_.localize, options_.limits);
     } catch (const InputError& e) {
       replyError(response, 400, e.what());

@@ -134,8 +134,8 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
 
 }  // namespace
 
-LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
-                                     const LocalizeOptions& defaults, const RequestLimits& limits) {
+LocalizeRequest parseLocalizeFields(const std::map<std::string, std::string>& fields, const LocalizeOptions& defaults,
+                                    const RequestLimits& limits) {
   for (const auto& [field, value] : fields) {
     if (!knownFields().count(field)) {
       throw InputError(shownText(field) + ": unknown field (known: " + knownFieldList() + ")");
@@ -158,12 +158,17 @@ LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& f
     request.options.pnp.seed = request.options.seed;
   }
   if (const auto it = fields.find("selection"); it != fields.end()) request.options.selection = parseImageSelection(it->second);
+  request.options.check();
+  return request;
+}
 
+LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
+                                     const LocalizeOptions& defaults, const RequestLimits& limits) {
+  LocalizeRequest request = parseLocalizeFields(fields, defaults, limits);
   request.rgb = decodeRgb(image_bytes, limits.max_image_pixels);
   request.intrinsics.width = request.rgb.cols;
   request.intrinsics.height = request.rgb.rows;
   checkIntrinsicsFitImage(request.intrinsics, request.rgb.cols, request.rgb.rows);
-  request.options.check();
   return request;
 }
 

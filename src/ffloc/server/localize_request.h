@@ -41,4 +41,10 @@ struct RequestLimits {
 LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
                                      const LocalizeOptions& defaults, const RequestLimits& limits = {});
 
+// The fields alone, checked as parseLocalizeRequest checks them, with no image (`rgb` empty, the
+// intrinsics not yet checked against an image size): for a request whose fields are all known
+// before its body arrives, so that a 30 MB upload is not read only to be refused for its fields.
+LocalizeRequest parseLocalizeFields(const std::map<std::string, std::string>& fields, const LocalizeOptions& defaults,
+                                    const RequestLimits& limits = {});
+
 }  // namespace ffloc
