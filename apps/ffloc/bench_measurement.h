@@ -5,18 +5,15 @@
 #include <string>
 #include <vector>
 
+#include "ffloc/core/statistics.h"
+
 namespace ffloc::cli {
 
 // Wall-clock seconds of repeated calls.
 struct Timing {
   std::vector<double> seconds;
 
-  double median() const {
-    std::vector<double> sorted = seconds;
-    std::sort(sorted.begin(), sorted.end());
-    const size_t n = sorted.size();
-    return n % 2 == 1 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
-  }
+  double median() const { return ffloc::median(seconds); }
   double min() const { return *std::min_element(seconds.begin(), seconds.end()); }
   double max() const { return *std::max_element(seconds.begin(), seconds.end()); }
 };

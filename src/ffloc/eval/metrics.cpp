@@ -4,6 +4,8 @@
 #include <cmath>
 #include <limits>
 
+#include "ffloc/core/statistics.h"
+
 namespace ffloc {
 
 const std::array<AccuracyThreshold, 5>& accuracyThresholds() {
@@ -18,21 +20,6 @@ const std::array<AccuracyThreshold, 5>& accuracyThresholds() {
 }
 
 const AccuracyThreshold& verdictThreshold() { return accuracyThresholds()[4]; }
-
-double median(std::vector<double> values) {
-  if (values.empty()) return 0;
-  const size_t middle = (values.size() - 1) / 2;
-  std::nth_element(values.begin(), values.begin() + middle, values.end());
-  return values[middle];
-}
-
-double percentile(std::vector<double> values, double q) {
-  if (values.empty()) return 0;
-  std::sort(values.begin(), values.end());
-  const double rank = std::ceil(std::clamp(q, 0.0, 1.0) * values.size());
-  const size_t index = rank < 1 ? 0 : static_cast<size_t>(rank) - 1;
-  return values[std::min(index, values.size() - 1)];
-}
 
 MethodSummary summarize(const std::vector<FrameResult>& frames) {
   MethodSummary s;

@@ -46,7 +46,7 @@ struct MethodSummary {
   std::string method;
   int frames = 0;
   int failed = 0;
-  double median_translation = 0;  // +inf when more than half the frames failed
+  double median_translation = 0;  // +inf when half the frames or more failed
   double median_rotation_deg = 0;
   std::array<double, 5> accuracy_percent{};  // per accuracyThresholds()
   double latency_median_ms = 0;
@@ -69,11 +69,5 @@ MethodSummary summarize(const std::vector<FrameResult>& frames);
 // of a multi-scene evaluation (medians over all frames, not a mean of per-scene medians).
 MethodSummary summarizePooled(const std::vector<FrameResult>& frames, const std::string& method,
                               const std::string& label);
-
-// The lower median (no interpolation), so an infinite error is reported as soon as half the
-// frames failed, never averaged with a finite one. Empty input gives 0.
-double median(std::vector<double> values);
-// Nearest-rank percentile, q in [0, 1].
-double percentile(std::vector<double> values, double q);
 
 }  // namespace ffloc

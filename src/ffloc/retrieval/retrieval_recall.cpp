@@ -4,6 +4,7 @@
 #include <string>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/statistics.h"
 #include "ffloc/retrieval/image_selection.h"
 
 namespace ffloc {
@@ -38,12 +39,6 @@ void checkInputs(const std::vector<Pose>& mapping_poses, const std::vector<Pose>
 
 bool contains(const std::vector<size_t>& indices, size_t index) {
   return std::find(indices.begin(), indices.end(), index) != indices.end();
-}
-
-double median(std::vector<size_t> values) {
-  std::sort(values.begin(), values.end());
-  const size_t n = values.size();
-  return n % 2 ? static_cast<double>(values[n / 2]) : 0.5 * static_cast<double>(values[n / 2 - 1] + values[n / 2]);
 }
 
 }  // namespace
@@ -81,7 +76,7 @@ RetrievalRecall measureRetrievalRecall(const std::vector<Pose>& mapping_poses, c
     recall.random /= static_cast<double>(queries);
     out.recall.push_back(recall);
   }
-  out.median_rank = median(out.rank);
+  out.median_rank = median(std::vector<double>(out.rank.begin(), out.rank.end()));
   return out;
 }
 

@@ -19,6 +19,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
 #include "ffloc/core/random.h"
+#include "ffloc/core/statistics.h"
 #include "ffloc/model/torch_threads.h"
 #include "ffloc/model/model_loader.h"
 #include "ffloc/pose/pnp.h"
@@ -104,12 +105,9 @@ int64_t nonFiniteCount(const std::vector<std::pair<std::string, at::Tensor>>& pa
   return finite.defined() ? elements - finite.item<int64_t>() : 0;
 }
 
-// Infinite values (failed poses) sort last; the median of an empty list is infinite.
-double median(std::vector<double> values) {
-  if (values.empty()) return std::numeric_limits<double>::infinity();
-  const size_t middle = values.size() / 2;
-  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(middle), values.end());
-  return values[middle];
+// Failed poses count as infinite errors; with no sample the median is infinite.
+double medianError(const std::vector<double>& errors) {
+  return errors.empty() ? std::numeric_limits<double>::infinity() : median(errors);
 }
 
 }  // namespace
@@ -496,8 +494,8 @@ ValidationStats Trainer::validate(bool quiet, const std::function<bool()>& keep_
   stats.match_accuracy /= stats.samples;
   stats.within_10cm_10deg /= stats.samples;
   stats.within_25cm_5deg /= stats.samples;
-  stats.median_translation_error = median(translation_errors);
-  stats.median_rotation_error_deg = median(rotation_errors);
+  stats.median_translation_error = medianError(translation_errors);
+  stats.median_rotation_error_deg = medianError(rotation_errors);
   return stats;
 }
 
