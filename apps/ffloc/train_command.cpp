@@ -329,8 +329,10 @@ void requireTheSameSettingsOnEveryRank(DataParallel& parallel, const TrainingCon
 }
 
 // A run refused after it made its --out folder (a model that names no parameter, a rank that
-// never joined) left that folder behind empty; it goes, unless something but the lock is in it.
-// Made after the run's lock is declared, so that it is destroyed while the lock is still held.
+// never joined, data where no sample can be drawn) left that folder behind; it goes, unless
+// something but the lock and the files this run wrote at its start, as it wrote them, is in it
+// (a log with rows stays, and with it the folder). Made after the run's lock is declared, so
+// that it is destroyed while the lock is still held.
 class RemoveNewFolderOnError {
  public:
   // Only rank 0 removes: the other ranks may share the folder with it.
@@ -349,13 +351,20 @@ class RemoveNewFolderOnError {
   }
   RemoveNewFolderOnError(const RemoveNewFolderOnError&) = delete;
   RemoveNewFolderOnError& operator=(const RemoveNewFolderOnError&) = delete;
+  // `name`, in the folder, was written by this run and is now `bytes` long.
+  void wrote(const fs::path& name, uintmax_t bytes) { written_.emplace_back(name, bytes); }
+
   ~RemoveNewFolderOnError() {
     if (!made_here_ || std::uncaught_exceptions() == 0) return;
     std::error_code error;
     for (fs::directory_iterator entry(folder_, error), end; !error && entry != end; entry.increment(error)) {
-      if (entry->path().filename() != lock_name_) return;
+      const fs::path name = entry->path().filename();
+      if (name == lock_name_) continue;
+      const auto ours = std::find_if(written_.begin(), written_.end(), [&](const auto& file) { return file.first == name; });
+      if (ours == written_.end() || fs::file_size(entry->path(), error) != ours->second || error) return;
     }
     if (error) return;
+    for (const auto& file : written_) fs::remove(folder_ / file.first, error);
     fs::remove(folder_ / lock_name_, error);
     // Not recursive: whatever came in meanwhile stays, and so do the folders above it.
     if (!fs::remove(folder_, error)) return;
@@ -368,6 +377,7 @@ class RemoveNewFolderOnError {
   fs::path lock_name_;
   bool made_here_ = false;
   std::vector<fs::path> new_parents_;  // deepest first
+  std::vector<std::pair<fs::path, uintmax_t>> written_;
 };
 
 // The first stop signal (SIGINT, SIGTERM, SIGHUP) stops the run after the step in progress, with
@@ -411,7 +421,7 @@ int runTrain(const TrainArguments& args) {
                        "'; write the run elsewhere");
   const fs::path lock_target = runLockTarget(run_dir);
   std::optional<WriterLock> run_lock;
-  const RemoveNewFolderOnError cleanup(run_dir, writerLockFile(lock_target).filename(), lead);
+  RemoveNewFolderOnError cleanup(run_dir, writerLockFile(lock_target).filename(), lead);
   std::error_code error;
   fs::create_directories(run_dir, error);
   if (error) throw InputError("--out: cannot create '" + run_dir.string() + "': " + error.message());
@@ -463,7 +473,9 @@ int runTrain(const TrainArguments& args) {
     }
     return exitCode();
   }
-  writeTextFile(run_dir / "config.json", toJson(config).dump(2) + "\n");
+  const std::string config_text = toJson(config).dump(2) + "\n";
+  writeTextFile(run_dir / "config.json", config_text);
+  cleanup.wrote("config.json", config_text.size());
   const fs::path log_path = run_dir / "log.csv";
   // A log without even its header (a run killed before its first row) is started again.
   const bool new_log = !args.resume || !fs::exists(log_path) || fs::file_size(log_path) == 0;
@@ -492,7 +504,10 @@ int runTrain(const TrainArguments& args) {
   }
   std::ofstream log(log_path, new_log ? std::ios::trunc : std::ios::app);
   if (!log) throwInputError(log_path.string(), 0, "cannot write the training log");
-  if (new_log) log << kCsvHeader << std::flush;
+  if (new_log) {
+    log << kCsvHeader << std::flush;
+    cleanup.wrote(log_path.filename(), std::string(kCsvHeader).size());
+  }
   if (!args.quiet) {
     std::cerr << "model: " << trainer.modelDescription() << "; " << trainer.trainableParameterCount()
               << " trainable parameters" << (config.train_encoder ? "" : " (encoder frozen)") << "\n"
@@ -584,7 +599,9 @@ int runTrain(const TrainArguments& args) {
         stopped = "stopped by " + signalName(stop_signal) + " at step " + std::to_string(stats.step) +
                   "; --resume continues from this checkpoint";
       else if (budgetSpent())
-        stopped = "time budget of " + formatNumber(args.max_seconds) + " s spent at step " + std::to_string(stats.step);
+        stopped = "time budget of " + formatNumber(args.max_seconds) + " s spent at step " +
+                  std::to_string(stats.step) + " of " + std::to_string(config.steps) +
+                  "; --resume continues from this checkpoint";
       else
         stopped = "stopped at step " + std::to_string(stats.step) +
                   ": another rank was stopped (a signal or its time budget); --resume continues from this checkpoint";
@@ -593,10 +610,9 @@ int runTrain(const TrainArguments& args) {
     if (stats.step % config.checkpoint_every == 0 && stats.step != config.steps) trainer.saveCheckpoint();
   }
   const fs::path folder = trainer.saveCheckpoint();
-  if (!args.quiet) {
-    if (!stopped.empty()) std::cerr << stopped << "\n";
-    std::cerr << "checkpoint: " << (folder / "model.safetensors").string() << "\n";
-  }
+  // Not progress: with --quiet a run cut short by its budget looked finished (exit 0, no output).
+  if (!stopped.empty()) std::cerr << stopped << "\n";
+  if (!args.quiet) std::cerr << "checkpoint: " << (folder / "model.safetensors").string() << "\n";
   return exitCode();
 }
 
@@ -645,7 +661,7 @@ void registerTrainCommand(CLI::App& app, CommandRun& run) {
                   "Distributed runs: seconds a rank waits for the others to join before it gives up")
       ->capture_default_str()
       ->check(secondsIn(1, 86400));
-  cmd->add_flag("--quiet", args->quiet, "No progress output");
+  cmd->add_flag("--quiet", args->quiet, "No progress output (why a run stopped early is still said)");
   cmd->callback([args, &run] {
     run = [args] {
       if (args->nproc_per_node > 1) {

@@ -220,7 +220,13 @@ std::string modelSpecProblem(const std::string& requested) {
   }
   if (status.type() == std::filesystem::file_type::not_found) return "'" + path + "': no such file";
   if (error) return "'" + path + "': " + error.message();
-  if (status.type() == std::filesystem::file_type::directory) return "'" + path + "': a folder, not a weights file";
+  if (status.type() == std::filesystem::file_type::directory) {
+    // A training checkpoint's folder: its weights are the file inside.
+    if (std::filesystem::is_regular_file(std::filesystem::path(path) / "model.safetensors", error))
+      return "'" + path + "': a folder, not a weights file; its model is '" +
+             (std::filesystem::path(path) / "model.safetensors").string() + "'";
+    return "'" + path + "': a folder, not a weights file";
+  }
   if (status.type() != std::filesystem::file_type::regular)
     return "'" + path + "': not a regular file (FIFO, device or socket)";
   return "";

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdlib>
+#include <fstream>
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
@@ -86,6 +87,12 @@ TEST(ModelLoader, AMissingDefaultModelSaysWhereItWasLookedFor) {
             "'random:tiny:18446744073709551616': seed must be a whole number in [0, 18446744073709551615]");
   EXPECT_EQ(modelSpecProblem("random:tiny:18446744073709551615"), "");
   EXPECT_EQ(modelSpecProblem("/nonexistent.pth"), "'/nonexistent.pth': no such file");
+  // A training checkpoint's folder given for its model (an outside probe): the file is named.
+  const fs::path checkpoint = testing::makeTempDir("ffloc-model-folder");
+  EXPECT_EQ(modelSpecProblem(checkpoint.string()), "'" + checkpoint.string() + "': a folder, not a weights file");
+  std::ofstream(checkpoint / "model.safetensors") << "x";
+  EXPECT_EQ(modelSpecProblem(checkpoint.string()), "'" + checkpoint.string() + "': a folder, not a weights file; its model is '" +
+                                                       (checkpoint / "model.safetensors").string() + "'");
 }
 
 // The identity maps are checked against covered the parameters only: a checkpoint whose metadata

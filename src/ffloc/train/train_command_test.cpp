@@ -177,6 +177,14 @@ TEST_F(TrainCommandInput, NamesTheFlagThatSetABadValue) {
   EXPECT_TRUE(contains("error: " + part_config + " with the command line: field 'trained_parameters': 'no_such_part.'"))
       << output();
   EXPECT_FALSE(fs::exists(run));
+  // Found at the first draw, after config.json and the log's header were written: they stayed,
+  // though the docs say a refused run writes nothing (found by an outside probe).
+  TrainingConfig no_sample = settingsFor(1);
+  no_sample.min_overlap = 0.999;
+  no_sample.max_overlap = 1.0;
+  EXPECT_EQ(train("--config " + config(toJson(no_sample).dump()) + " --out " + run.string()), 2) << output();
+  EXPECT_TRUE(contains("overlap in [0.999, 1]")) << output();
+  EXPECT_FALSE(fs::exists(run));
 
   // A field no flag set is named with its source, and says what to do.
   EXPECT_EQ(train("--out " + run.string() + " --steps 1"), 2) << output();
@@ -348,8 +356,9 @@ TEST_F(TrainCommandInput, AResumeWithoutAConfigContinuesWithTheRunsOwnSettings) 
 }
 
 // A run of one rank ran one more step after the one that spent its --max-seconds (found by an
-// outside probe: a budget of 0.001 s trained two steps).
-TEST_F(TrainCommandInput, OneRankStopsAfterTheStepThatSpentTheBudget) {
+// outside probe: a budget of 0.001 s trained two steps). Under --quiet a run cut short said
+// nothing and exited 0, as a finished one does (another probe).
+TEST_F(TrainCommandInput, OneRankStopsAfterTheStepThatSpentTheBudgetAndSaysSo) {
   const fs::path run = root_ / "run";
   ASSERT_EQ(train("--config " + config(toJson(settingsFor(5)).dump()) + " --out " + run.string() +
                   " --max-seconds 0.001"),
@@ -357,6 +366,7 @@ TEST_F(TrainCommandInput, OneRankStopsAfterTheStepThatSpentTheBudget) {
       << output();
   EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000001" / "model.safetensors")) << output();
   EXPECT_FALSE(fs::exists(run / "checkpoints" / "step_00000002")) << output();
+  EXPECT_EQ(output(), "time budget of 0.001 s spent at step 1 of 5; --resume continues from this checkpoint\n");
 }
 
 // Validation ran 100000 samples (half an hour) past a spent --max-seconds, before the step's

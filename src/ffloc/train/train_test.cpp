@@ -325,10 +325,16 @@ TEST(TrainingSampler, ReportsImpossibleOverlapRequests) {
   TrainingConfig config = smallConfig();
   config.min_overlap = 0.999;
   config.max_overlap = 1.0;
+  config.overlap_candidates = 5;
   TrainingSampler sampler({smallScene()}, sampleOptions(config, 16));
   const std::string impossible = errorOf([&] { sampler.sample(1, 80); });
-  EXPECT_TRUE(contains(impossible, "overlap in [0.999, 1] among 16 others (every frame with depth tried as the query)"))
+  EXPECT_TRUE(contains(impossible, "overlap in [0.999, 1] among 5 others (every frame with depth tried as the query)"))
       << impossible;
+  // Fewer frames than overlap_candidates: their count (a probe's scene of 15 was said to have 64).
+  config.overlap_candidates = 1000;
+  const size_t frames = smallScene().frames.size();
+  const std::string all_tried = errorOf([&] { TrainingSampler({smallScene()}, sampleOptions(config, 16)).sample(1, 80); });
+  EXPECT_TRUE(contains(all_tried, "among " + std::to_string(frames - 1) + " others")) << all_tried;
   EXPECT_TRUE(contains(errorOf([] { TrainingSampler({Scene{}}, SampleOptions{}); }), "no frame has depth"));
 }
 
@@ -614,6 +620,22 @@ TEST(Trainer, RefusesToResumeFromADamagedCheckpoint) {
   EXPECT_EQ(resume(), model.string() + ": metadata checksum mismatch (the file is corrupted)");
   restore();
   EXPECT_EQ(Trainer(config, {smallScene()}, run, true).stepsDone(), 1);
+}
+
+// `latest` naming a folder that was deleted was called "incomplete", with no word of the earlier
+// checkpoint beside it (found by an outside probe).
+TEST(Trainer, ALatestCheckpointThatIsGoneIsCalledMissingAndTheLastCompleteOneNamed) {
+  const TrainingConfig config = smallConfigOfSteps(2);
+  const fs::path run = testing::makeTempDir("ffloc-train-gone");
+  checkpointAfterOneStep(config, run);
+  const fs::path latest = run / "checkpoints" / "latest";
+  std::ofstream(latest) << "step_00000002\n";
+  EXPECT_EQ(errorOf([&] { latestTrainingCheckpoint(run); }),
+            latest.string() + ":1: checkpoint folder '" + (run / "checkpoints" / "step_00000002").string() +
+                "' is missing; to resume from the latest complete one, write 'step_00000001' into " + latest.string());
+  fs::create_directories(run / "checkpoints" / "step_00000002");
+  EXPECT_NE(errorOf([&] { latestTrainingCheckpoint(run); }).find("step_00000002' is incomplete; to resume"),
+            std::string::npos);
 }
 
 // A checkpoint's weights replaced by their f16 copy (`ffloc convert --dtype f16`, metadata kept)

@@ -136,7 +136,17 @@ std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) 
   info.folder = run_dir / "checkpoints" / name;
   const fs::path model_path = info.folder / "model.safetensors";
   if (!fs::exists(model_path) || !fs::exists(info.folder / "optimizer.safetensors")) {
-    throwInputError(latest.string(), 1, "checkpoint folder '" + info.folder.string() + "' is incomplete");
+    // Say what is there to fall back on: the folders of earlier steps a run keeps (keep_last).
+    std::string earlier;
+    for (const fs::path& folder : trainingCheckpointFolders(run_dir))
+      if (folder != info.folder && fs::exists(folder / "model.safetensors") && fs::exists(folder / "optimizer.safetensors"))
+        earlier = folder.filename().string();
+    throwInputError(latest.string(), 1,
+                    "checkpoint folder '" + info.folder.string() + "' is " +
+                        (fs::exists(info.folder) ? "incomplete" : "missing") +
+                        (earlier.empty() ? std::string()
+                                         : "; to resume from the latest complete one, write '" + earlier + "' into " +
+                                               latest.string()));
   }
   const auto archive = openSafetensors(model_path);
   // The tensors are verified as the model loads; the step and the settings are read here.

@@ -230,10 +230,15 @@ TrainingSample TrainingSampler::sample(uint64_t seed, int64_t map_tokens) {
     for (size_t i = 0; i < queries.size() && !draw; ++i) draw = tryQuery(queries[i].first, queries[i].second, rng);
   }
   if (!draw) {
+    // The others a query is compared with: its scene's other frames with depth, at most
+    // overlap_candidates (a scene of 15 frames was said to have 64).
+    size_t others = 0;
+    for (const size_t scene : usable_scenes) others = std::max(others, frames_with_depth_[scene].size() - 1);
+    others = std::min(others, static_cast<size_t>(options_.overlap_candidates));
     throwInputError(source(), 0, "no frame has " + std::to_string(options_.mapping_frames) +
                                      " mapping frames of overlap in [" + formatNumber(options_.min_overlap) + ", " +
                                      formatNumber(options_.max_overlap) + "] among " +
-                                     std::to_string(options_.overlap_candidates) +
+                                     (usable_scenes.size() > 1 ? "up to " : "") + std::to_string(others) +
                                      " others (every frame with depth tried as the query); widen min_overlap and "
                                      "max_overlap or lower mapping_frames");
   }
