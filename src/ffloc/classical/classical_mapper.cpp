@@ -93,7 +93,11 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
   map.metric = scene.metric;
 
   std::map<std::string, Pose> mapped;
-  for (const ClassicalMapImage& image : map.images) mapped.emplace(image.name, image.camera_to_world);
+  std::map<std::string, size_t> previous;  // the map's images before this append, by name
+  for (size_t i = 0; i < map.images.size(); ++i) {
+    mapped.emplace(map.images[i].name, map.images[i].camera_to_world);
+    previous.emplace(map.images[i].name, i);
+  }
   const size_t first_new = map.images.size();
   std::vector<size_t> new_frames;  // scene frame of each new image
   {
@@ -103,6 +107,8 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
       progress.update(f + 1);
       if (const auto [found, added] = mapped.emplace(frame.name, frame.camera_to_world); !added) {
         requireSamePoseAsMapped(scene.root, frame.name, found->second, frame.camera_to_world);
+        if (const auto image = previous.find(frame.name); image != previous.end())
+          requireSameCameraAsMapped(scene.root, frame.name, map.images[image->second].camera, frame.intrinsics.undistorted());
         ++report.skipped_duplicates;
         continue;
       }

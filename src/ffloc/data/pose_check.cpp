@@ -1,6 +1,7 @@
 #include "ffloc/data/pose_check.h"
 
 #include <algorithm>
+#include <cmath>
 #include <sstream>
 
 #include "ffloc/core/error.h"
@@ -94,6 +95,26 @@ void requireSamePoseAsMapped(const std::filesystem::path& dataset, const std::st
        << " apart, " << rotationErrorDeg(mapped, frame)
        << " deg): an append adds images by name, so this is another image under a mapped name; rename it, or "
           "map without appending";
+  throwInputError(dataset.string(), 0, what.str());
+}
+
+void requireSameCameraAsMapped(const std::filesystem::path& dataset, const std::string& name, const Intrinsics& mapped,
+                               const Intrinsics& frame) {
+  const bool sizes_known = mapped.width > 0 && frame.width > 0;
+  const bool same_size = !sizes_known || (mapped.width == frame.width && mapped.height == frame.height);
+  const double slack = 1e-5 * std::max(1.0, std::abs(mapped.fx));
+  const bool same_camera = std::abs(mapped.fx - frame.fx) <= slack && std::abs(mapped.fy - frame.fy) <= slack &&
+                           std::abs(mapped.cx - frame.cx) <= slack && std::abs(mapped.cy - frame.cy) <= slack;
+  if (same_size && same_camera) return;
+  std::ostringstream what;
+  what << "frame '" << name << "' is already in the map with another camera (";
+  if (!same_size)
+    what << mapped.width << "x" << mapped.height << " mapped, " << frame.width << "x" << frame.height << " now";
+  else
+    what << "fx, fy, cx, cy " << mapped.fx << ", " << mapped.fy << ", " << mapped.cx << ", " << mapped.cy << " mapped, "
+         << frame.fx << ", " << frame.fy << ", " << frame.cx << ", " << frame.cy << " now";
+  what << "): an append adds images by name, so this is another image under a mapped name; rename it, or map "
+          "without appending";
   throwInputError(dataset.string(), 0, what.str());
 }
 

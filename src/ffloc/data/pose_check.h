@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "ffloc/geometry/camera.h"
 #include "ffloc/geometry/pose.h"
 
 // The checks every reader applies to a pose it parses.
@@ -38,5 +39,12 @@ bool isSamePoseAsMapped(const Pose& mapped, const Pose& frame);
 // two poses are.
 void requireSamePoseAsMapped(const std::filesystem::path& dataset, const std::string& name, const Pose& mapped,
                              const Pose& frame);
+
+// The same for the camera: the same viewpoints taken again with another camera or at another
+// size, under the same names, were skipped as mapped (found by an outside probe). `mapped` and
+// `frame` as the map stores the image's camera; sizes are compared where both are known, focal
+// lengths and principal points up to the digits an export loses.
+void requireSameCameraAsMapped(const std::filesystem::path& dataset, const std::string& name, const Intrinsics& mapped,
+                               const Intrinsics& frame);
 
 }  // namespace ffloc

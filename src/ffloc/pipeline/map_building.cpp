@@ -83,14 +83,22 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   // appending at once each started from the same old map, and the later rename dropped the
   // earlier run's images while both reported them added.
   const bool quiet = options.method == LocalizationMethod::kClassical ? options.classical.quiet : options.fastforward.quiet;
+  if (options.method == LocalizationMethod::kClassical) options.classical.check();
+  const auto checkOutput = [&] {
+    const bool append = appendsTo(output, options);
+    if (!append) requireReplaceable(output);
+    return append;
+  };
+  // Before the lock too: each refused run left the lock file it made beside its target, inside
+  // the dataset's own folder for a mistyped -o (found by an outside probe). Again under the
+  // lock, as the file may change while this run waits for it.
+  checkOutput();
   const WriterLock lock(output, [&] {
     if (!quiet) std::cerr << "waiting: another ffloc is writing " << output.string() << "\n";
   });
-  const bool append = appendsTo(output, options);
-  if (!append) requireReplaceable(output);
+  const bool append = checkOutput();
   MapBuildReport report;
   if (options.method == LocalizationMethod::kClassical) {
-    options.classical.check();
     ClassicalMap map = emptyClassicalMap(scene.metric, options.classical);
     if (append) map = readClassicalMap(output);
     report.previous_images = map.images.size();

@@ -103,7 +103,11 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
                        "no mapping frame of this dataset has depth: map it with the classical method");
   }
   std::map<std::string, Pose> mapped;
-  for (const MapImage& image : map.images) mapped.emplace(image.name, image.camera_to_world);
+  std::map<std::string, const MapImage*> previous;  // the map's images before this append, by name
+  for (const MapImage& image : map.images) {
+    mapped.emplace(image.name, image.camera_to_world);
+    previous.emplace(image.name, &image);
+  }
   MappingReport report;
   std::vector<const Frame*> to_add;
   for (const size_t f : frames) {
@@ -113,6 +117,18 @@ MappingReport addToMap(MapFile& map, const LoadedModel& model, const Scene& scen
       to_add.push_back(&frame);
     } else {
       requireSamePoseAsMapped(scene.root, frame.name, found->second, frame.camera_to_world);
+      if (const auto image = previous.find(frame.name); image != previous.end()) {
+        // The map holds the preprocessed camera and the size it was preprocessed from: the
+        // frame's camera is compared through the same preprocessing.
+        const PreprocessGeometry& geometry = image->second->geometry;
+        Intrinsics stored = image->second->intrinsics;
+        stored.width = geometry.original_width;
+        stored.height = geometry.original_height;
+        Intrinsics now = geometry.apply(frame.intrinsics.undistorted());
+        now.width = frame.intrinsics.width;  // 0 where the reader does not know it
+        now.height = frame.intrinsics.height;
+        requireSameCameraAsMapped(scene.root, frame.name, stored, now);
+      }
       ++report.skipped_duplicates;
     }
   }

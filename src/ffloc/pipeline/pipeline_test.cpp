@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <random>
 
+#include "ffloc/core/writer_lock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/testing/shared_data.h"
 #include "ffloc/data/dataset.h"
@@ -396,6 +397,8 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
                             {manifest.string() + ": exists and is not an ffloc map"});
   std::ifstream after_stream(manifest);
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(after_stream), {}), before);
+  // Refused before the lock is taken: its file stayed in the dataset's folder.
+  EXPECT_FALSE(fs::exists(writerLockFile(manifest)));
 
   const fs::path map = scene.root / "scene.ffmap";
   EXPECT_EQ(buildMap(scene, map, options, no_model).images, 3u);
@@ -419,6 +422,7 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
   testing::expectInputError([&] { buildMap(scene, mistyped, options, no_model); },
                             {mistyped.string() + ": append: no map to append to"});
   EXPECT_FALSE(fs::exists(mistyped));
+  EXPECT_FALSE(fs::exists(writerLockFile(mistyped)));
 
   // Appended to a damaged map: "exists and is not an ffloc map, so it is not replaced" answered a
   // user who had asked for no replacement.
@@ -433,6 +437,31 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
   const fs::path empty = scene.root / "empty.ffmap";
   writeMapFile(emptyMap(tiny_model(), true), empty);
   testing::expectInputError([&] { openMapLocalizer(empty, tiny_model); }, {empty.string() + ": holds no images"});
+}
+
+// The same viewpoints under the same names with another camera were skipped as mapped (found by an
+// outside probe: a scene rendered again at 320 x 240 appended nothing, and said 60 skipped).
+TEST(Pipeline, AnAppendRefusesAMappedNameWithAnotherCamera) {
+  const Scene scene = renderedScene(4, 2, "ffloc_pipeline_camera");
+  const auto tiny_model = [] { return loadModel("random:sift-tiny"); };
+  for (const LocalizationMethod method : {LocalizationMethod::kClassical, LocalizationMethod::kFastForward}) {
+    SCOPED_TRACE(toString(method));
+    MapBuildOptions options;
+    options.method = method;
+    options.classical.quiet = options.fastforward.quiet = true;
+    const fs::path map = scene.root / ("camera_" + std::string(toString(method)) + ".ffmap");
+    ASSERT_EQ(buildMap(scene, map, options, tiny_model).images, 2u);
+    options.append = true;
+    EXPECT_EQ(buildMap(scene, map, options, tiny_model).skipped_duplicates, 2u);  // the same images: skipped
+    Scene zoomed = scene;
+    for (Frame& frame : zoomed.frames) frame.intrinsics.fx *= 1.1;
+    testing::expectInputError([&] { buildMap(zoomed, map, options, tiny_model); },
+                              {scene.root.string() + ": frame '", "' is already in the map with another camera (fx, fy, cx, cy "});
+    Scene resized = scene;
+    for (Frame& frame : resized.frames) frame.intrinsics = frame.intrinsics.scaled(2, 2, 256, 192);
+    testing::expectInputError([&] { buildMap(resized, map, options, tiny_model); },
+                              {"' is already in the map with another camera (128x96 mapped, 256x192 now)"});
+  }
 }
 
 // The matching family maps with the points of its tokens, which come from depth: they survive the
