@@ -506,8 +506,10 @@ py::dict reportDict(const MapBuildReport& report) {
   out["previous_images"] = report.previous_images;
   out["added"] = report.added;
   out["skipped_duplicates"] = report.skipped_duplicates;
-  out["skipped_featureless"] = report.skipped_featureless;
+  out["skipped_featureless"] = report.featureless.size();
+  out["featureless_images"] = report.featureless;
   out["points"] = report.points;
+  out["points_from_depth"] = report.points_from_depth;
   out["links"] = report.links;
   out["seconds"] = report.seconds;
   return out;

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iterator>
 #include <opencv2/imgcodecs.hpp>
+#include <regex>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -437,6 +438,22 @@ TEST_F(Cli, EvalWarnsWhenTheMapIsOfAnotherCapture) {
       << elsewhere.output;
 }
 
+// The summary said "depth where the frames have it, triangulated elsewhere" for --no-depth and for
+// a dataset without depth alike (found by an outside probe): the counts now.
+TEST_F(Cli, MapSaysHowManyPointsCameFromDepth) {
+  const auto [scene, map] = mappedSyntheticScene(6, "classical");
+  ASSERT_FALSE(HasFailure());
+  for (const bool depth : {true, false}) {
+    std::vector<std::string> arguments = {"map", "--dataset", scene.string(), "-o", (dir_ / "d.ffmap").string()};
+    if (!depth) arguments.push_back("--no-depth");
+    const CliRun run = runCli(arguments);
+    ASSERT_EQ(run.exit_code, 0) << run.output;
+    const std::regex summary(depth ? R"(\n([0-9]+) points \(\1 lifted from depth, 0 triangulated\), [0-9]+ links\n)"
+                                   : R"(\n[1-9][0-9]* points \(0 lifted from depth, [1-9][0-9]* triangulated: --no-depth\), )");
+    EXPECT_TRUE(std::regex_search(run.output, summary)) << run.output;
+  }
+}
+
 // A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a
 // principal point outside the image) was reported without its line: in a long list, no telling which.
 TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
@@ -482,6 +499,10 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   EXPECT_NE(spaces.exit_code, 2) << spaces.output;
   EXPECT_TRUE(contains(spaces.output, "\"name\": \"images/near view.png\"")) << spaces.output;
   EXPECT_FALSE(contains(spaces.output, "\"error\"")) << spaces.output;
+  // With --json nothing showed until the last query was answered (an outside probe): a progress
+  // line; without it each answer shows as it comes.
+  EXPECT_TRUE(contains(spaces.output, "queries [==============================] 2/2")) << spaces.output;
+  EXPECT_FALSE(contains(two.output, "queries [")) << two.output;
   writeText(scene / "three.txt", "images/near view.png 200 200 127.5\n");
   const CliRun three = runCli({"localize", "--map", map.string(), "--images", (scene / "three.txt").string()});
   EXPECT_EQ(three.exit_code, 2) << three.output;

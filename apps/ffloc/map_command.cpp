@@ -60,11 +60,19 @@ int runMap(const MapArguments& args) {
   if (report.previous_images > 0)
     std::cerr << "appended to " << args.output << " (" << report.previous_images << " images before)\n";
   if (options.method == LocalizationMethod::kClassical) {
-    if (report.skipped_featureless > 0)
-      std::cerr << report.skipped_featureless << " images with fewer than two SIFT keypoints left out\n";
-    std::cerr << report.points << " points ("
-              << (options.classical.use_depth ? "depth where the frames have it, " : "") << "triangulated elsewhere), "
-              << report.links << " links\n";
+    if (!report.featureless.empty()) {
+      // Named, so that they can be found (a probe got only their count).
+      const size_t shown = std::min<size_t>(report.featureless.size(), 5);
+      std::cerr << report.featureless.size() << " images with fewer than two SIFT keypoints left out: ";
+      for (size_t i = 0; i < shown; ++i) std::cerr << (i ? ", " : "") << report.featureless[i];
+      if (shown < report.featureless.size()) std::cerr << " and " << report.featureless.size() - shown << " more";
+      std::cerr << "\n";
+    }
+    // "depth where the frames have it, triangulated elsewhere" was printed for --no-depth and for
+    // datasets without depth alike.
+    std::cerr << report.points << " points (" << report.points_from_depth << " lifted from depth, "
+              << report.points - report.points_from_depth << " triangulated"
+              << (args.no_depth ? ": --no-depth" : "") << "), " << report.links << " links\n";
   }
   // A dataset with depth for some frames only mapped the others without a word.
   if (report.added_without_points > 0)

@@ -116,7 +116,7 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
         throw InputError(scene.root.string() + ": frame '" + frame.name + "': invalid intrinsics");
       const SiftFeatures features = extractSiftFeatures(frame, map.sift);
       if (features.descriptors.rows < 2) {
-        ++report.skipped_featureless;
+        report.featureless.push_back(frame.name);
         continue;
       }
       ClassicalMapImage image;
@@ -226,6 +226,7 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
       image.point_views[k] = static_cast<uint8_t>(std::min<long>(std::count(inliers.begin(), inliers.end(), true), 255));
     }
     report.points += image.pointCount();
+    if (image.depth_lifted) report.points_from_depth += image.pointCount();
     progress.update(i - first_new + 1);
   }
   progress.finish();

@@ -34,8 +34,9 @@ struct ClassicalMappingOptions {
 struct ClassicalMappingReport {
   size_t added = 0;
   size_t skipped_duplicates = 0;      // names already in the map
-  size_t skipped_featureless = 0;     // images with fewer than two keypoints
+  std::vector<std::string> featureless;  // the names of images left out with fewer than two keypoints
   size_t points = 0;                  // over the added images
+  size_t points_from_depth = 0;       // of them, lifted with the frame's depth; the others triangulated
   size_t links = 0;                   // new links, both directions
   double seconds = 0;
 };

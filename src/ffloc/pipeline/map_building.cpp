@@ -107,8 +107,9 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
     report.images = map.images.size();
     report.added = added.added;
     report.skipped_duplicates = added.skipped_duplicates;
-    report.skipped_featureless = added.skipped_featureless;
+    report.featureless = added.featureless;
     report.points = added.points;
+    report.points_from_depth = added.points_from_depth;
     report.links = added.links;
     report.seconds = added.seconds;
     return report;

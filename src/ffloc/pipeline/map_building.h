@@ -39,8 +39,9 @@ struct MapBuildReport {
   size_t images = 0;           // in the written map
   size_t added = 0;
   size_t skipped_duplicates = 0;
-  size_t skipped_featureless = 0;  // classical: images with fewer than two keypoints
+  std::vector<std::string> featureless;  // classical: images left out with fewer than two keypoints
   size_t points = 0;               // classical
+  size_t points_from_depth = 0;    // classical: of `points`, lifted with depth; the others triangulated
   size_t links = 0;                // classical
   size_t added_without_points = 0;  // fastforward: MappingReport's
   double seconds = 0;
