@@ -34,6 +34,15 @@ bool appendsTo(const std::filesystem::path& output, const MapBuildOptions& optio
   return true;
 }
 
+// Said by the mappers without the map file or the word append (found by an outside probe).
+void requireUnitsOfTheMap(const std::filesystem::path& output, bool map_metric, const Scene& scene) {
+  if (map_metric == scene.metric) return;
+  const auto units = [](bool metric) { return metric ? "metric" : "not metric"; };
+  throwInputError(output.string(), 0,
+                  std::string("append: the map is ") + units(map_metric) + " and the dataset '" + scene.root.string() +
+                      "' is " + units(scene.metric) + ": an append adds images in the map's units; map it on its own");
+}
+
 // Only a map is replaced: an output path typed by mistake must not overwrite a dataset's
 // manifest or one of its images.
 void requireReplaceable(const std::filesystem::path& output) {
@@ -100,7 +109,10 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   MapBuildReport report;
   if (options.method == LocalizationMethod::kClassical) {
     ClassicalMap map = emptyClassicalMap(scene.metric, options.classical);
-    if (append) map = readClassicalMap(output);
+    if (append) {
+      map = readClassicalMap(output);
+      requireUnitsOfTheMap(output, map.metric, scene);
+    }
     report.previous_images = map.images.size();
     const ClassicalMappingReport added = addToClassicalMap(map, scene, frames, options.classical);
     writeClassicalMap(map, output);
@@ -116,7 +128,10 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   }
   const LoadedModel model = load_model();
   MapFile map = emptyMap(model, scene.metric);
-  if (append) map = readMapFile(output, model.id);
+  if (append) {
+    map = readMapFile(output, model.id);
+    requireUnitsOfTheMap(output, map.metric, scene);
+  }
   report.previous_images = map.images.size();
   const MappingReport added = [&] {
     try {

@@ -441,7 +441,7 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
 
 // The same viewpoints under the same names with another camera were skipped as mapped (found by an
 // outside probe: a scene rendered again at 320 x 240 appended nothing, and said 60 skipped).
-TEST(Pipeline, AnAppendRefusesAMappedNameWithAnotherCamera) {
+TEST(Pipeline, AnAppendRefusesAMappedNameWithAnotherCameraAndOtherUnits) {
   const Scene scene = renderedScene(4, 2, "ffloc_pipeline_camera");
   const auto tiny_model = [] { return loadModel("random:sift-tiny"); };
   for (const LocalizationMethod method : {LocalizationMethod::kClassical, LocalizationMethod::kFastForward}) {
@@ -461,6 +461,12 @@ TEST(Pipeline, AnAppendRefusesAMappedNameWithAnotherCamera) {
     for (Frame& frame : resized.frames) frame.intrinsics = frame.intrinsics.scaled(2, 2, 256, 192);
     testing::expectInputError([&] { buildMap(resized, map, options, tiny_model); },
                               {"' is already in the map with another camera (128x96 mapped, 256x192 now)"});
+    // The units' refusal named neither the map nor the append.
+    Scene not_metric = scene;
+    not_metric.metric = false;
+    testing::expectInputError([&] { buildMap(not_metric, map, options, tiny_model); },
+                              {map.string() + ": append: the map is metric and the dataset '" + scene.root.string() +
+                               "' is not metric"});
   }
 }
 
