@@ -1,5 +1,8 @@
 #include "ffloc/core/error.h"
 
+#include <cerrno>
+#include <cstring>
+
 namespace ffloc {
 
 std::string InputError::withoutNul(const std::string& message) {
@@ -13,6 +16,8 @@ std::string locate(const std::string& file, int line, const std::string& what) {
   if (line > 0) return file + ":" + std::to_string(line) + ": " + what;
   return file + ": " + what;
 }
+
+std::string systemErrorSuffix() { return errno != 0 ? std::string(": ") + std::strerror(errno) : std::string(); }
 
 std::string withoutFileName(const std::string& message, const std::string& file) {
   const std::string named = file + ": ";

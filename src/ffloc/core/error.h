@@ -27,4 +27,8 @@ std::string locate(const std::string& file, int line, const std::string& what);
 // `file`, to be quoted in another that names the file itself.
 std::string withoutFileName(const std::string& message, const std::string& file);
 
+// ": <the system's message>" for errno when it is set, else "": the cause of a failure that an
+// API reports as a bare false (cv::imwrite, a stream), such as a full disk. Clear errno first.
+std::string systemErrorSuffix();
+
 }  // namespace ffloc

@@ -1,8 +1,11 @@
 #include "ffloc/data/dataset_writers.h"
 
 #include <gtest/gtest.h>
+#include <sys/resource.h>
 
 #include <algorithm>
+#include <csignal>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -13,6 +16,7 @@
 #include "ffloc/data/depth.h"
 #include "ffloc/data/format_io.h"
 #include "ffloc/data/readers.h"
+#include "ffloc/core/testing/child_process.h"
 #include "ffloc/core/testing/shared_data.h"
 
 namespace ffloc {
@@ -75,6 +79,41 @@ TEST_F(DatasetWriters, AFailedWriteRemovesWhatItWroteAndNothingElse) {
       EXPECT_THROW(writeDataset(scene, format, out), InputError) << format << " into " << out;
       EXPECT_EQ(entriesOf(dir_), before) << format << " into " << out;
     }
+  }
+}
+
+// A full disk was named without its cause ("cannot write depth file"), and a depth file's last
+// buffered bytes were written only as the stream closed, where a failure went unseen. A file size
+// limit stands in for the disk; each format's depth writer is tried.
+TEST_F(DatasetWriters, AFailedDepthWriteSaysWhy) {
+  fs::create_directories(dir_ / "source");
+  Scene scene = sceneFailingAtItsSecondFrame(dir_ / "source");
+  scene.frames.pop_back();
+  std::vector<uchar> png;
+  cv::Mat1w depth(480, 640);
+  cv::randu(depth, 500, 5000);  // incompressible, so that each writer's depth file is over the limit
+  cv::imencode(".png", depth, png);
+  std::ofstream(dir_ / "source" / "a.depth.png", std::ios::binary)
+      .write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
+  scene.frames[0].depth = DepthSource{dir_ / "source" / "a.depth.png"};
+  scene.frames[0].intrinsics = {500, 500, 319.5, 239.5, 640, 480};
+  cv::imwrite((dir_ / "source" / "a.png").string(), cv::Mat(480, 640, CV_8UC3, cv::Scalar(40, 80, 120)));
+  for (const std::string format : {"kapture", "ace"}) {
+    const fs::path out = dir_ / ("out_" + format);
+    const testing::ChildOutput child = testing::runInChild([&] {
+      std::signal(SIGXFSZ, SIG_IGN);  // the write fails with EFBIG instead of ending the process
+      const rlimit small{16384, 16384};
+      ::setrlimit(RLIMIT_FSIZE, &small);
+      try {
+        writeDataset(scene, format, out);
+        std::printf("written\n");
+      } catch (const InputError& error) {
+        std::printf("refused: %s\n", error.what());
+      }
+      std::fflush(stdout);
+    });
+    EXPECT_NE(child.output.find("refused: "), std::string::npos) << format << ": " << child.output;
+    EXPECT_NE(child.output.find(": File too large"), std::string::npos) << format << ": " << child.output;
   }
 }
 

@@ -1,5 +1,6 @@
 #include "ffloc/data/depth.h"
 
+#include <cerrno>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
@@ -122,7 +123,8 @@ void writeDepth(const cv::Mat1f& depth, const std::filesystem::path& path) {
   if (extension != ".tif" && extension != ".tiff")
     throwInputError(path.string(), 0, "depth maps are written as float TIFF; use a .tif or .tiff name");
   if (path.has_parent_path()) std::filesystem::create_directories(path.parent_path());
-  if (!cv::imwrite(path.string(), depth)) throwInputError(path.string(), 0, "cannot write depth image");
+  errno = 0;
+  if (!cv::imwrite(path.string(), depth)) throwInputError(path.string(), 0, "cannot write depth image" + systemErrorSuffix());
 }
 
 }  // namespace ffloc

@@ -1,6 +1,7 @@
 #include "ffloc/data/format_io.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <limits>
 #include <fstream>
@@ -97,8 +98,9 @@ void copyFrameImage(const Frame& frame, const fs::path& destination, bool as_jpe
     requireDecodableImageFile(frame.image_path, "cannot decode image");
     const cv::Mat image = cv::imread(frame.image_path.string(), cv::IMREAD_UNCHANGED);
     if (image.empty()) throwInputError(frame.image_path.string(), 0, "cannot decode image");
+    errno = 0;
     if (!cv::imwrite(destination.string(), image, {cv::IMWRITE_JPEG_QUALITY, 95}))
-      throwInputError(destination.string(), 0, "cannot write image");
+      throwInputError(destination.string(), 0, "cannot write image" + systemErrorSuffix());
     return;
   }
   fs::copy_file(frame.image_path, destination, fs::copy_options::overwrite_existing);
@@ -134,17 +136,22 @@ void writeDepthMillimetrePng(const Frame& frame, const fs::path& destination) {
                     std::to_string(nearer) + " depth pixels lie nearer than 0.5 mm (down to " + formatSignificant(nearest) +
                         " m)" + remedy);
   createParent(destination);
-  if (!cv::imwrite(destination.string(), millimetres)) throwInputError(destination.string(), 0, "cannot write depth image");
+  errno = 0;
+  if (!cv::imwrite(destination.string(), millimetres))
+    throwInputError(destination.string(), 0, "cannot write depth image" + systemErrorSuffix());
 }
 
 void writeDepthRawFloat(const Frame& frame, const fs::path& destination) {
   const cv::Mat1f metres = readDepthMetres(frame);
   createParent(destination);
+  errno = 0;
   std::ofstream out(destination, std::ios::binary);
   // x86 and ARM hosts are little-endian, which is what the format asks for.
   for (int y = 0; y < metres.rows; ++y)
     out.write(reinterpret_cast<const char*>(metres[y]), static_cast<std::streamsize>(metres.cols * sizeof(float)));
-  if (!out) throwInputError(destination.string(), 0, "cannot write depth file");
+  // Closed here: what is still buffered is written now, and a failure then would pass unseen.
+  out.close();
+  if (!out) throwInputError(destination.string(), 0, "cannot write depth file" + systemErrorSuffix());
 }
 
 DepthSource millimetreDepth(const fs::path& path) {

@@ -10,6 +10,7 @@
 
 #include "ffloc/core/error.h"
 #include "ffloc/core/progress.h"
+#include "ffloc/core/text_file_writer.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset_writers.h"
 #include "ffloc/data/depth.h"
@@ -181,9 +182,7 @@ void writeMetadata(const SyntheticScene& scene, const std::filesystem::path& pat
                        {"kind", synthetic::toString(scene.layout.queries.kinds[q])}});
   }
   meta["queries"] = queries;
-  std::ofstream out(path);
-  out << meta.dump(2) << "\n";
-  if (!out) throwInputError(path.string(), 0, "cannot write");
+  writeTextFile(path, meta.dump(2) + "\n");
 }
 
 }  // namespace
