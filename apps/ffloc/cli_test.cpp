@@ -348,6 +348,29 @@ TEST_F(Cli, RetrievalMeasuresAClassicalMapAsItLocalizes) {
   const CliRun encoder = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--retrieval", "encoder"});
   EXPECT_EQ(encoder.exit_code, 2) << encoder.output;
   EXPECT_TRUE(contains(encoder.output, "--retrieval: applies to FastForward maps")) << encoder.output;
+
+  // A map grown by --append from a second session was refused as "built from another dataset"
+  // (found by an outside probe): the second session here is the scene's images under other names.
+  const fs::path session = dir_ / "session";
+  fs::copy(scene, session, fs::copy_options::recursive);
+  std::ifstream manifest_in(session / "manifest.json");
+  std::string manifest{std::istreambuf_iterator<char>(manifest_in), {}};
+  for (size_t at; (at = manifest.find("images/mapping_")) != std::string::npos;) manifest.replace(at, 15, "images/second_");
+  writeText(session / "manifest.json", manifest);
+  for (const fs::directory_entry& entry : fs::directory_iterator(session / "images")) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("mapping_", 0) == 0) fs::rename(entry.path(), session / "images" / ("second_" + name.substr(8)));
+  }
+  const CliRun append = runCli({"map", "--dataset", session.string(), "-o", map.string(), "--append", "--quiet"});
+  ASSERT_EQ(append.exit_code, 0) << append.output;
+  const CliRun grown = runCli({"retrieval", "--map", map.string(), "--dataset", scene.string(), "--quiet"});
+  EXPECT_EQ(grown.exit_code, 0) << grown.output;
+  // A map of none of the dataset's frames is still refused.
+  const fs::path other = dir_ / "other.ffmap";
+  ASSERT_EQ(runCli({"map", "--dataset", session.string(), "-o", other.string(), "--quiet"}).exit_code, 0);
+  const CliRun unrelated = runCli({"retrieval", "--map", other.string(), "--dataset", scene.string(), "--quiet"});
+  EXPECT_EQ(unrelated.exit_code, 2) << unrelated.output;
+  EXPECT_TRUE(contains(unrelated.output, other.string() + ": none of its 6 images is a frame of dataset")) << unrelated.output;
 }
 
 // `--poses` given the map's path replaced the map with a pose list, exit 0; a model path that

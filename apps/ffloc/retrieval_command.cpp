@@ -62,23 +62,28 @@ struct RankedMap {
   std::string model_id, model_description;  // FastForward's; empty for a classical map
 };
 
-// The map's images must be the dataset's frames, with the same poses, or the map and the queries
-// live in different worlds and "nearest camera" means nothing (datasets share names like
-// images/0000.jpg, so the name alone does not tell).
+// The map's images that are the dataset's frames must have their poses, or the map and the
+// queries live in different worlds and "nearest camera" means nothing (datasets share names like
+// images/0000.jpg, so the name alone does not tell). Images of other datasets, appended to the
+// map, may be among them (an appended map was refused, found by an outside probe); one at least
+// must be a frame of this one.
 void checkMapAgainstDataset(const RankedMap& map, const std::string& map_path, const Scene& scene) {
   std::map<std::string, const Frame*> frames;
   for (const Frame& frame : scene.frames) frames[frame.name] = &frame;
+  size_t shared = 0;
   for (size_t i = 0; i < map.names.size(); ++i) {
     const auto found = frames.find(map.names[i]);
-    if (found == frames.end())
-      throwInputError(map_path, 0, "image '" + map.names[i] + "' is not a frame of dataset " + scene.root.string() +
-                                       " (the map was built from another dataset)");
+    if (found == frames.end()) continue;
     const Pose& pose = found->second->camera_to_world;
     const double tolerance = 1e-6 * std::max(1.0, pose.t.norm());
     if ((map.poses[i].matrix() - pose.matrix()).cwiseAbs().maxCoeff() > tolerance)
       throwInputError(map_path, 0, "image '" + map.names[i] + "': pose differs from that frame's in dataset " +
                                        scene.root.string() + " (the map was built from another dataset)");
+    ++shared;
   }
+  if (shared == 0)
+    throwInputError(map_path, 0, "none of its " + std::to_string(map.names.size()) + " images is a frame of dataset " +
+                                     scene.root.string() + " (the map was built from another dataset)");
 }
 
 std::vector<float> floats(const Eigen::VectorXf& vector) { return {vector.data(), vector.data() + vector.size()}; }
