@@ -40,8 +40,8 @@ void validate(const BenchModelArguments& args) {
     throw InputError("--repeats: must be in [1, " + std::to_string(kMaxBenchRepeats) + "]");
   if (args.warmup < 0 || args.warmup > kMaxBenchRepeats)
     throw InputError("--warmup: must be in [0, " + std::to_string(kMaxBenchRepeats) + "]");
-  if (args.dtypes.empty()) throw InputError("--dtype: give at least one of fp32, bf16");
-  for (const auto& dtype : args.dtypes) parseNetworkDtype(dtype);
+  if (args.dtypes.empty()) throw InputError("--dtype: give at least one of f32, bf16");
+  for (const auto& dtype : args.dtypes) parseNetworkDtype(dtype, "--dtype");
   for (const int64_t count : args.map_tokens) {
     if (count < 1 || count > kMaxBenchMapTokens)
       throw InputError("--features: map token counts must be in [1, " + std::to_string(kMaxBenchMapTokens) + "], got " +
@@ -127,7 +127,7 @@ void registerBenchCommand(CLI::App& app, CommandRun& run) {
   CLI::App* cmd = bench->add_subcommand(
       "model", "Wall time, GFLOP/s and peak RSS of the encoder, the FastForward decoder + query head and "
                "DUSt3R's decoder + heads, with random weights, beside the Python reference timing");
-  cmd->add_option("--config", args->config, "Network size: large (the official DUSt3R) or tiny")
+  cmd->add_option("--config", args->config, "Network size: large (the official DUSt3R), small or tiny")
       ->capture_default_str();
   cmd->add_option("--dtype", args->dtypes, "Network precisions, comma-separated: fp32, bf16 (bf16: encoder, decoder and DPT heads, as the reference under CPU autocast)")
       ->delimiter(',')

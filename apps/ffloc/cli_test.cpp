@@ -477,6 +477,25 @@ TEST_F(Cli, MapSaysHowManyPointsCameFromDepth) {
   }
 }
 
+// The .md of an --protocol run held the table alone, where the terminal also printed the protocol;
+// a dataset that is not 7-Scenes lost most of its mapping frames to its thinning, said without why
+// (found by an outside probe).
+TEST_F(Cli, EvalUnderAProtocolWritesItBesideTheTable) {
+  const fs::path scenes = dir_ / "synth";
+  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--mapping-frames", "20", "--query-frames", "2", "--size",
+                    "160x120", "--quiet"}).exit_code, 0);
+  const fs::path json = dir_ / "r.json";
+  const CliRun run = runCli({"eval", "--dataset", (scenes / "scene_000_indoor").string(), "--methods", "oracle-depth",
+                             "--protocol", "7scenes", "--quiet", "--json", json.string()});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(contains(run.output, "protocol 7scenes keeps 2 of its 20 mapping frames (every 15th by capture number"))
+      << run.output;
+  std::ifstream markdown(dir_ / "r.md");
+  const std::string written{std::istreambuf_iterator<char>(markdown), {}};
+  EXPECT_TRUE(contains(written, "| oracle-depth |")) << written;
+  EXPECT_TRUE(contains(written, "\nprotocol 7scenes (indoor): top-K ")) << written;
+}
+
 // A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a
 // principal point outside the image) was reported without its line: in a long list, no telling which.
 TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
