@@ -55,7 +55,8 @@ void registerConvertCommand(CLI::App& app, CommandRun& run) {
       "convert",
       "Convert network weights (a zip-format torch.save() checkpoint such as DUSt3R's .pth, or a "
       "safetensors file) to safetensors in the Hugging Face hub layout: names in order, aliases "
-      "stored once, metadata format=pt and source=<input file>.");
+      "stored once, the input's metadata kept (format=pt added where it has none) and source=<the input's file "
+      "name>.");
   cmd->add_option("--input", args->input,
                   "Checkpoint (.pth) or safetensors file to read, or random:<preset>[:<seed>] to write a fresh model")
       ->required()

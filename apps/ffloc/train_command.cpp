@@ -455,6 +455,12 @@ int runTrain(const TrainArguments& args) {
     command.refuse(error.problem());
   }
   Trainer& trainer = *made;
+  // A fine-tune whose config left long_side at its default went on at another image size than the
+  // model had learned, without a word (found by an outside probe).
+  if (lead && !args.resume && config.model.rfind("random:", 0) != 0 &&
+      trainer.initialInputLongSide() != config.long_side)
+    std::cerr << "note: the model learned at long_side " << trainer.initialInputLongSide() << "; this run trains at "
+              << config.long_side << " (the config's long_side), and its checkpoints record that size\n";
   using Clock = std::chrono::steady_clock;
   const Clock::time_point started = Clock::now();
   const auto budgetSpent = [&] { return args.max_seconds > 0 && secondsSince(started) > args.max_seconds; };

@@ -369,6 +369,27 @@ TEST_F(TrainCommandInput, OneRankStopsAfterTheStepThatSpentTheBudgetAndSaysSo) {
   EXPECT_EQ(output(), "time budget of 0.001 s spent at step 1 of 5; --resume continues from this checkpoint\n");
 }
 
+// A fine-tune whose config left long_side at its default trained at another image size than the
+// model had learned, without a word (found by an outside probe).
+TEST_F(TrainCommandInput, AFineTuneAtAnotherImageSizeSaysSo) {
+  const TrainingConfig first = settingsFor(1);
+  ASSERT_EQ(train("--config " + config(toJson(first).dump()) + " --out " + (root_ / "first").string()), 0) << output();
+  const std::string model = (root_ / "first" / "checkpoints" / "step_00000001" / "model.safetensors").string();
+  TrainingConfig larger = first;
+  larger.long_side = first.long_side * 2;
+  ASSERT_EQ(train("--config " + config(toJson(larger).dump()) + " --model " + model + " --out " +
+                  (root_ / "larger").string()),
+            0)
+      << output();
+  EXPECT_TRUE(contains("note: the model learned at long_side " + std::to_string(first.long_side) +
+                       "; this run trains at " + std::to_string(larger.long_side)))
+      << output();
+  ASSERT_EQ(train("--config " + config(toJson(first).dump()) + " --model " + model + " --out " + (root_ / "same").string()),
+            0)
+      << output();
+  EXPECT_FALSE(contains("note: the model learned")) << output();
+}
+
 // Validation ran 100000 samples (half an hour) past a spent --max-seconds, before the step's
 // checkpoint (found by an outside probe); cut short, it is not logged.
 TEST_F(TrainCommandInput, TheTimeBudgetAlsoBoundsValidation) {

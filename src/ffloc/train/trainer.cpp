@@ -176,6 +176,7 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
   model_ = std::move(loaded.model);
   model_description_ = loaded.description;
   // The model learns at the training images' size; its checkpoints record that size.
+  initial_input_long_side_ = model_->config().input_long_side;
   model_->setInputLongSide(config_.long_side);
   if (!checkpoint && config_.model.rfind("random:", 0) == 0) shrinkOutputLayers(*model_);
   model_->to(device_, at::kFloat);

@@ -121,6 +121,9 @@ class Trainer {
   FastForwardModel& model() { return *model_; }
   AdamW& optimizer() { return *optimizer_; }
   const std::string& modelDescription() const { return model_description_; }
+  // The image size the model given to start from had learned (its 'input_long_side'), which the
+  // run replaces with the config's long_side.
+  int64_t initialInputLongSide() const { return initial_input_long_side_; }
   int64_t trainableParameterCount() const;
 
  private:
@@ -136,6 +139,7 @@ class Trainer {
   int rank_ = 0, world_size_ = 1;
   std::unique_ptr<FastForwardModel> model_;
   std::string model_description_;
+  int64_t initial_input_long_side_ = 0;
   std::unique_ptr<AdamW> optimizer_;
   std::unique_ptr<TrainingSampler> sampler_;
   std::unique_ptr<TrainingSampler> validation_sampler_;  // null: validate on sampler_
