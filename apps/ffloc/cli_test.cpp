@@ -496,6 +496,31 @@ TEST_F(Cli, EvalUnderAProtocolWritesItBesideTheTable) {
   EXPECT_TRUE(contains(written, "\nprotocol 7scenes (indoor): top-K ")) << written;
 }
 
+// A resume refused at its first draw rewrote the run's config.json with settings that never ran
+// (its --steps became the run's), and a run that finished all its steps within --max-seconds said
+// its budget was spent and --resume would continue it (found by an outside probe).
+TEST_F(Cli, TrainSaysAndKeepsOnlyWhatHappened) {
+  const fs::path scenes = dir_ / "synth";
+  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--seed", "3", "--size", "160x120", "--quiet"}).exit_code, 0);
+  const std::string data = (scenes / "scene_000_indoor").string();
+  writeText(dir_ / "c.json", R"({"model": "random:tiny", "steps": 1, "warmup_steps": 0, "long_side": 128,
+                                 "min_map_tokens": 20, "max_map_tokens": 40})");
+  const fs::path run = dir_ / "run";
+  const CliRun first = runCli({"train", "--config", (dir_ / "c.json").string(), "--data", data, "--out", run.string(),
+                               "--quiet", "--threads", "1", "--max-seconds", "0.001"});
+  ASSERT_EQ(first.exit_code, 0) << first.output;
+  EXPECT_FALSE(contains(first.output, "time budget")) << first.output;
+  std::ifstream before_in(run / "config.json");
+  const std::string before{std::istreambuf_iterator<char>(before_in), {}};
+  // The query split alone, 15 frames over the scene: no frame has 5 others that overlap it.
+  const CliRun refused = runCli({"train", "--data", data + "@query", "--out", run.string(), "--resume", "--steps", "3",
+                                 "--quiet", "--threads", "1"});
+  ASSERT_EQ(refused.exit_code, 2) << refused.output;
+  EXPECT_TRUE(contains(refused.output, "no frame has 5 mapping frames of overlap")) << refused.output;
+  std::ifstream after_in(run / "config.json");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(after_in), {}), before);
+}
+
 // A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a
 // principal point outside the image) was reported without its line: in a long list, no telling which.
 TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
@@ -544,6 +569,9 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   // With --json nothing showed until the last query was answered (an outside probe): a progress
   // line; without it each answer shows as it comes.
   EXPECT_TRUE(contains(spaces.output, "queries [==============================] 2/2")) << spaces.output;
+  const CliRun quiet = runCli({"localize", "--map", map.string(), "--images", (scene / "spaces.txt").string(), "--json",
+                               "--quiet"});
+  EXPECT_FALSE(contains(quiet.output, "queries [")) << quiet.output;
   EXPECT_FALSE(contains(two.output, "queries [")) << two.output;
   writeText(scene / "three.txt", "images/near view.png 200 200 127.5\n");
   const CliRun three = runCli({"localize", "--map", map.string(), "--images", (scene / "three.txt").string()});

@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <memory>
@@ -380,6 +381,34 @@ class RemoveNewFolderOnError {
   std::vector<std::pair<fs::path, uintmax_t>> written_;
 };
 
+// `file` as it was (or gone, if it was not there) when the scope ends by an exception, unless
+// released first.
+class PutBackOnError {
+ public:
+  PutBackOnError(fs::path file, std::optional<std::string> before) : file_(std::move(file)), before_(std::move(before)) {}
+  PutBackOnError(const PutBackOnError&) = delete;
+  PutBackOnError& operator=(const PutBackOnError&) = delete;
+  ~PutBackOnError() {
+    if (released_ || std::uncaught_exceptions() == 0) return;
+    std::error_code ignored;
+    try {
+      if (before_) {
+        writeTextFile(file_, *before_);
+      } else {
+        fs::remove(file_, ignored);
+      }
+    } catch (const std::exception&) {
+      // The error on its way out says what went wrong; this one would hide it.
+    }
+  }
+  void release() { released_ = true; }
+
+ private:
+  fs::path file_;
+  std::optional<std::string> before_;
+  bool released_ = false;
+};
+
 // The first stop signal (SIGINT, SIGTERM, SIGHUP) stops the run after the step in progress, with
 // a checkpoint; a second ends it at once. A Ctrl-C killed the run silently and lost every step
 // since the last checkpoint. Under the launcher every rank receives the signal and they agree on the step.
@@ -460,7 +489,8 @@ int runTrain(const TrainArguments& args) {
   if (lead && !args.resume && config.model.rfind("random:", 0) != 0 &&
       trainer.initialInputLongSide() != config.long_side)
     std::cerr << "note: the model learned at long_side " << trainer.initialInputLongSide() << "; this run trains at "
-              << config.long_side << " (the config's long_side), and its checkpoints record that size\n";
+              << config.long_side << " (long_side; set it to " << trainer.initialInputLongSide()
+              << " to keep the model's size), and its checkpoints record that size\n";
   using Clock = std::chrono::steady_clock;
   const Clock::time_point started = Clock::now();
   const auto budgetSpent = [&] { return args.max_seconds > 0 && secondsSince(started) > args.max_seconds; };
@@ -479,6 +509,15 @@ int runTrain(const TrainArguments& args) {
     }
     return exitCode();
   }
+  // A resume refused before its first step (data where no sample can be drawn) left the run's
+  // config.json rewritten with its settings: a --steps 10 that never ran became the run's (found
+  // by an outside probe). Put back until a step is done.
+  std::optional<std::string> config_before;
+  if (args.resume && fs::is_regular_file(run_dir / "config.json")) {
+    std::ifstream in(run_dir / "config.json", std::ios::binary);
+    config_before = std::string(std::istreambuf_iterator<char>(in), {});
+  }
+  PutBackOnError config_guard(run_dir / "config.json", config_before);
   const std::string config_text = toJson(config).dump(2) + "\n";
   writeTextFile(run_dir / "config.json", config_text);
   cleanup.wrote("config.json", config_text.size());
@@ -531,6 +570,7 @@ int runTrain(const TrainArguments& args) {
   std::string stopped;  // why the run ends before config.steps
   while (trainer.stepsDone() < config.steps) {
     const TrainingStepStats stats = trainStep();
+    config_guard.release();
     // Ranks agree on a stop inside the next step; a run of one rank stops after the step that
     // spent its budget rather than running one more.
     bool stop = stats.stop_requested || (!environment.distributed() && stopAsked());
@@ -612,6 +652,8 @@ int runTrain(const TrainArguments& args) {
       if (stop_signal != 0)
         stopped = "stopped by " + signalName(stop_signal) + " at step " + std::to_string(stats.step) +
                   "; --resume continues from this checkpoint";
+      else if (budgetSpent() && stats.step == config.steps)
+        stopped.clear();  // finished: the budget ran out at the last step
       else if (budgetSpent())
         stopped = "time budget of " + formatNumber(args.max_seconds) + " s spent at step " +
                   std::to_string(stats.step) + " of " + std::to_string(config.steps) +

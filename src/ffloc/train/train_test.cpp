@@ -622,6 +622,22 @@ TEST(Trainer, RefusesToResumeFromADamagedCheckpoint) {
   EXPECT_EQ(Trainer(config, {smallScene()}, run, true).stepsDone(), 1);
 }
 
+// A checkpoint killed mid-write at a step the run later resumed past stayed as step_N.partial for
+// good: only the partial of the step being written was removed (found by an outside probe).
+TEST(Trainer, AnyLeftoverPartialCheckpointGoesAtTheNextCheckpoint) {
+  const TrainingConfig config = smallConfigOfSteps(2);
+  const fs::path run = testing::makeTempDir("ffloc-train-leftover");
+  checkpointAfterOneStep(config, run);
+  const fs::path leftover = run / "checkpoints" / "step_00000007.partial";
+  fs::create_directories(leftover);
+  std::ofstream(leftover / "model.safetensors") << "cut short";
+  Trainer resumed(config, {smallScene()}, run, true);
+  resumed.step();
+  resumed.saveCheckpoint();
+  EXPECT_FALSE(fs::exists(leftover));
+  EXPECT_TRUE(fs::exists(run / "checkpoints" / "step_00000002" / "model.safetensors"));
+}
+
 // `latest` naming a folder that was deleted was called "incomplete", with no word of the earlier
 // checkpoint beside it (found by an outside probe).
 TEST(Trainer, ALatestCheckpointThatIsGoneIsCalledMissingAndTheLastCompleteOneNamed) {

@@ -84,7 +84,17 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
     pruneCheckpoints(run_dir, folder, keep_last);
     return folder;
   }
-  fs::remove_all(partial);
+  // Every step's leftover, not only this one's: a checkpoint killed mid-write at a step the run
+  // resumed past (a signal's, a time budget's) stayed for good (found by an outside probe). Only
+  // the run holding the run's lock writes here.
+  std::error_code listing;
+  std::vector<fs::path> leftovers;
+  for (fs::directory_iterator entry(root, listing), end; !listing && entry != end; entry.increment(listing)) {
+    const std::string name = entry->path().filename().string();
+    if (name.rfind("step_", 0) == 0 && name.size() > 8 && name.compare(name.size() - 8, 8, ".partial") == 0)
+      leftovers.push_back(entry->path());
+  }
+  for (const fs::path& leftover : leftovers) fs::remove_all(leftover);
   fs::create_directories(partial);
   const std::string config_json = toJson(config).dump();
   try {
