@@ -38,6 +38,7 @@ struct LocalizeArguments {
   std::string intrinsics;
   std::string poses_path, ply_path;
   bool json = false;
+  bool quiet = false;
   std::vector<std::string> flags_given;  // of those that apply to one method only
 };
 
@@ -277,7 +278,7 @@ int runLocalize(const LocalizeArguments& args) {
   bool any_input_error = false, any_not_localized = false;
   // Without --json each answer is printed as it comes; with it nothing was until the last (16 s
   // for redkitchen's 100 queries, found by an outside probe).
-  ProgressBar progress("queries", queries.size(), !args.json || queries.size() == 1);
+  ProgressBar progress("queries", queries.size(), args.quiet || !args.json || queries.size() == 1);
   for (size_t q = 0; q < queries.size(); ++q) {
     const Query& query = queries[q];
     nlohmann::json r;
@@ -357,6 +358,7 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
                   "Write a PLY: mapping cameras (grey), estimated query cameras (blue), the first query's "
                   "correspondences' points with confidence >= 1.5 (red)");
   cmd->add_flag("--json", args->json, "Print JSON (an object for one query, an array for a list)");
+  cmd->add_flag("--quiet", args->quiet, "No progress bar (--images with --json draws one on stderr)");
   for (const char* path_flag : {"--map", "--image", "--images", "--poses", "--ply"})
     cmd->get_option(path_flag)->check(nonEmptyPath());
   cmd->callback([args, cmd, &run] {

@@ -102,6 +102,9 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   // the dataset's own folder for a mistyped -o (found by an outside probe). Again under the
   // lock, as the file may change while this run waits for it.
   checkOutput();
+  // The model too, for the same reason: a missing --model left the lock file of a map never written.
+  const std::optional<LoadedModel> model =
+      options.method == LocalizationMethod::kClassical ? std::nullopt : std::optional<LoadedModel>(load_model());
   const WriterLock lock(output, [&] {
     if (!quiet) std::cerr << "waiting: another ffloc is writing " << output.string() << "\n";
   });
@@ -126,16 +129,15 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
     report.seconds = added.seconds;
     return report;
   }
-  const LoadedModel model = load_model();
-  MapFile map = emptyMap(model, scene.metric);
+  MapFile map = emptyMap(*model, scene.metric);
   if (append) {
-    map = readMapFile(output, model.id);
+    map = readMapFile(output, model->id);
     requireUnitsOfTheMap(output, map.metric, scene);
   }
   report.previous_images = map.images.size();
   const MappingReport added = [&] {
     try {
-      return addToMap(map, model, scene, frames, options.fastforward);
+      return addToMap(map, *model, scene, frames, options.fastforward);
     } catch (const InputError& error) {
       throw namingMapFile(error, output);
     }

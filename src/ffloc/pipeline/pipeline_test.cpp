@@ -432,6 +432,16 @@ TEST(Pipeline, BuildMapReplacesOnlyAMap) {
   std::ifstream unchanged_stream(manifest);
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(unchanged_stream), {}), before);
 
+  // A model that cannot be had left the lock file of a map never written (another probe).
+  MapBuildOptions fastforward;
+  fastforward.method = LocalizationMethod::kFastForward;
+  fastforward.fastforward.quiet = true;
+  const fs::path never = scene.root / "never.ffmap";
+  testing::expectInputError(
+      [&] { buildMap(scene, never, fastforward, []() -> LoadedModel { throw InputError("model: 'x': no such file"); }); },
+      {"no such file"});
+  EXPECT_FALSE(fs::exists(writerLockFile(never)));
+
   // A map file of no images said "map: holds no images", naming no file.
   const auto tiny_model = [] { return loadModel("random:sift-tiny"); };
   const fs::path empty = scene.root / "empty.ffmap";
