@@ -10,6 +10,7 @@
 #include <charconv>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 
 #include "ffloc/core/cpu_features.h"
 #include "ffloc/core/error.h"
@@ -221,10 +222,17 @@ std::string modelSpecProblem(const std::string& requested) {
   if (status.type() == std::filesystem::file_type::not_found) return "'" + path + "': no such file";
   if (error) return "'" + path + "': " + error.message();
   if (status.type() == std::filesystem::file_type::directory) {
-    // A training checkpoint's folder: its weights are the file inside.
-    if (std::filesystem::is_regular_file(std::filesystem::path(path) / "model.safetensors", error))
-      return "'" + path + "': a folder, not a weights file; its model is '" +
-             (std::filesystem::path(path) / "model.safetensors").string() + "'";
+    // A training checkpoint's folder, or a run's: the weights are a file inside.
+    const std::filesystem::path folder(path);
+    std::filesystem::path inside = folder / "model.safetensors";
+    for (const std::filesystem::path& latest : {folder / "latest", folder / "checkpoints" / "latest"}) {
+      std::ifstream named(latest);
+      std::string step;
+      if (std::getline(named, step) && step.rfind("step_", 0) == 0 && step.find('/') == std::string::npos)
+        inside = latest.parent_path() / step / "model.safetensors";
+    }
+    if (std::filesystem::is_regular_file(inside, error))
+      return "'" + path + "': a folder, not a weights file; its model is '" + inside.string() + "'";
     return "'" + path + "': a folder, not a weights file";
   }
   if (status.type() != std::filesystem::file_type::regular)

@@ -93,6 +93,15 @@ TEST(ModelLoader, AMissingDefaultModelSaysWhereItWasLookedFor) {
   std::ofstream(checkpoint / "model.safetensors") << "x";
   EXPECT_EQ(modelSpecProblem(checkpoint.string()), "'" + checkpoint.string() + "': a folder, not a weights file; its model is '" +
                                                        (checkpoint / "model.safetensors").string() + "'");
+  // A run's folder, or its checkpoints folder: the model of the step `latest` names.
+  const fs::path run = testing::makeTempDir("ffloc-model-run");
+  fs::create_directories(run / "checkpoints" / "step_00000003");
+  std::ofstream(run / "checkpoints" / "step_00000003" / "model.safetensors") << "x";
+  std::ofstream(run / "checkpoints" / "latest") << "step_00000003\n";
+  const std::string latest_model = (run / "checkpoints" / "step_00000003" / "model.safetensors").string();
+  for (const fs::path& folder : {run, run / "checkpoints"})
+    EXPECT_EQ(modelSpecProblem(folder.string()),
+              "'" + folder.string() + "': a folder, not a weights file; its model is '" + latest_model + "'");
 }
 
 // The identity maps are checked against covered the parameters only: a checkpoint whose metadata
