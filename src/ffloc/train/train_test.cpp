@@ -622,6 +622,19 @@ TEST(Trainer, RefusesToResumeFromADamagedCheckpoint) {
   EXPECT_EQ(Trainer(config, {smallScene()}, run, true).stepsDone(), 1);
 }
 
+// Validation data where no sample can be drawn was refused only at the first validation, after
+// validation_every steps had run (found by an outside probe): refused as the run starts now.
+TEST(Trainer, ValidationDataWithoutASampleIsRefusedAtTheStart) {
+  TrainingConfig config = smallConfigOfSteps(2);
+  config.validation_every = 2;
+  Scene few = smallScene();
+  few.frames.resize(static_cast<size_t>(config.mapping_frames));
+  const fs::path run = testing::makeTempDir("ffloc-train-validation-start");
+  const std::string error = errorOf([&] { Trainer(config, {smallScene()}, run, false, {few}); });
+  EXPECT_NE(error.find("validation data"), std::string::npos) << error;
+  EXPECT_NE(error.find("frames with depth"), std::string::npos) << error;
+}
+
 // A checkpoint killed mid-write at a step the run later resumed past stayed as step_N.partial for
 // good: only the partial of the step being written was removed (found by an outside probe).
 TEST(Trainer, AnyLeftoverPartialCheckpointGoesAtTheNextCheckpoint) {

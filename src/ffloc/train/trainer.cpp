@@ -205,6 +205,9 @@ Trainer::Trainer(const TrainingConfig& config, std::vector<Scene> scenes, const 
     SampleOptions validation = samples;
     validation.colour_jitter = 0;
     validation_sampler_ = std::make_unique<TrainingSampler>(std::move(validation_scenes), validation, "validation data");
+    // Drawn once now: validation data where no sample can be drawn was refused only at the first
+    // validation, validation_every steps in (found by an outside probe).
+    if (config_.validation_every > 0) validationSample(0);
   }
 }
 
