@@ -61,6 +61,11 @@ std::string readLatestName(const fs::path& latest) {
   return name;
 }
 
+// Whether a step's folder holds both files a resume reads.
+bool isCompleteCheckpoint(const fs::path& folder) {
+  return fs::exists(folder / "model.safetensors") && fs::exists(folder / "optimizer.safetensors");
+}
+
 // Keeps the newest `keep_last` complete checkpoint folders and `keep` whatever its age.
 void pruneCheckpoints(const fs::path& run_dir, const fs::path& keep, int keep_last) {
   const std::vector<fs::path> existing = trainingCheckpointFolders(run_dir);
@@ -145,12 +150,11 @@ std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) 
   CheckpointInfo info;
   info.folder = run_dir / "checkpoints" / name;
   const fs::path model_path = info.folder / "model.safetensors";
-  if (!fs::exists(model_path) || !fs::exists(info.folder / "optimizer.safetensors")) {
+  if (!isCompleteCheckpoint(info.folder)) {
     // Say what is there to fall back on: the folders of earlier steps a run keeps (keep_last).
     std::string earlier;
     for (const fs::path& folder : trainingCheckpointFolders(run_dir))
-      if (folder != info.folder && fs::exists(folder / "model.safetensors") && fs::exists(folder / "optimizer.safetensors"))
-        earlier = folder.filename().string();
+      if (folder != info.folder && isCompleteCheckpoint(folder)) earlier = folder.filename().string();
     throwInputError(latest.string(), 1,
                     "checkpoint folder '" + info.folder.string() + "' is " +
                         (fs::exists(info.folder) ? "incomplete" : "missing") +
