@@ -202,6 +202,17 @@ void saveModel(FastForwardModel& model, const std::filesystem::path& path, std::
   writeFloatTensors(path, weights, metadata);
 }
 
+std::string readLatestCheckpointName(const std::filesystem::path& latest_file) {
+  std::ifstream in(latest_file);
+  std::string name;
+  std::getline(in, name);
+  return name;
+}
+
+bool isCheckpointFolderName(const std::string& name) {
+  return name.rfind("step_", 0) == 0 && name.find('/') == std::string::npos;
+}
+
 std::string defaultModelPath() {
   const char* override_path = std::getenv("FFLOC_MODEL");
   if (override_path != nullptr && *override_path != '\0') return override_path;
@@ -226,10 +237,8 @@ std::string modelSpecProblem(const std::string& requested) {
     const std::filesystem::path folder(path);
     std::filesystem::path inside = folder / "model.safetensors";
     for (const std::filesystem::path& latest : {folder / "latest", folder / "checkpoints" / "latest"}) {
-      std::ifstream named(latest);
-      std::string step;
-      if (std::getline(named, step) && step.rfind("step_", 0) == 0 && step.find('/') == std::string::npos)
-        inside = latest.parent_path() / step / "model.safetensors";
+      const std::string step = readLatestCheckpointName(latest);
+      if (isCheckpointFolderName(step)) inside = latest.parent_path() / step / "model.safetensors";
     }
     if (std::filesystem::is_regular_file(inside, error))
       return "'" + path + "': a folder, not a weights file; its model is '" + inside.string() + "'";

@@ -42,6 +42,14 @@ struct LoadedModel {
 // which loadModel names when it is given one.
 inline constexpr char kTrainingStateFormat[] = "ffloc-train-state";
 
+// A training run keeps its checkpoints in <run>/checkpoints/step_<n>/ and names the newest complete
+// one in the one-line file <run>/checkpoints/latest (train/training_checkpoint.h). `--model` reads
+// the weights of the folder it names as the trainer resumes from it. Returns that line, "" when
+// the file cannot be read.
+std::string readLatestCheckpointName(const std::filesystem::path& latest_file);
+// Whether `name`, read from a `latest` file, names a step folder beside it.
+bool isCheckpointFolderName(const std::string& name);
+
 // The file "default" stands for.
 std::string defaultModelPath();
 

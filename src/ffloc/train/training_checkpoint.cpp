@@ -53,14 +53,6 @@ int64_t parseCount(const TensorArchive& archive, const std::string& key, int64_t
   }
 }
 
-// The folder name `latest` holds, or empty.
-std::string readLatestName(const fs::path& latest) {
-  std::ifstream in(latest);
-  std::string name;
-  std::getline(in, name);
-  return name;
-}
-
 // Whether a step's folder holds both files a resume reads.
 bool isCompleteCheckpoint(const fs::path& folder) {
   return fs::exists(folder / "model.safetensors") && fs::exists(folder / "optimizer.safetensors");
@@ -85,7 +77,7 @@ fs::path writeTrainingCheckpoint(const fs::path& run_dir, FastForwardModel& mode
   const fs::path partial = root / (folderName(step) + ".partial");
   // The checkpoint `latest` names is the state this run was resumed from, so it already holds
   // this step; rewriting it would leave `latest` naming a missing folder for a moment.
-  if (fs::is_directory(folder) && readLatestName(root / "latest") == folderName(step)) {
+  if (fs::is_directory(folder) && readLatestCheckpointName(root / "latest") == folderName(step)) {
     pruneCheckpoints(run_dir, folder, keep_last);
     return folder;
   }
@@ -143,8 +135,8 @@ std::vector<fs::path> trainingCheckpointFolders(const fs::path& run_dir) {
 std::optional<CheckpointInfo> latestTrainingCheckpoint(const fs::path& run_dir) {
   const fs::path latest = run_dir / "checkpoints" / "latest";
   if (!fs::exists(latest)) return std::nullopt;
-  const std::string name = readLatestName(latest);
-  if (name.rfind("step_", 0) != 0 || name.find('/') != std::string::npos) {
+  const std::string name = readLatestCheckpointName(latest);
+  if (!isCheckpointFolderName(name)) {
     throwInputError(latest.string(), 1, "expected the name of a step_<n> folder, got '" + name + "'");
   }
   CheckpointInfo info;
