@@ -583,5 +583,29 @@ TEST(BadInput, DistortionBeyondAnyLensIsRefusedNamingFileAndField) {
   EXPECT_NO_THROW(checkIntrinsicsFitImage(query, 640, 480));
 }
 
+// A principal point or focal length in other units, beside a real lens's distortion, was blamed on
+// the distortion (an outside probe: a manifest's cx 6400 for a 640 x 480 image gave "field
+// 'cameras.phone.distortion': k1 0.05, k2 -0.08: moves the image corner (0, 0) by 7.3e+06 px").
+TEST(BadInput, WrongPinholeIntrinsicsAreNamedNotTheDistortionBesideThem) {
+  const auto dir = testing::makeTempDir("ffloc-bad-manifest");
+  writeImage(dir / "a.png", 640, 480);
+  const auto manifest = [&](const std::string& camera) {
+    writeTextFile(dir / "manifest.json", R"({"format": "ffloc-manifest", "version": 1, "metric": true,
+      "cameras": {"phone": {"width": 640, "height": 480, )" + camera + R"(, "distortion": [0.05, -0.08, 0, 0]}},
+      "frames": [{"image": "a.png", "camera": "phone", "split": "query",
+                  "camera_to_world": [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]}]})");
+    return dir;
+  };
+  EXPECT_EQ(loadDataset(manifest(R"("fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5)")).frames.size(), 1u);
+  expectInputError([&] { loadDataset(manifest(R"("fx": 525, "fy": 525, "cx": 6400, "cy": 239.5)")); },
+                   {"a.png", "intrinsics: cx, cy: the principal point (6400, 239.5) lies outside the 640x480 image"});
+  // A focal length of 5 px is one a camera may have; the coefficients are named, and it beside them.
+  expectInputError([&] { loadDataset(manifest(R"("fx": 5, "fy": 5, "cx": 319.5, "cy": 239.5)")); },
+                   {"field 'cameras.phone.distortion'", "or the focal length is wrong: fx 5, fy 5 put that point 79.9 focal "
+                    "lengths from the principal point"});
+  expectInputError([&] { loadDataset(makeNerf("", R"(, "k1": 0.05, "k2": -0.08, "fl_x": 0.05, "fl_y": 0.05)")); },
+                   {"transforms_train.json", "or the focal length is wrong"});
+}
+
 }  // namespace
 }  // namespace ffloc

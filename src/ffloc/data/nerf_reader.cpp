@@ -116,19 +116,12 @@ Intrinsics readCamera(const CameraKeys& keys, const fs::path& image_path) {
   // The distortion is judged over the image the rest describes: a wrong size, focal length or
   // principal point was blamed on a coefficient ("field 'k2': ... folds the image" for "w" twice
   // the image's). Those are named first, by the dataset's checks of every frame.
-  const auto pinholeFitsItsImage = [&] {
-    Intrinsics pinhole = intrinsics;
-    pinhole.distortion.clear();
-    try {
-      checkIntrinsicsFitImage(pinhole, pinhole.width, pinhole.height);
-    } catch (const InputError&) {
-      return false;
-    }
-    // The stored size from the header (no decoding per frame); turned by EXIF, it is not judged.
+  // The size from the image's header (no decoding per frame); turned by EXIF, it is not judged.
+  const auto sizeFitsItsImage = [&] {
     const std::optional<ImageHeader> header = fileImageHeader(image_path);
-    return !header || header->with_exif || header->size == cv::Size(pinhole.width, pinhole.height);
+    return !header || header->with_exif || header->size == cv::Size(intrinsics.width, intrinsics.height);
   };
-  const std::string problem = distorted && pinholeFitsItsImage() ? distortionProblem(intrinsics) : std::string();
+  const std::string problem = distorted && sizeFitsItsImage() ? distortionProblem(intrinsics) : std::string();
   if (!problem.empty()) {
     // The coefficients act together; the field named is the one farthest from 0, the likeliest
     // culprit (the message names every coefficient that is not 0).

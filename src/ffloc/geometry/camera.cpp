@@ -116,7 +116,10 @@ std::string distortionProblem(const Intrinsics& camera) {
   const std::vector<double>& d = camera.distortion;
   for (size_t i = 0; i < d.size(); ++i)
     if (!std::isfinite(d[i])) return coefficientName(i) + " " + formatNumber(d[i]) + ": distortion coefficients must be finite";
-  if (!camera.hasDistortion() || !camera.isValid()) return "";
+  // Judged over the image the rest describes: a principal point or focal length in other units
+  // was blamed on a coefficient (an outside probe); pinholeProblem names those.
+  if (!camera.hasDistortion() || !camera.isValid() || !pinholeProblem(camera, camera.width, camera.height).empty())
+    return "";
   std::string named;
   for (size_t i = 0; i < d.size(); ++i)
     if (d[i] != 0.0) named += (named.empty() ? "" : ", ") + coefficientName(i) + " " + formatNumber(d[i]);
@@ -158,6 +161,14 @@ std::string distortionProblem(const Intrinsics& camera) {
     what << named << ": moves " << where(worst) << " by " << std::setprecision(2) << worst_shift
          << " px, more than the " << camera.width << "x" << camera.height << " image's diagonal (" << std::setprecision(4)
          << diagonal << " px): no lens's distortion does";
+    // A focal length a few pixels long puts the image's border tens of focal lengths out, where
+    // any coefficient explodes: the coefficients were blamed for the focal length (an outside probe).
+    const cv::Point2d ray((undistorted[worst].x - camera.cx) / camera.fx, (undistorted[worst].y - camera.cy) / camera.fy);
+    if (cv::norm(ray) > kMaxPinholeTangent) {
+      what << "; or the focal length is wrong: fx " << formatNumber(camera.fx) << ", fy " << formatNumber(camera.fy)
+           << " put that point " << std::setprecision(3) << cv::norm(ray) << " focal lengths from the principal point, "
+           << std::setprecision(3) << 2 * std::atan(cv::norm(ray)) * 180 / M_PI << " deg across, wider than a pinhole lens sees";
+    }
     return what.str();
   }
   // Folds are looked for on the way to the edges' midpoints only: a calibration fitted on the
@@ -178,33 +189,36 @@ std::string distortionProblem(const Intrinsics& camera) {
   return "";
 }
 
-void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
-  if ((k.width != 0 || k.height != 0) && (k.width != width || k.height != height))
-    throw InputError("width, height: the intrinsics are for a " + std::to_string(k.width) + "x" +
-                     std::to_string(k.height) + " image, but the image is " + std::to_string(width) + "x" +
-                     std::to_string(height));
+std::string pinholeProblem(const Intrinsics& k, int width, int height) {
+  std::ostringstream what;
+  if ((k.width != 0 || k.height != 0) && (k.width != width || k.height != height)) {
+    what << "width, height: the intrinsics are for a " << k.width << "x" << k.height << " image, but the image is "
+         << width << "x" << height;
+    return what.str();
+  }
   // A field of view of a few thousandths of a degree, or of nearly 180 degrees, is no camera's: a
   // focal length of 4e-320 px gave infinite errors scored as an evaluation.
   const double absurd = 1000.0 * std::max(width, height), least = std::max(width, height) / 1000.0;
-  auto focal = [&](const char* field, double value) {
+  for (const auto& [field, value] : {std::pair{"fx", k.fx}, {"fy", k.fy}}) {
     if (!(std::isfinite(value) && value >= least && value <= absurd)) {
-      std::ostringstream what;
       what << field << ": focal length " << value << " px is not in [" << least << ", " << absurd << "] for a " << width
            << "x" << height << " image";
-      throw InputError(what.str());
+      return what.str();
     }
-  };
-  focal("fx", k.fx);
-  focal("fy", k.fy);
+  }
   // With pixel centres at integers (OpenCV's convention, ours) the image spans [-0.5, width - 0.5];
   // with pixel corners there (COLMAP's and NeRF's exports may be so) [0, width]. Either is taken.
   const auto inside = [](double c, int size) { return std::isfinite(c) && c >= -0.5 && c <= size; };
   if (!(inside(k.cx, width) && inside(k.cy, height))) {
-    std::ostringstream what;
     what << "cx, cy: the principal point (" << k.cx << ", " << k.cy << ") lies outside the " << width << "x" << height
          << " image (intrinsics must be in pixels of the image given)";
-    throw InputError(what.str());
+    return what.str();
   }
+  return "";
+}
+
+void checkIntrinsicsFitImage(const Intrinsics& k, int width, int height) {
+  if (const std::string pinhole = pinholeProblem(k, width, height); !pinhole.empty()) throw InputError(pinhole);
   Intrinsics sized = k;
   sized.width = width;
   sized.height = height;

@@ -55,8 +55,20 @@ inline constexpr double kMaxDistortionShift = 1.0;
 // than kMaxDistortionShift diagonals, or folds the image on the way to an edge's midpoint (a point
 // farther out lands nearer the principal point: two directions seen at one pixel, no lens's image;
 // the corners, where calibrations extrapolate, may turn back). The coefficients that are
-// not 0 are named with every digit ("k1 320: moves the image corner (639, 479) by 8.2e+04 px ...").
+// not 0 are named with every digit ("k1 320: moves the image corner (639, 479) by 8.2e+04 px ..."),
+// and a focal length that puts that point more than kMaxPinholeTangent focal lengths out is named
+// beside them. Intrinsics whose pinhole part does not fit their image (pinholeProblem) are not
+// judged: their distortion is measured over the wrong image.
 std::string distortionProblem(const Intrinsics& camera);
+
+// How far from the principal point, in focal lengths, a pinhole camera's image reaches at most:
+// tan(70 deg), a view 140 degrees across; wider lenses are fisheyes, which OpenCV's model is not.
+inline constexpr double kMaxPinholeTangent = 2.75;
+
+// What keeps the pinhole part of `intrinsics` from fitting a `width` x `height` image, "" when
+// nothing: the size they give (when they give one) is not the image's, a focal length outside
+// (0, 1000 * long side] or not finite, the principal point outside the image. Names the field.
+std::string pinholeProblem(const Intrinsics& intrinsics, int width, int height);
 
 // The checks intrinsics must pass for a `width` x `height` image, a query's or a mapping frame's:
 // the size they give (when they give one) is the image's, finite focal lengths in

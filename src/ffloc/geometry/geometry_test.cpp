@@ -144,6 +144,17 @@ TEST(Intrinsics, DistortionProblemJudgesWhatTheModelDoesOverTheImage) {
   EXPECT_EQ(distortionProblem({500, 500, 0, 239.5, 640, 480, {-0.1, 0, 0, 0}}), "");
   // A rational model whose denominator vanishes inside the image.
   EXPECT_NE(distortionProblem(camera(500, {0, 0, 0, 0, 0, -2, 0, 0})).find("k4 -2: "), std::string::npos);
+  // Judged over the image the pinhole part describes: over another (the principal point in other
+  // units) a real lens was blamed; a focal length of a few pixels is named beside the coefficients.
+  EXPECT_EQ(distortionProblem({500, 500, 6400, 239.5, 640, 480, {0.05, -0.08, 0, 0}}), "");
+  EXPECT_EQ(distortionProblem({500, 500, 319.5, 239.5, 640, 480, {0.05, -0.08, 0, 0}}), "");
+  const std::string short_focal = distortionProblem(camera(5, {0.05, -0.08, 0, 0}));
+  EXPECT_NE(short_focal.find("k1 0.05, k2 -0.08: moves the image corner"), std::string::npos) << short_focal;
+  EXPECT_NE(short_focal.find("; or the focal length is wrong: fx 5, fy 5 put that point 79.9 focal lengths from the "
+                             "principal point, 179 deg across"),
+            std::string::npos)
+      << short_focal;
+  EXPECT_EQ(distortionProblem(camera(500, {1e10, 0, 0, 0})).find("focal length is wrong"), std::string::npos);
   // Without a size only the numbers themselves can be judged.
   EXPECT_EQ(distortionProblem(Intrinsics{500, 500, 319.5, 239.5, 0, 0, {1e10, 0, 0, 0}}), "");
   EXPECT_THROW(checkIntrinsicsFitImage(Intrinsics{500, 500, 319.5, 239.5, 0, 0, {1e10, 0, 0, 0}}, 640, 480),
