@@ -239,6 +239,35 @@ TEST_F(ConnectionTest, ConnectionsBeyondThePendingLimitAre503AtOnce) {
   EXPECT_EQ(health->status, 200);
 }
 
+// With no connection allowed to wait, one is served while a thread is free: a limit of 0 answered
+// every connection of an idle server 503, and of 1 one in seven (an outside probe).
+TEST_F(ConnectionTest, AZeroPendingLimitServesWhileAThreadIsFree) {
+  ServerOptions options;
+  options.max_connections = 2;
+  options.max_waiting_queries = 0;
+  options.max_pending_connections = 0;
+  options.header_timeout = std::chrono::milliseconds(1500);
+  start(options);
+  for (int i = 0; i < 20; ++i) {
+    httplib::Client client("127.0.0.1", port_);
+    const auto health = client.Get("/health");
+    ASSERT_TRUE(health) << i;
+    EXPECT_EQ(health->status, 200) << i;
+  }
+  std::vector<std::string> slow_answers(2);
+  std::vector<std::thread> slow;
+  for (std::string& answer : slow_answers) {
+    slow.emplace_back([&] { answer = trickle(port_, "GET /health HTTP/1.1\r\nHost: 127.0.0.1\r\n", "X-Slow: 1\r\n", 80); });
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  httplib::Client client("127.0.0.1", port_);
+  const auto refused = client.Get("/health");
+  for (std::thread& thread : slow) thread.join();
+  ASSERT_TRUE(refused);
+  EXPECT_EQ(refused->status, 503) << "both threads are busy";
+  for (const std::string& answer : slow_answers) EXPECT_EQ(answer.rfind("HTTP/1.1 408", 0), 0u) << answer;
+}
+
 // The request line itself trickled: the library answers nothing there, the server does.
 TEST_F(ConnectionTest, SlowRequestLineIsAnswered408) {
   ServerOptions options;

@@ -208,31 +208,34 @@ void writeCutAnswer(DeadlineStream& stream) {
 // Set on the accepting thread while it refuses a connection beyond the pending limit.
 thread_local bool refusing_connection = false;
 
-// The library's thread pool, with a bound on the connections waiting for a thread.
+// The library's thread pool, with a bound on the connections waiting for a thread. A connection
+// waits only when every thread is busy: one counted from its accepting to a thread's taking it up
+// made a limit of 0 refuse every connection of an idle server (an outside probe).
 class BoundedConnectionPool : public httplib::TaskQueue {
  public:
-  BoundedConnectionPool(size_t threads, size_t max_pending) : pool_(threads), max_pending_(max_pending) {}
+  BoundedConnectionPool(size_t threads, size_t max_pending)
+      : pool_(threads), capacity_(threads + max_pending) {}
 
   void enqueue(std::function<void()> connection) override {
-    if (pending_.load() >= max_pending_) {
+    if (open_.load() >= capacity_) {
       // `connection` ends in process_and_close_socket, which answers and closes at once.
       refusing_connection = true;
       connection();
       refusing_connection = false;
       return;
     }
-    ++pending_;
+    ++open_;
     pool_.enqueue([this, connection = std::move(connection)] {
-      --pending_;
       connection();
+      --open_;
     });
   }
   void shutdown() override { pool_.shutdown(); }
 
  private:
   httplib::ThreadPool pool_;
-  size_t max_pending_;
-  std::atomic<size_t> pending_{0};
+  size_t capacity_;  // connections served or waiting
+  std::atomic<size_t> open_{0};
 };
 
 // Without blocking the accepting thread: a fresh socket's send buffer takes the few bytes.
