@@ -572,6 +572,11 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     DeadlineServer::closeAfterAnswer(response);
   };
   server.set_pre_routing_handler([refusalBeforeBody, reply](const httplib::Request& request, httplib::Response& response) {
+    // Range is ignored, as HTTP allows: every answer is whole. The library built a multi-range
+    // answer in memory, one copy of the body per range, overlapping ones too (an outside probe:
+    // one 8 KB request without a key, 2700 ranges of a 670 KB viewer asset, 1.8 GB), and cut JSON
+    // answers short. The request is the library's own, not const; only this handler sees it first.
+    const_cast<httplib::Request&>(request).ranges.clear();
     const Refusal refusal = refusalBeforeBody(request);
     if (refusal.status == 0) return httplib::Server::HandlerResponse::Unhandled;
     reply(response, refusal);
