@@ -911,6 +911,17 @@ TEST_F(Cli, ServeOnAnyPortNamesThePortItTookAndStopsOnSigtermOrSighup) {
                     "160x120", "--quiet"}).exit_code, 0);
   const fs::path map = dir_ / "m.ffmap";
   ASSERT_EQ(runCli({"map", "--dataset", (scenes / "scene_000_indoor").string(), "-o", map.string(), "--quiet"}).exit_code, 0);
+  // Defaults the API would refuse or ignore are refused at start (an outside probe: --top-k 1000
+  // was advertised and the same value in a request refused; --features on classical maps ignored).
+  const CliRun top_k = runCli({"serve", "--map", map.string(), "--port", "0", "--top-k", "1000"});
+  EXPECT_EQ(top_k.exit_code, 2) << top_k.output;
+  EXPECT_TRUE(contains(top_k.output, "error: --top-k: 1000 is more than a request may ask for (100)")) << top_k.output;
+  for (const std::vector<std::string> flag : {std::vector<std::string>{"--features", "500"}, {"--selection", "uniform"}}) {
+    const CliRun run = runCli({"serve", "--map", map.string(), "--port", "0", flag[0], flag[1]});
+    EXPECT_EQ(run.exit_code, 2) << run.output;
+    EXPECT_TRUE(contains(run.output, "error: " + flag[0] + ": every map served is a classical map, which does not use it"))
+        << run.output;
+  }
   for (const int signal_number : {SIGTERM, SIGHUP}) {
     SCOPED_TRACE(signalName(signal_number));
     std::vector<std::string> arguments = {FFLOC_CLI_PATH, "serve", "--map", map.string(), "--port", "0"};

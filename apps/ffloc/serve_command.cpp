@@ -1,6 +1,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -41,7 +42,27 @@ struct ServeArguments {
   size_t max_pending_connections = 256;
   double header_timeout_s = 10;
   double body_timeout_s = 60;
+  std::vector<std::string> method_flags_given;  // of those that apply to one method only
 };
+
+// A flag that no served map's method uses would be ignored without a word, as localize refuses it
+// (an outside probe: --features on a server of classical maps was advertised as a default).
+void refuseOptionsNoMapUses(const std::vector<std::string>& flags_given, const MapCatalog& catalog) {
+  for (const std::string& flag : flags_given) {
+    std::vector<LocalizationMethod> methods;
+    bool used = false;
+    for (const std::string& name : catalog.names()) {
+      const std::shared_ptr<const ServedMap> map = catalog.get(name);
+      if (!map) continue;
+      const LocalizationMethod method = map->localizer->method();
+      used = used || methodUsesSetting(method, methodSettingOfFlag().at(flag));
+      if (std::find(methods.begin(), methods.end(), method) == methods.end()) methods.push_back(method);
+    }
+    if (!used && methods.size() == 1)
+      throw InputError(flag + ": every map served is a " + toString(methods[0]) + " map, which does not use it");
+  }
+}
+
 
 // A stop signal (SIGINT, SIGTERM, SIGHUP) stops the server through a pipe: the handler only
 // writes one byte (all a signal handler may safely do), and a waiting thread reads it and stops
@@ -135,6 +156,7 @@ int runServe(const ServeArguments& args) {
   catalog.setLog([](const std::string& line) { std::cerr << line << "\n"; });
   std::cerr << "K = " << options.localize.top_k << ", N = " << options.localize.num_features
             << " (FastForward maps) unless a request says\n";
+  refuseOptionsNoMapUses(args.method_flags_given, catalog);
   if (!args.keys_path.empty()) options.keys = ApiKeys::read(args.keys_path, catalog.names());
 
   LocalizationServer server(catalog, options);
@@ -212,7 +234,10 @@ void registerServeCommand(CLI::App& app, CommandRun& run) {
       ->check(secondsIn(0.1, 3600))
       ->capture_default_str();
   for (const char* path_flag : {"--map", "--maps", "--keys"}) cmd->get_option(path_flag)->check(nonEmptyPath());
-  cmd->callback([args, &run] { run = [args] { return runServe(*args); }; });
+  cmd->callback([cmd, args, &run] {
+    args->method_flags_given = flagsGiven(*cmd, methodSettingOfFlag());
+    run = [args] { return runServe(*args); };
+  });
 }
 
 }  // namespace ffloc::cli

@@ -116,6 +116,8 @@ constexpr int kClientClosedRequest = 499;
 void replyError(httplib::Response& response, int status, const std::string& message) {
   response.status = status;
   response.set_content(jsonText({{"error", message}}), kJson);
+  // HTTP requires a 401 to name the scheme it asks for; clients retried or failed on one without.
+  if (status == 401) response.set_header("WWW-Authenticate", "Bearer");
 }
 
 // URL parameters, then (multipart) form fields; a field given twice is a request error rather
@@ -246,6 +248,12 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
                      "': write it 'multipart/form-data; boundary=...' in lower case, the only spelling the HTTP "
                      "library reads as a form"};
   }
+  // The library takes all that follows 'boundary=' for the boundary: '; charset=utf-8' after it
+  // made every part unreadable, refused as a malformed request.
+  if (starts("multipart/form-data") && type.find(';', type.find("boundary=")) != std::string::npos) {
+    return {415, "Content-Type '" + escapeControlCharacters(cutText(type, kMaxLoggedNameBytes)) +
+                     "': put boundary=... last, the only place the HTTP library reads it from"};
+  }
   if (!type.empty() && !starts("image/") && !starts("application/octet-stream") && !starts("multipart/form-data")) {
     return {415, "Content-Type '" + type +
                      "': send an encoded image (image/jpeg, image/png, application/octet-stream) or a multipart form"};
@@ -335,6 +343,14 @@ void ServerOptions::check() const {
   if (max_waiting_queries > kMaxWaitingQueries)
     throw InputError("max_waiting_queries: must be in [0, " + std::to_string(kMaxWaitingQueries) + "], got " +
                      std::to_string(max_waiting_queries));
+  // A default beyond what a request may ask for was advertised by GET /maps/NAME, and the same
+  // value sent back was refused (an outside probe).
+  if (localize.top_k > limits.max_top_k)
+    throw InputError("top_k: " + std::to_string(localize.top_k) + " is more than a request may ask for (" +
+                     std::to_string(limits.max_top_k) + ")");
+  if (localize.num_features > limits.max_features)
+    throw InputError("num_features: " + std::to_string(localize.num_features) + " is more than a request may ask for (" +
+                     std::to_string(limits.max_features) + ")");
 }
 
 LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions options)

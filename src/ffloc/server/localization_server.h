@@ -64,7 +64,8 @@ struct ServerOptions {
   // and, as they were still being created, ignored SIGTERM.
   static constexpr size_t kMaxConnections = 4096;
   static constexpr size_t kMaxWaitingQueries = 256;
-  // InputError naming the field for a value out of range.
+  // InputError naming the field for a value out of range, or a default of `localize` beyond
+  // what a request may ask for (`limits`).
   void check() const;
 };
 

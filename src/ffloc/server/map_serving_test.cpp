@@ -152,7 +152,9 @@ TEST_F(MapServing, KeysDecideWhoUsesWhichMap) {
   EXPECT_EQ(health->status, 200);
   EXPECT_EQ(body(health)["queries_in_flight"], 0) << health->body;
   EXPECT_EQ(client().Get("/maps")->status, 401);
+  EXPECT_EQ(client().Get("/maps")->get_header_value("WWW-Authenticate"), "Bearer");  // as HTTP requires
   EXPECT_EQ(client("not-a-key-of-this-server").Get("/maps")->status, 401);
+  EXPECT_EQ(client().Post(localizePath("kitchen").c_str(), "x", "image/png")->get_header_value("WWW-Authenticate"), "Bearer");
 
   const auto kitchen_only = client(kKitchenKey).Get("/maps");
   ASSERT_EQ(kitchen_only->status, 200);

@@ -630,6 +630,12 @@ TEST_F(ServerTest, ServesAClassicalMapAsTheLibraryLocalizesIt) {
   ASSERT_TRUE(mixed_form);
   EXPECT_EQ(mixed_form->status, 415);
   EXPECT_NE(body(mixed_form)["error"].get<std::string>().find("in lower case"), std::string::npos) << mixed_form->body;
+  // Nor after a parameter that follows the boundary: it was refused as a malformed request.
+  const auto charset_form = client.Post("/localize", queryFileBytes(), "multipart/form-data; boundary=xyz; charset=utf-8");
+  ASSERT_TRUE(charset_form);
+  EXPECT_EQ(charset_form->status, 415);
+  EXPECT_NE(body(charset_form)["error"].get<std::string>().find("put boundary=... last"), std::string::npos)
+      << charset_form->body;
   const httplib::Headers two_types = {{"Content-Type", "image/png"}, {"Content-Type", "text/plain"}};
   const auto twice = client.Post(("/localize?" + intrinsicsParameters()).c_str(), two_types, queryFileBytes(), "");
   ASSERT_TRUE(twice);
