@@ -414,6 +414,26 @@ TEST_F(ConnectionTest, QueryOfAClientThatLeftWhileItRanStopsAtTheNextStage) {
       << log.str();
 }
 
+// A client that leaves while its body arrives is logged as one that left, not as a request the
+// library could not parse (an outside probe).
+TEST_F(ConnectionTest, AClientThatLeavesDuringItsBodyIsLogged499) {
+  std::ostringstream log;  // written under the server's lock, read once it has stopped
+  ServerOptions options;
+  options.log = &log;
+  start(options);
+  const int socket_fd = connectTo(port_);
+  ASSERT_TRUE(sendAll(socket_fd, "POST " + kQueryPath + "half HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                 "Content-Type: image/png\r\nContent-Length: 1000\r\n\r\n" + std::string(300, 'x')));
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  close(socket_fd);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  stop();
+  EXPECT_NE(log.str().find("POST /localize 499 client closed the connection before its request had arrived"),
+            std::string::npos)
+      << log.str();
+  EXPECT_EQ(log.str().find("400"), std::string::npos) << log.str();
+}
+
 // Images are decoded only once a query is admitted: with no room to wait, a body that is not an
 // image is refused as busy, not as undecodable, so busy refusals cost no decoding (eight 113 KB
 // PNG bombs once took 1.17 GB before the busy check).

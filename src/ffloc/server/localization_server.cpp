@@ -685,6 +685,11 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     if (const DeadlineServer::RequestCut cut = DeadlineServer::requestCut(); cut.status != 0) {
       replyError(response, cut.status, cut.message);
       DeadlineServer::closeAfterAnswer(response);
+    } else if (response.status == 400 && response.body.empty() && DeadlineServer::clientDisconnected()) {
+      // Logged as a request the library could not parse, which counted phones on a flaky network
+      // as broken clients (an outside probe). No one reads this answer.
+      replyError(response, kClientClosedRequest, "client closed the connection before its request had arrived");
+      DeadlineServer::closeAfterAnswer(response);
     }
     // The library's own refusals (a header it could not parse) leave the rest of what the client
     // sent unread: read on as the next request, text inside an over-long header ran as one.
