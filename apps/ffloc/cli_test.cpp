@@ -449,6 +449,12 @@ TEST_F(Cli, EvalWarnsWhenTheMapIsOfAnotherCapture) {
   const CliRun own = runCli({"eval", "--dataset", scene.string(), "--map", map.string(), "--quiet"});
   EXPECT_EQ(own.exit_code, 0) << own.output;
   EXPECT_FALSE(contains(own.output, "warning")) << own.output;
+  // The map's use of depth was fixed by 'ffloc map': the refusal blamed a --methods never given.
+  const CliRun no_depth = runCli({"eval", "--dataset", scene.string(), "--map", map.string(), "--no-depth"});
+  EXPECT_EQ(no_depth.exit_code, 2) << no_depth.output;
+  EXPECT_TRUE(contains(no_depth.output, "error: --no-depth: the map's was set when 'ffloc map' built it; only classical "
+                                        "built in memory (--methods classical) uses it here"))
+      << no_depth.output;
   // Seed 4: the same frame names, other poses.
   const fs::path other = dir_ / "other";
   ASSERT_EQ(runCli({"synth", "--out", other.string(), "--seed", "4", "--mapping-frames", "6", "--query-frames", "1",

@@ -216,8 +216,12 @@ int runEval(const EvalArguments& args) {
       throw InputError(flag + ": " + problem);
   for (const std::string& flag : args.evaluation_flags_given) {
     const std::string& method = evaluationMethodOfFlag().at(flag);
-    if (std::find(methods.begin(), methods.end(), method) == methods.end())
-      throw InputError(flag + ": only " + method + " uses it, and --methods does not run it");
+    if (std::find(methods.begin(), methods.end(), method) != methods.end()) continue;
+    // With --map alone the message blamed a --methods never given, beside a classical map.
+    if (!args.map_path.empty() && std::find(evaluated.begin(), evaluated.end(), method) != evaluated.end())
+      throw InputError(flag + ": the map's was set when 'ffloc map' built it; only " + method +
+                       " built in memory (--methods " + method + ") uses it here");
+    throw InputError(flag + ": only " + method + " uses it, and --methods does not run it");
   }
   for (size_t i = 0; i < args.datasets.size(); ++i)
     for (size_t j = 0; j < i; ++j)
