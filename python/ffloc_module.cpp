@@ -4,6 +4,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <climits>
 #include <cmath>
 #include <limits>
@@ -763,9 +764,9 @@ PYBIND11_MODULE(_ffloc, m) {
 
   m.def(
       "evaluate",
-      [](const py::handle& dataset, const py::handle& method_names, const py::object& max_queries, bool use_depth,
-         const std::string& model, const std::string& dtype, int threads, const std::string& format, bool quiet,
-         const py::kwargs& kwargs) {
+      [](const py::handle& dataset, const py::handle& method_names, const py::object& max_queries,
+         const py::object& use_depth, const py::object& model, const py::object& dtype, int threads,
+         const std::string& format, bool quiet, const py::kwargs& kwargs) {
         std::vector<std::string> unused;
         const LocalizeOptions localize = localizeOptions(querySettings(kwargs, unused));
         refuseUnknown(unused, "evaluate");
@@ -777,6 +778,14 @@ PYBIND11_MODULE(_ffloc, m) {
           if (const std::string problem = settingNoMethodUsesProblem(methods, setting); !problem.empty())
             throw InputError(setting + ": " + problem);
         }
+        // Given for a method not evaluated, they changed nothing without a word, where the CLI
+        // refuses --no-depth, --model and --dtype (an outside probe).
+        for (const auto& [setting, value] : {std::pair{"model", &model}, {"dtype", &dtype}})
+          if (!value->is_none())
+            if (const std::string problem = settingNoMethodUsesProblem(methods, setting); !problem.empty())
+              throw InputError(std::string(setting) + ": " + problem);
+        if (!use_depth.is_none() && std::find(methods.begin(), methods.end(), "classical") == methods.end())
+          throw InputError("use_depth: only classical uses it, and methods does not run it");
         const size_t query_count = optionValue<size_t>(max_queries, "max_queries");  // before the dataset is read
         const Scene scene = sceneFrom(dataset, format);
         MethodEvaluationOptions options;
@@ -785,11 +794,13 @@ PYBIND11_MODULE(_ffloc, m) {
         options.evaluation.verdict = localize.verdict;
         options.evaluation.max_queries = query_count;
         options.evaluation.quiet = quiet;
-        options.use_depth = use_depth;
+        options.use_depth = use_depth.is_none() || optionValue<bool>(use_depth, "use_depth");
+        const std::string model_name = model.is_none() ? "default" : optionValue<std::string>(model, "model");
+        const std::string dtype_name = dtype.is_none() ? "f32" : optionValue<std::string>(dtype, "dtype");
         // Loaded on first use and shared by the methods that need it.
         auto loaded = std::make_shared<std::optional<LoadedModel>>();
         options.fastforward = [=](const Scene& scene) {
-          if (!*loaded) *loaded = modelLoader(model, dtype)();
+          if (!*loaded) *loaded = modelLoader(model_name, dtype_name)();
           MappingOptions mapping;
           mapping.quiet = quiet;
           mapping.vlad = localize.retrieval == FastForwardRetrieval::kVlad;
@@ -805,7 +816,7 @@ PYBIND11_MODULE(_ffloc, m) {
         return toPython(summaryJson(summaries));
       },
       py::arg("dataset"), py::arg("methods") = "classical", py::arg("max_queries") = 0,
-      py::arg("use_depth") = true, py::arg("model") = "default", py::arg("dtype") = "f32", py::arg("threads") = 0,
-      py::arg("format") = "auto", py::arg("quiet") = true,
+      py::arg("use_depth") = py::none(), py::arg("model") = py::none(), py::arg("dtype") = py::none(),
+      py::arg("threads") = 0, py::arg("format") = "auto", py::arg("quiet") = true,
       "Localizes the dataset's queries with each method; the summary as 'ffloc eval --json' writes it");
 }

@@ -527,3 +527,10 @@ def test_evaluate_refuses_unknown_methods(scene_dir):
         ffloc.evaluate(scene_dir, methods=["classical", "oracle-depth"], features=500)
     with pytest.raises(ffloc.Error, match=r"pose_guided: none of the methods evaluated \(fastforward\) uses it"):
         ffloc.evaluate(scene_dir, methods=["fastforward"], pose_guided=False)
+    # As the CLI refuses --no-depth, --model and --dtype (an outside probe: use_depth=False passed).
+    with pytest.raises(ffloc.Error, match="use_depth: only classical uses it, and methods does not run it"):
+        ffloc.evaluate(scene_dir, methods="sift-baseline", use_depth=False)
+    with pytest.raises(ffloc.Error, match=r"model: none of the methods evaluated \(classical\) uses it"):
+        ffloc.evaluate(scene_dir, methods="classical", model="default")
+    with pytest.raises(ffloc.Error, match=r"dtype: none of the methods evaluated \(oracle-depth\) uses it"):
+        ffloc.evaluate(scene_dir, methods="oracle-depth", dtype="bf16")
