@@ -68,11 +68,6 @@ int runMap(const MapArguments& args) {
       if (shown < report.featureless.size()) std::cerr << " and " << report.featureless.size() - shown << " more";
       std::cerr << "\n";
     }
-    // "depth where the frames have it, triangulated elsewhere" was printed for --no-depth and for
-    // datasets without depth alike.
-    std::cerr << report.points << " points (" << report.points_from_depth << " lifted from depth, "
-              << report.points - report.points_from_depth << " triangulated"
-              << (args.no_depth ? ": --no-depth" : "") << "), " << report.links << " links\n";
   }
   // A dataset with depth for some frames only mapped the others without a word.
   if (report.added_without_points > 0)
@@ -80,6 +75,14 @@ int runMap(const MapArguments& args) {
               << " images added have no depth, so their tokens carry no 3D points and the model cannot place a "
                  "query on them\n";
   printSummary(report.added, report.skipped_duplicates, report.seconds, report.images, args.output);
+  // The summary's second line, on stdout beside the first (it was on stderr, an outside probe).
+  // "depth where the frames have it, triangulated elsewhere" was printed for --no-depth and for
+  // datasets without depth alike.
+  if (options.method == LocalizationMethod::kClassical) {
+    std::cout << report.points << " points (" << report.points_from_depth << " lifted from depth, "
+              << report.points - report.points_from_depth << " triangulated"
+              << (args.no_depth ? ": --no-depth" : "") << "), " << report.links << " links\n";
+  }
   return 0;
 }
 
