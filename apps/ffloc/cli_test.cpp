@@ -492,7 +492,8 @@ TEST_F(Cli, EvalUnderAProtocolWritesItBesideTheTable) {
                     "160x120", "--quiet"}).exit_code, 0);
   const fs::path json = dir_ / "r.json";
   const CliRun run = runCli({"eval", "--dataset", (scenes / "scene_000_indoor").string(), "--methods", "oracle-depth",
-                             "--protocol", "7scenes", "--quiet", "--json", json.string()});
+                             "--protocol", "7scenes", "--quiet", "--json", json.string(), "--html",
+                             (dir_ / "r.html").string()});
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(contains(run.output, "protocol 7scenes keeps 2 of its 20 mapping frames (every 15th by capture number"))
       << run.output;
@@ -500,6 +501,9 @@ TEST_F(Cli, EvalUnderAProtocolWritesItBesideTheTable) {
   const std::string written{std::istreambuf_iterator<char>(markdown), {}};
   EXPECT_TRUE(contains(written, "| oracle-depth |")) << written;
   EXPECT_TRUE(contains(written, "\nprotocol 7scenes (indoor): top-K ")) << written;
+  std::ifstream html(dir_ / "r.html");
+  const std::string page{std::istreambuf_iterator<char>(html), {}};
+  EXPECT_TRUE(contains(page, "<p class=\"note\">protocol 7scenes (indoor): top-K ")) << page.substr(0, 3000);
 }
 
 // A resume refused at its first draw rewrote the run's config.json with settings that never ran

@@ -388,7 +388,8 @@ int runEval(const EvalArguments& args) {
     std::cerr << "wrote " << args.poses_path << "\n";
   }
   if (!args.html_path.empty()) {
-    writeTextFile(args.html_path, htmlReport(summaries, all_frames, report_datasets));
+    // The protocol's line under the table, as in the .md (it was left out, an outside probe).
+    writeTextFile(args.html_path, htmlReport(summaries, all_frames, report_datasets, protocol_text));
     std::cerr << "wrote " << args.html_path << "\n";
   }
   return 0;

@@ -410,7 +410,7 @@ ReportDataset reportDataset(const Scene& scene) {
 }
 
 std::string htmlReport(const std::vector<MethodSummary>& summaries, const std::vector<FrameResult>& frames,
-                       const std::vector<ReportDataset>& datasets) {
+                       const std::vector<ReportDataset>& datasets, const std::string& table_note) {
   const std::vector<Series> series = seriesOf(frames);
   static const ReportDataset kUnknownDataset;
   auto datasetNamed = [&](const std::string& name) -> const ReportDataset& {
@@ -431,6 +431,7 @@ std::string htmlReport(const std::vector<MethodSummary>& summaries, const std::v
          "<a href=\"#per-query\">errors per query</a> · <a href=\"#top-view\">top view</a> · "
          "<a href=\"#worst\">worst queries</a></nav>\n";
   out << "<h2 id=\"summary\">Summary</h2>\n" << tableHtml(summaries, datasets) << "\n";
+  if (!table_note.empty()) out << "<p class=\"note\">" << escapeHtml(table_note) << "</p>\n";
   out << "<h2 id=\"cumulative\">Cumulative error</h2>\n" << cdfSection(series, all_metric) << "\n";
   out << "<h2 id=\"per-query\">Errors per query</h2>\n";
   for (const std::string& name : datasetNames(series)) {

@@ -28,7 +28,9 @@ ReportDataset reportDataset(const Scene& scene);
 // thumbnails of the worst queries as embedded JPEGs. It references nothing outside itself.
 // `summaries` gives the table rows (pooled rows included); `frames` everything else, each matched
 // to its dataset by name. A query image that cannot be read gets a note instead of a thumbnail.
+// `table_note`, when not empty, is printed under the summary table (how the run was made: the
+// benchmark protocol's line).
 std::string htmlReport(const std::vector<MethodSummary>& summaries, const std::vector<FrameResult>& frames,
-                       const std::vector<ReportDataset>& datasets);
+                       const std::vector<ReportDataset>& datasets, const std::string& table_note = "");
 
 }  // namespace ffloc
