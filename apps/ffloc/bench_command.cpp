@@ -129,7 +129,7 @@ void registerBenchCommand(CLI::App& app, CommandRun& run) {
                "DUSt3R's decoder + heads, with random weights, beside the Python reference timing");
   cmd->add_option("--config", args->config, "Network size: large (the official DUSt3R), small or tiny")
       ->capture_default_str();
-  cmd->add_option("--dtype", args->dtypes, "Network precisions, comma-separated: fp32, bf16 (bf16: encoder, decoder and DPT heads, as the reference under CPU autocast)")
+  cmd->add_option("--dtype", args->dtypes, "Network precisions, comma-separated: fp32 (the reference timing's spelling; f32 elsewhere, taken here too), bf16 (bf16: encoder, decoder and DPT heads, as the reference under CPU autocast)")
       ->delimiter(',')
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "Intra-op and BLAS threads (0 = all hardware threads)")

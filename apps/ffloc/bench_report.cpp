@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bench_sgemm.h"
+#include "ffloc/model/model_options.h"
 
 namespace ffloc::cli {
 namespace {
@@ -16,10 +17,12 @@ void printJson(const nlohmann::json& object) {
   std::fflush(stdout);
 }
 
+// By the precision, not its spelling: --dtype f32 lost the reference's fp32 rows.
 const ReferenceRow* findRow(const std::map<std::string, ReferenceRow>* rows, const std::string& dtype) {
   if (!rows) return nullptr;
-  const auto it = rows->find(dtype);
-  return it == rows->end() ? nullptr : &it->second;
+  for (const auto& [name, row] : *rows)
+    if (parseNetworkDtype(name) == parseNetworkDtype(dtype)) return &row;
+  return nullptr;
 }
 
 }  // namespace
