@@ -195,16 +195,22 @@ TEST_F(ConnectionTest, SlowHeadersAreCutAtTheirDeadlineAndHealthAnswers) {
   }
 }
 
+// A server of two connection threads (no query may wait, which would add threads) and
+// `max_pending` connections that may wait for one.
+ServerOptions twoConnectionThreads(size_t max_pending, std::chrono::milliseconds header_timeout) {
+  ServerOptions options;
+  options.max_connections = 2;
+  options.max_waiting_queries = 0;
+  options.max_pending_connections = max_pending;
+  options.header_timeout = header_timeout;
+  return options;
+}
+
 // Connections beyond the threads and the pending limit are answered 503 at once and closed,
 // instead of queueing without a bound behind slow clients; once the slow ones are cut at their
 // deadline, /health answers again.
 TEST_F(ConnectionTest, ConnectionsBeyondThePendingLimitAre503AtOnce) {
-  ServerOptions options;
-  options.max_connections = 2;
-  options.max_waiting_queries = 0;
-  options.max_pending_connections = 2;
-  options.header_timeout = std::chrono::milliseconds(3000);
-  start(options);
+  start(twoConnectionThreads(2, std::chrono::milliseconds(3000)));
   std::vector<std::thread> slow;
   std::vector<std::string> slow_answers(4);
   for (size_t i = 0; i < slow_answers.size(); ++i) {
@@ -242,12 +248,7 @@ TEST_F(ConnectionTest, ConnectionsBeyondThePendingLimitAre503AtOnce) {
 // With no connection allowed to wait, one is served while a thread is free: a limit of 0 answered
 // every connection of an idle server 503, and of 1 one in seven (an outside probe).
 TEST_F(ConnectionTest, AZeroPendingLimitServesWhileAThreadIsFree) {
-  ServerOptions options;
-  options.max_connections = 2;
-  options.max_waiting_queries = 0;
-  options.max_pending_connections = 0;
-  options.header_timeout = std::chrono::milliseconds(1500);
-  start(options);
+  start(twoConnectionThreads(0, std::chrono::milliseconds(1500)));
   for (int i = 0; i < 20; ++i) {
     httplib::Client client("127.0.0.1", port_);
     const auto health = client.Get("/health");
