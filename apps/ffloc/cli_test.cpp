@@ -326,6 +326,73 @@ TEST_F(Cli, VladRetrievalOnAMapWithoutItNamesTheFlagThatBuildsIt) {
   EXPECT_FALSE(contains(proc.output, "recall")) << proc.output;
 }
 
+// The server and Python took a query's lens distortion, localize did not: a distorted camera's
+// queries were answered 50 times less accurately, without a word (an outside probe).
+TEST_F(Cli, LocalizeTakesTheQueryCamerasDistortion) {
+  // A real camera's size, where the query localizes (at 256 x 192 with few mapping frames it fails).
+  const fs::path scene = dir_ / "synth" / "scene_000_indoor", map = dir_ / "m.ffmap";
+  ASSERT_EQ(runCli({"synth", "--out", (dir_ / "synth").string(), "--seed", "5000", "--kind", "indoor", "--size",
+                    "640x480", "--mapping-frames", "12", "--query-frames", "1", "--quiet"}).exit_code, 0);
+  ASSERT_EQ(runCli({"map", "--dataset", scene.string(), "-o", map.string(), "--quiet"}).exit_code, 0);
+  std::ifstream in(scene / "manifest.json");
+  const nlohmann::json manifest = nlohmann::json::parse(in);
+  nlohmann::json query;
+  for (const nlohmann::json& frame : manifest["frames"])
+    if (frame["split"] == "query") query = frame;
+  ASSERT_FALSE(query.is_null());
+  const nlohmann::json& camera = manifest["cameras"][query["camera"].get<std::string>()];
+  const std::string intrinsics = nlohmann::json(camera["fx"]).dump() + "," + nlohmann::json(camera["fy"]).dump() + "," +
+                                 nlohmann::json(camera["cx"]).dump() + "," + nlohmann::json(camera["cy"]).dump();
+  const auto localize = [&](const std::vector<std::string>& extra) {
+    std::vector<std::string> arguments = {"localize", "--map", map.string(), "--image",
+                                          (scene / query["image"].get<std::string>()).string(), "--intrinsics",
+                                          intrinsics, "--json"};
+    arguments.insert(arguments.end(), extra.begin(), extra.end());
+    return runCli(arguments);
+  };
+  const auto pose = [](const CliRun& run) {
+    const size_t start = run.output.find('{');
+    return start == std::string::npos ? nlohmann::json() : nlohmann::json::parse(run.output.substr(start))["camera_to_world"];
+  };
+  const CliRun plain = localize({});
+  const CliRun none = localize({"--distortion", "0,0,0,0"});
+  const CliRun barrel = localize({"--distortion", "-0.2,0.05,0,0"});
+  ASSERT_FALSE(pose(plain).is_null()) << plain.output;
+  EXPECT_EQ(pose(none), pose(plain)) << none.output;
+  ASSERT_FALSE(pose(barrel).is_null()) << barrel.output;
+  EXPECT_NE(pose(barrel), pose(plain)) << "the distortion is applied";
+  const CliRun absurd = localize({"--distortion", "1e10,0,0,0"});
+  EXPECT_EQ(absurd.exit_code, 2) << absurd.output;
+  EXPECT_TRUE(contains(absurd.output, "--distortion: k1 1e+10: moves the image corner")) << absurd.output;
+  const CliRun two = localize({"--distortion", "0.1,0.1"});
+  EXPECT_EQ(two.exit_code, 2) << two.output;
+  EXPECT_TRUE(contains(two.output, "error: --distortion: expected 4, 5 or 8 comma-separated coefficients")) << two.output;
+}
+
+// A non-metric scene written to a format that reads back as metric came back metric without a
+// word (documented only): its units were scored as metres (an outside probe).
+TEST_F(Cli, ConvertingANonMetricSceneToAMetricFormatWarns) {
+  const fs::path scenes = dir_ / "synth";
+  ASSERT_EQ(runCli({"synth", "--out", scenes.string(), "--mapping-frames", "3", "--query-frames", "1", "--size",
+                    "160x120", "--quiet"}).exit_code, 0);
+  const fs::path scene = scenes / "scene_000_indoor";
+  std::ifstream in(scene / "manifest.json");
+  nlohmann::json manifest = nlohmann::json::parse(in);
+  in.close();
+  manifest["metric"] = false;
+  writeText(scene / "manifest.json", manifest.dump());
+  const CliRun kapture = runCli({"convert-dataset", "--dataset", scene.string(), "--format", "kapture", "--out",
+                                 (dir_ / "k").string()});
+  ASSERT_EQ(kapture.exit_code, 0) << kapture.output;
+  EXPECT_TRUE(contains(kapture.output, "warning: scene_000_indoor is not metric (arbitrary units), and kapture has no "
+                                       "field to say so: it reads back as metric"))
+      << kapture.output;
+  const CliRun kept = runCli({"convert-dataset", "--dataset", scene.string(), "--format", "manifest", "--out",
+                              (dir_ / "m").string()});
+  ASSERT_EQ(kept.exit_code, 0) << kept.output;
+  EXPECT_FALSE(contains(kept.output, "warning")) << kept.output;
+}
+
 // `ffloc retrieval` refused the map `ffloc map` writes by default (classical), after loading a
 // network it does not use (found by an outside probe following the README).
 TEST_F(Cli, RetrievalMeasuresAClassicalMapAsItLocalizes) {

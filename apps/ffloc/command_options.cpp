@@ -45,7 +45,8 @@ std::string withFlagName(const std::string& message) {
       {"image_noise", "--image-noise"},
       {"depth_noise", "--depth-noise"},
       {"format", "--format"},
-      {"protocol", "--protocol"}};
+      {"protocol", "--protocol"},
+      {"distortion", "--distortion"}};
   // Library options a message points to as the remedy, and the command that sets them.
   static const std::map<std::string, std::string> remedies = {{"MappingOptions::vlad", "'ffloc map --vlad'"}};
   std::string translated = message;

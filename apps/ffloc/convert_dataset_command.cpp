@@ -30,6 +30,13 @@ void runConvertDataset(const ConvertDatasetArguments& args) {
   std::cout << "wrote " << args.out << ": " << scene.frames.size() << " frames of " << scene.name << " ("
             << scene.format << ") as " << args.format << " (" << scene.mappingIndices().size() << " mapping, "
             << scene.queryIndices().size() << " query)\n";
+  // Documented, but said nowhere else: the copy's arbitrary units were then scored as metres, and
+  // its map refused the original's queries as another scene (an outside probe).
+  if (!scene.metric && args.format != "manifest") {
+    std::cerr << "warning: " << scene.name << " is not metric (arbitrary units), and " << args.format
+              << " has no field to say so: it reads back as metric, so its errors print as metres and a map of it "
+                 "refuses the original's queries (--format manifest keeps the units)\n";
+  }
 }
 
 }  // namespace

@@ -72,18 +72,6 @@ double requiredNumber(const std::map<std::string, std::string>& fields, const st
   return parseFiniteNumber(field, it->second);
 }
 
-std::vector<double> parseDistortion(const std::string& text) {
-  std::vector<double> coefficients;
-  if (!text.empty() && text.back() == ',') throw InputError("distortion: trailing comma in " + quotedValue(text));
-  std::stringstream stream(text);
-  std::string item;
-  while (std::getline(stream, item, ',')) coefficients.push_back(parseFiniteNumber("distortion", item));
-  const size_t n = coefficients.size();
-  if (n != 4 && n != 5 && n != 8)
-    throw InputError("distortion: expected 4, 5 or 8 comma-separated coefficients (k1,k2,p1,p2[,k3[,k4,k5,k6]]), got " +
-                     std::to_string(n));
-  return coefficients;
-}
 
 std::string pixelLimitError(const cv::Size& size, size_t max_image_pixels) {
   return "image: " + std::to_string(size.width) + "x" + std::to_string(size.height) + " is more than the " +
@@ -133,6 +121,19 @@ cv::Mat decodeRgb(const std::string& bytes, size_t max_image_pixels) {
 }
 
 }  // namespace
+
+std::vector<double> parseDistortion(const std::string& text) {
+  std::vector<double> coefficients;
+  if (!text.empty() && text.back() == ',') throw InputError("distortion: trailing comma in " + quotedValue(text));
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) coefficients.push_back(parseFiniteNumber("distortion", item));
+  const size_t n = coefficients.size();
+  if (n != 4 && n != 5 && n != 8)
+    throw InputError("distortion: expected 4, 5 or 8 comma-separated coefficients (k1,k2,p1,p2[,k3[,k4,k5,k6]]), got " +
+                     std::to_string(n));
+  return coefficients;
+}
 
 LocalizeRequest parseLocalizeFields(const std::map<std::string, std::string>& fields, const LocalizeOptions& defaults,
                                     const RequestLimits& limits) {

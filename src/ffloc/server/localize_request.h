@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <vector>
 
 #include <opencv2/core.hpp>
 
@@ -40,6 +41,11 @@ struct RequestLimits {
 // `ffloc localize` reads files: OpenCV applies a JPEG's EXIF orientation.
 LocalizeRequest parseLocalizeRequest(const std::map<std::string, std::string>& fields, const std::string& image_bytes,
                                      const LocalizeOptions& defaults, const RequestLimits& limits = {});
+
+// The distortion field's text, "k1,k2,p1,p2[,k3[,k4,k5,k6]]", also `ffloc localize --distortion`'s:
+// InputError naming "distortion" for a count other than 4, 5 or 8, or a coefficient that is not a
+// finite decimal number.
+std::vector<double> parseDistortion(const std::string& text);
 
 // The fields alone, checked as parseLocalizeRequest checks them, with no image (`rgb` empty, the
 // intrinsics not yet checked against an image size): for a request whose fields are all known
