@@ -151,7 +151,14 @@ TEST(BadInput, SplitFiles) {
   fs::remove(dir / "split_query.txt");
   scene = loadDataset(dir);
   EXPECT_EQ(scene.frames[1].split, Split::kUnassigned);
-  expectInputError([&] { requireSplits(scene); }, {"split 'query' is empty"});
+  expectInputError([&] { requireSplits(scene); },
+                   {"split 'query' is empty (split_mapping.txt lists 1 frame(s); split files replace the dataset's own "
+                    "split, and a frame neither lists is in none)"});
+  // An empty query list alone: it named the mapping split, and no file.
+  fs::remove(dir / "split_mapping.txt");
+  writeTextFile(dir / "split_query.txt", "");
+  expectInputError([&] { requireSplits(loadDataset(dir)); },
+                   {"split 'mapping' is empty (split_query.txt lists 0 frame(s); split files replace"});
 }
 
 TEST(BadInput, UnknownFormat) {
@@ -172,6 +179,18 @@ fs::path makeColmap() {
   writeImage(dir / "images/a.png", 8, 6);
   writeImage(dir / "images/b.png", 8, 6);
   return dir;
+}
+
+// Cut at a line boundary, images.txt lost whole images without a word where no points3D.txt
+// named them (an outside probe); COLMAP's header counts them.
+TEST(BadInput, ColmapImagesCutShortAreCaughtByTheirHeaderCount) {
+  const auto dir = makeColmap();
+  fs::remove(dir / "sparse/0/points3D.txt");
+  const std::string header = "# Image list with two lines of data per image:\n# Number of images: 2, mean observations per image: 0.5\n";
+  writeTextFile(dir / "sparse/0/images.txt", header + "1 1 0 0 0 0 0 0 1 a.png\n1.5 2.5 7 3.5 3.5 -1\n2 1 0 0 0 1 0 0 1 b.png\n\n");
+  EXPECT_EQ(loadDataset(dir).frames.size(), 2u);
+  writeTextFile(dir / "sparse/0/images.txt", header + "1 1 0 0 0 0 0 0 1 a.png\n1.5 2.5 7 3.5 3.5 -1\n");
+  expectInputError([&] { loadDataset(dir); }, {"images.txt:2", "the header counts 2 images, the file holds 1 (cut short?)"});
 }
 
 TEST(BadInput, ColmapTinyModelReads) {
