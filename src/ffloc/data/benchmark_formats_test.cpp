@@ -430,11 +430,11 @@ TEST(Kapture, BadInputNamesFileAndLine) {
   expectInputError([&] { loadDataset(dir); }, {"rigs.txt:3:", "sensor 'phone' is placed in a rig again (first on line 2)"});
   writeTextFile(query / "rigs.txt", std::string(kKaptureHeader) + "rig, phone, 1, 0, 0, 0, 0.1, 0, 0\n");
   // A camera 1e300 from the origin was reported as a depth map of "another pose" where depth was
-  // recorded (an outside probe); named by its image now, before any depth is paired.
+  // recorded (an outside probe), then at the image's line of records_camera.txt (another); named
+  // at its trajectory's line now, as NaN there is.
   writeTextFile(dir / "mapping/sensors/trajectories.txt",
                 std::string(kKaptureHeader) + "0, kinect_rgb, 1, 0, 0, 0, 1e300, 0, 0\n");
-  expectInputError([&] { loadDataset(dir); },
-                   {"records_camera.txt:2:", "image 'seq-01/frame-000000.color.jpg': camera centre is 1e+300"});
+  expectInputError([&] { loadDataset(dir); }, {"trajectories.txt:2:", "device 'kinect_rgb': camera centre is 1e+300"});
   writeTextFile(dir / "mapping/sensors/trajectories.txt", std::string(kKaptureHeader) + "0, kinect_rgb, 1, 0, 0, 0, 0, 0, 0\n");
   fs::remove(query / "records_data/query/0007.jpg");
   expectInputError([&] { loadDataset(dir); }, {"records_camera.txt:2:", "0007.jpg not found"});

@@ -165,8 +165,13 @@ KaptureFolder readFolderGeometry(const fs::path& root) {
         throwInputError(trajectories.string(), row.number, "expected 'timestamp, device_id, qw, qx, qy, qz, tx, ty, tz'");
       // The last of two poses for one (timestamp, device) won: a frame got another frame's pose as
       // its ground truth, and was scored against it.
-      const auto [entry, added] = folder.device_to_world.emplace(TimedDevice{readTimestamp(row, trajectories), row.fields[1]},
-                                                                 readDeviceToWorld(row, 2, trajectories));
+      const Pose device_to_world = readDeviceToWorld(row, 2, trajectories);
+      // Named here: a centre 1e300 out was blamed on the image's line of records_camera.txt (an
+      // outside probe), where NaN was already named here.
+      if (const std::string centre = cameraCentreProblem(device_to_world.t); !centre.empty())
+        throwInputError(trajectories.string(), row.number, "device '" + row.fields[1] + "': " + centre);
+      const auto [entry, added] =
+          folder.device_to_world.emplace(TimedDevice{readTimestamp(row, trajectories), row.fields[1]}, device_to_world);
       if (!added)
         throwInputError(trajectories.string(), row.number,
                         "a second pose for timestamp " + row.fields[0] + ", device '" + row.fields[1] + "'");
