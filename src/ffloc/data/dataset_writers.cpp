@@ -88,16 +88,18 @@ std::vector<std::string> writeDataset(const Scene& scene, const std::string& for
 }
 
 std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path& out) {
-  // Images keep their names under images/, so the copy reads back with the same frame names
-  // relative to images/; depth maps keep their encoding.
+  // Images are copied under images/ and the frames keep their names (the manifest's `name`): named
+  // by their new paths, a converted copy's images were new to `map --append` (the map doubled)
+  // and "images/" grew at every conversion (an outside probe). Depth maps keep their encoding.
   Scene copy = scene;
   copy.root = out;
   const std::vector<std::string> paths = portableFrameNames(scene);
   // Before anything is copied: the JSON writer's own error named no file (an internal error, exit 3).
   for (size_t i = 0; i < paths.size(); ++i)
-    if (!isUtf8(paths[i]))
-      throwInputError(scene.frames[i].image_path.string(), 0,
-                      "image name '" + paths[i] + "' is not UTF-8, which a manifest (JSON) cannot hold; rename the file");
+    for (const std::string& name : {paths[i], scene.frames[i].name})
+      if (!isUtf8(name))
+        throwInputError(scene.frames[i].image_path.string(), 0,
+                        "image name '" + name + "' is not UTF-8, which a manifest (JSON) cannot hold; rename the file");
   std::vector<std::string> names;
   for (size_t i = 0; i < copy.frames.size(); ++i) {
     Frame& frame = copy.frames[i];
@@ -116,8 +118,7 @@ std::vector<std::string> writeManifestDataset(const Scene& scene, const fs::path
       frame.depth->path = depth;
     }
     frame.image_path = out / image;
-    frame.name = image;
-    names.push_back(image);
+    names.push_back(frame.name);
   }
   writeManifest(copy, out / kManifestFileName);
   return names;

@@ -193,6 +193,22 @@ TEST_F(DatasetWriters, AManifestRefusesANameItCannotHold) {
   EXPECT_FALSE(fs::exists(dir_ / "out" / "manifest.json"));
 }
 
+// Named by their new paths, a converted copy's frames were new images to `map --append` (the map
+// doubled), and every manifest-to-manifest conversion added an "images/" (an outside probe).
+TEST_F(DatasetWriters, AManifestKeepsTheFrameNamesThroughEveryConversion) {
+  writeImage(dir_ / "source" / "seq 1" / "caf\u00e9.png");
+  const Scene scene = sceneOfFrames(dir_ / "source", {"seq 1/caf\u00e9.png"});
+  EXPECT_EQ(writeDataset(scene, "manifest", dir_ / "once"), std::vector<std::string>{"seq 1/caf\u00e9.png"});
+  const Scene once = loadDataset(dir_ / "once");
+  ASSERT_EQ(once.frames.size(), 1u);
+  EXPECT_EQ(once.frames[0].name, "seq 1/caf\u00e9.png");
+  EXPECT_TRUE(fs::exists(dir_ / "once" / "images" / "seq 1" / "caf\u00e9.png"));
+  writeDataset(once, "manifest", dir_ / "twice");
+  const Scene twice = loadDataset(dir_ / "twice");
+  EXPECT_EQ(twice.frames[0].name, "seq 1/caf\u00e9.png");
+  EXPECT_TRUE(fs::exists(dir_ / "twice" / "images" / "seq 1" / "caf\u00e9.png")) << "no images/images/";
+}
+
 // Found by an outside probe: ACE files pair by the name up to its first '.', so frames in folders
 // 'a.1' and 'a.2' were written as frame 'a' twice: read back, one frame was lost and the other
 // had its pose. Dots in folders are now written as '_' (and a clash so made is refused), and the
