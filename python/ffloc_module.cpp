@@ -210,6 +210,12 @@ cv::Mat imageFrom(const py::handle& image, py::object& keep, std::string& name) 
   if (array.ndim() != 3 || array.shape(2) != 3)
     throw InputError("image: shape must be H x W x 3 (RGB), got " + shapeText(array));
   if (array.shape(0) == 0 || array.shape(1) == 0) throw InputError("image: is empty, shape " + shapeText(array));
+  // As a file is refused by its decoder: a 40000 x 40000 array ran a minute, copied 4.8 GB and
+  // heard no Ctrl-C (an outside probe).
+  constexpr py::ssize_t kMaxImagePixels = py::ssize_t{1} << 30;  // OpenCV's OPENCV_IO_MAX_IMAGE_PIXELS
+  if (array.shape(0) > kMaxImagePixels / array.shape(1))
+    throw InputError("image: shape " + shapeText(array) + " is more than the " + std::to_string(kMaxImagePixels) +
+                     " pixels an image file may decode to; resize it");
   // Rows may be strided (a crop of a larger array); pixels within a row must be packed.
   if (array.strides(2) != 1 || array.strides(1) != 3 || array.strides(0) < 3 * array.shape(1))
     array = py::module_::import("numpy").attr("ascontiguousarray")(array);
@@ -266,6 +272,16 @@ T optionValue(const py::handle& value, const std::string& field) {
   }
 }
 
+// A seed in the CLI's and the server's range: Python took 2^63 to 2^64 - 1, which they refuse
+// (an outside probe), so a seed written down in one could not be given to the other.
+uint64_t seedValue(const py::handle& value, const std::string& field) {
+  const uint64_t seed = optionValue<uint64_t>(value, field);
+  if (seed > static_cast<uint64_t>(std::numeric_limits<int64_t>::max()))
+    throw InputError(field + ": expected an integer in [0, " + std::to_string(std::numeric_limits<int64_t>::max()) +
+                     "], got " + std::to_string(seed));
+  return seed;
+}
+
 // `methods`: one name, or a list or tuple of them (pybind11's list cast refused a plain string
 // with a TypeError that named no argument).
 std::vector<std::string> methodNames(const py::handle& value) {
@@ -285,7 +301,7 @@ QuerySettings querySettings(const py::kwargs& kwargs, std::vector<std::string>& 
     if (name == "preset") settings.preset = optionValue<std::string>(value, name);
     else if (name == "top_k") settings.top_k = optionValue<int64_t>(value, name);
     else if (name == "features") settings.features = optionValue<int64_t>(value, name);
-    else if (name == "seed") settings.seed = optionValue<uint64_t>(value, name);
+    else if (name == "seed") settings.seed = seedValue(value, name);
     else if (name == "selection") settings.selection = optionValue<std::string>(value, name);
     else if (name == "retrieval") settings.retrieval = optionValue<std::string>(value, name);
     else if (name == "solver") settings.solver = optionValue<std::string>(value, name);
@@ -423,7 +439,7 @@ PnpOptions pnpOptions(const py::dict& given) {
     else if (name == "min_inliers") options.min_inliers = optionValue<int>(value, name);
     else if (name == "max_correspondences") options.max_correspondences = optionValue<size_t>(value, name);
     else if (name == "refine") options.refine = optionValue<bool>(value, name);
-    else if (name == "seed") options.seed = optionValue<uint64_t>(value, name);
+    else if (name == "seed") options.seed = seedValue(value, name);
     else
       throw InputError("options: unknown key '" + name +
                        "' (known: solver, inlier_threshold_px, max_iterations, success_probability, min_inliers, "

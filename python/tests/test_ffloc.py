@@ -148,6 +148,8 @@ def test_query_options_are_the_cli_flags(cli_map, query):
     for options, message in (({"top_k": 1.5}, "top_k: expected an integer, got 1.5"),
                              ({"top_k": "3"}, "top_k: expected an integer, got '3'"),
                              ({"seed": -1}, "seed: expected a non-negative integer within range, got -1"),
+                             # The CLI's and the server's range (2**63 was taken here alone).
+                             ({"seed": 2**63}, r"seed: expected an integer in \[0, 9223372036854775807\], got 9223372036854775808"),
                              ({"verify": "no"}, "verify: expected True or False, got 'no'")):
         with pytest.raises(ffloc.Error, match=message):
             ffloc.Localizer(str(cli_map), **options)
@@ -164,6 +166,9 @@ def test_query_options_are_the_cli_flags(cli_map, query):
         (42, "image: expected a path"),
         # A file's encoded bytes were taken as a path (a 77,000-character error).
         (b"\xff\xd8\xff\xe0\x00\x10JFIF" + bytes(5000), "image: got 5010 bytes that are no path \\(an encoded image\\?\\)"),
+        # Refused as a file of its size is, before a 4.8 GB copy (a view costs nothing to make).
+        (np.broadcast_to(np.zeros((1, 1, 3), np.uint8), (40000, 40000, 3)),
+         r"image: shape \(40000, 40000, 3\) is more than the 1073741824 pixels an image file may decode to"),
     ],
 )
 def test_bad_images_raise_errors_naming_the_image(cli_map, query, image, message):

@@ -3,6 +3,7 @@
 #include "ffloc/classical/classical_localizer.h"
 #include "ffloc/classical/classical_mapper.h"
 #include "ffloc/core/error.h"
+#include "ffloc/data/splits.h"
 #include "ffloc/eval/sift_baseline_source.h"
 #include "ffloc/localization/localizer.h"
 
@@ -44,6 +45,9 @@ std::string settingNoMethodUsesProblem(const std::vector<std::string>& methods, 
 std::vector<FrameResult> evaluateMethod(const Scene& scene, const std::string& method,
                                         const MethodEvaluationOptions& options,
                                         const LocalizationObserver& on_result) {
+  // Before an in-memory map is built of no mapping frame: Python's evaluate blamed SIFT for it
+  // ("fewer than two keypoints", an outside probe).
+  requireSplits(scene);
   if (method == "oracle-depth") {
     OracleDepthOptions oracle = options.oracle_depth;
     oracle.seed = options.localize.seed;
