@@ -539,3 +539,13 @@ def test_evaluate_refuses_unknown_methods(scene_dir):
         ffloc.evaluate(scene_dir, methods="classical", model="default")
     with pytest.raises(ffloc.Error, match=r"dtype: none of the methods evaluated \(oracle-depth\) uses it"):
         ffloc.evaluate(scene_dir, methods="oracle-depth", dtype="bf16")
+
+
+def test_evaluate_of_an_empty_mapping_split_says_so(cli, tmp_path):
+    # It blamed SIFT ("fewer than two keypoints"), where the CLI names the split.
+    cli("synth", "--out", tmp_path / "synth", "--seed", 11, "--kind", "indoor", "--size", "160x120",
+        "--mapping-frames", 3, "--query-frames", 1, "--quiet")
+    scene = tmp_path / "synth" / "scene_000_indoor"
+    (scene / "split_query.txt").write_text("images/query_0000_near.png\n")
+    with pytest.raises(ffloc.Error, match="split 'mapping' is empty \\(split_query.txt lists 1 frame"):
+        ffloc.evaluate(str(scene), methods="classical", threads=1)
