@@ -181,18 +181,6 @@ fs::path makeColmap() {
   return dir;
 }
 
-// Cut at a line boundary, images.txt lost whole images without a word where no points3D.txt
-// named them (an outside probe); COLMAP's header counts them.
-TEST(BadInput, ColmapImagesCutShortAreCaughtByTheirHeaderCount) {
-  const auto dir = makeColmap();
-  fs::remove(dir / "sparse/0/points3D.txt");
-  const std::string header = "# Image list with two lines of data per image:\n# Number of images: 2, mean observations per image: 0.5\n";
-  writeTextFile(dir / "sparse/0/images.txt", header + "1 1 0 0 0 0 0 0 1 a.png\n1.5 2.5 7 3.5 3.5 -1\n2 1 0 0 0 1 0 0 1 b.png\n\n");
-  EXPECT_EQ(loadDataset(dir).frames.size(), 2u);
-  writeTextFile(dir / "sparse/0/images.txt", header + "1 1 0 0 0 0 0 0 1 a.png\n1.5 2.5 7 3.5 3.5 -1\n");
-  expectInputError([&] { loadDataset(dir); }, {"images.txt:2", "the header counts 2 images, the file holds 1 (cut short?)"});
-}
-
 TEST(BadInput, ColmapTinyModelReads) {
   const Scene scene = loadDataset(makeColmap());
   ASSERT_EQ(scene.frames.size(), 2u);

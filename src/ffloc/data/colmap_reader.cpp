@@ -1,6 +1,5 @@
 #include <algorithm>
 #include <map>
-#include <regex>
 
 #include "ffloc/core/error.h"
 #include "ffloc/data/colmap_camera.h"
@@ -160,17 +159,6 @@ std::vector<ColmapImage> readImages(const fs::path& file, const std::map<long, I
       }
     }
     images.push_back(std::move(image));
-  }
-  // COLMAP's header counts the images: a file cut at a line boundary lost whole images without a
-  // word where no points3D.txt names them (an outside probe).
-  for (const TextLine& line : lines) {
-    if (!isComment(line.text)) break;
-    static const std::regex count(R"(^\s*#\s*Number of images:\s*([0-9]+)\b)");
-    std::smatch match;
-    if (std::regex_search(line.text, match, count) && std::stoull(match[1]) != images.size())
-      throwInputError(file.string(), line.number,
-                      "the header counts " + match[1].str() + " images, the file holds " + std::to_string(images.size()) +
-                          " (cut short?)");
   }
   return images;
 }
