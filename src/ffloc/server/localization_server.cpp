@@ -245,8 +245,8 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
   if (starts("multipart/form-data") &&
       (type.rfind("multipart/form-data", 0) != 0 || type.find("boundary=") == std::string::npos)) {
     return {415, "Content-Type '" + escapeControlCharacters(cutText(type, kMaxLoggedNameBytes)) +
-                     "': write it 'multipart/form-data; boundary=...' in lower case, the only spelling the HTTP "
-                     "library reads as a form"};
+                     "': write it 'multipart/form-data; boundary=...', in lower case and with its boundary, the "
+                     "only spelling the HTTP library reads as a form"};
   }
   // The library takes all that follows 'boundary=' for the boundary: '; charset=utf-8' after it
   // made every part unreadable, refused as a malformed request.
@@ -687,8 +687,15 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
       DeadlineServer::closeAfterAnswer(response);
     } else if (response.status == 400 && response.body.empty() && DeadlineServer::clientDisconnected()) {
       // Logged as a request the library could not parse, which counted phones on a flaky network
-      // as broken clients (an outside probe). No one reads this answer.
-      replyError(response, kClientClosedRequest, "client closed the connection before its request had arrived");
+      // as broken clients (an outside probe). A client that only half-closed may still read it.
+      replyError(response, 400, "bad request: the client closed its side of the connection before the body had all arrived");
+      DeadlineServer::closeAfterAnswer(response);
+    } else if (response.status == 416) {
+      // The library refuses a Range header it cannot parse before any route is chosen, and every
+      // answer here is whole (Range is ignored): "HTTP 416" on a POST /localize said nothing.
+      replyError(response, 400, "Range: '" + escapeControlCharacters(cutText(request.get_header_value("Range"),
+                                                                            kMaxLoggedNameBytes)) +
+                                    "' is no byte range; this server sends whole answers, so send no Range header");
       DeadlineServer::closeAfterAnswer(response);
     }
     // The library's own refusals (a header it could not parse) leave the rest of what the client

@@ -444,6 +444,12 @@ TEST_F(MapServing, RangesAreIgnoredAndEveryAnswerIsWhole) {
   ASSERT_TRUE(health);
   EXPECT_EQ(health->status, 200);
   EXPECT_EQ(nlohmann::json::parse(health->body)["status"], "ok") << health->body;
+  // One the library cannot parse was refused 416, "HTTP 416", before any route: said plainly.
+  const auto garbled = client().Get("/health", {{"Range", "items=0-1"}});
+  ASSERT_TRUE(garbled);
+  EXPECT_EQ(garbled->status, 400);
+  EXPECT_EQ(nlohmann::json::parse(garbled->body)["error"],
+            "Range: 'items=0-1' is no byte range; this server sends whole answers, so send no Range header");
 }
 
 TEST_F(MapServing, TheSceneHoldsTheCamerasPointsAndTheLastAnswers) {
