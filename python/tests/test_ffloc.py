@@ -549,3 +549,6 @@ def test_evaluate_of_an_empty_mapping_split_says_so(cli, tmp_path):
     (scene / "split_query.txt").write_text("images/query_0000_near.png\n")
     with pytest.raises(ffloc.Error, match="split 'mapping' is empty \\(split_query.txt lists 1 frame"):
         ffloc.evaluate(str(scene), methods="classical", threads=1)
+    # And a map of it, as the CLI's `ffloc map` builds it (it said "dataset has no mapping frames").
+    with pytest.raises(ffloc.Error, match="split 'mapping' is empty \\(split_query.txt lists 1 frame"):
+        ffloc.build_map(str(scene), out=str(tmp_path / "m.ffmap"), threads=1)

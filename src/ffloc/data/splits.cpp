@@ -41,20 +41,22 @@ bool applySplitFiles(Scene& scene) {
   return true;
 }
 
-void requireSplits(const Scene& scene) {
-  for (Split split : {Split::kMapping, Split::kQuery}) {
-    if (!scene.indices(split).empty()) continue;
-    // An empty split_query.txt was reported as an empty mapping split, naming no split file (an
-    // outside probe): what the files say is named beside it.
-    std::string files;
-    for (const auto& [file, listed] : {std::pair{kMappingSplitFile, Split::kMapping}, {kQuerySplitFile, Split::kQuery}}) {
-      if (!std::filesystem::exists(scene.root / file)) continue;
-      files += (files.empty() ? "" : ", ") + std::string(file) + " lists " + std::to_string(scene.indices(listed).size()) +
-               " frame(s)";
-    }
-    if (!files.empty()) files = " (" + files + "; split files replace the dataset's own split, and a frame neither lists is in none)";
-    throwInputError(scene.root.string(), 0, std::string("split '") + toString(split) + "' is empty" + files);
+void requireSplit(const Scene& scene, Split split) {
+  if (!scene.indices(split).empty()) return;
+  // An empty split_query.txt was reported as an empty mapping split, naming no split file (an
+  // outside probe): what the files say is named beside it.
+  std::string files;
+  for (const auto& [file, listed] : {std::pair{kMappingSplitFile, Split::kMapping}, {kQuerySplitFile, Split::kQuery}}) {
+    if (!std::filesystem::exists(scene.root / file)) continue;
+    files += (files.empty() ? "" : ", ") + std::string(file) + " lists " + std::to_string(scene.indices(listed).size()) +
+             " frame(s)";
   }
+  if (!files.empty()) files = " (" + files + "; split files replace the dataset's own split, and a frame neither lists is in none)";
+  throwInputError(scene.root.string(), 0, std::string("split '") + toString(split) + "' is empty" + files);
+}
+
+void requireSplits(const Scene& scene) {
+  for (Split split : {Split::kMapping, Split::kQuery}) requireSplit(scene, split);
 }
 
 }  // namespace ffloc

@@ -15,8 +15,11 @@ inline constexpr const char* kQuerySplitFile = "split_query.txt";
 // files, is an InputError naming the split file and line. Returns whether a file was found.
 bool applySplitFiles(Scene& scene);
 
-// Throws InputError "<root>: split 'mapping' is empty" (or 'query') unless the scene has at
-// least one mapping and one query frame. Reading never requires this; evaluation does.
+// Throws InputError "<root>: split 'mapping' is empty" (or 'query'), with what the split files
+// list where there are some, unless the scene has a frame of `split`. Mapping requires it.
+void requireSplit(const Scene& scene, Split split);
+
+// requireSplit for both splits. Reading never requires this; evaluation does.
 void requireSplits(const Scene& scene);
 
 }  // namespace ffloc

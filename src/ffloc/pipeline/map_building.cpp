@@ -6,6 +6,7 @@
 #include "ffloc/core/writer_lock.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/core/file_paths.h"
+#include "ffloc/data/splits.h"
 #include "ffloc/io/map_file.h"
 #include "ffloc/pipeline/fastforward_localizer.h"
 
@@ -77,9 +78,8 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
                         const std::function<LoadedModel()>& load_model) {
   // An append through a link replaced the link with a new map and left the map it named as it was.
   const std::filesystem::path output = followSymlinks(named_output);
+  requireSplit(scene, Split::kMapping);  // as evaluation says it, with what the split files list
   const std::vector<size_t> frames = scene.mappingIndices();
-  if (frames.empty())
-    throwInputError(scene.root.string(), 0, "dataset has no mapping frames (split_mapping.txt or its native split)");
   // Map files store image names as JSON text, which must be UTF-8: refused here, not when the
   // map is written after all the work.
   for (const size_t index : frames) {
