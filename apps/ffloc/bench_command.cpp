@@ -7,6 +7,7 @@
 #include <ATen/Parallel.h>
 #include <torch/version.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -41,7 +42,14 @@ void validate(const BenchModelArguments& args) {
   if (args.warmup < 0 || args.warmup > kMaxBenchRepeats)
     throw InputError("--warmup: must be in [0, " + std::to_string(kMaxBenchRepeats) + "]");
   if (args.dtypes.empty()) throw InputError("--dtype: give at least one of f32, bf16");
-  for (const auto& dtype : args.dtypes) parseNetworkDtype(dtype, "--dtype");
+  // Two spellings of one precision (f32,fp32) timed it twice, as two rows.
+  std::vector<at::ScalarType> precisions;
+  for (const auto& dtype : args.dtypes) {
+    const at::ScalarType precision = parseNetworkDtype(dtype, "--dtype");
+    if (std::find(precisions.begin(), precisions.end(), precision) != precisions.end())
+      throw InputError("--dtype: '" + dtype + "' names a precision given before");
+    precisions.push_back(precision);
+  }
   for (const int64_t count : args.map_tokens) {
     if (count < 1 || count > kMaxBenchMapTokens)
       throw InputError("--features: map token counts must be in [1, " + std::to_string(kMaxBenchMapTokens) + "], got " +

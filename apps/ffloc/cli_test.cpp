@@ -725,7 +725,9 @@ TEST_F(Cli, BenchSizesAndCountsBeyondAnyMeasurementAreRefused) {
   for (const auto& [flags, message] : std::vector<std::pair<std::vector<std::string>, std::string>>{
            {{"--height", "100000"}, "--width/--height: 512x100000 is not a positive multiple of the patch size 16 of at most 4096"},
            {{"--repeats", "1000000000"}, "--repeats: must be in [1, 10000]"},
-           {{"--features", "99999999"}, "--features: map token counts must be in [1, 1000000], got 99999999"}}) {
+           {{"--features", "99999999"}, "--features: map token counts must be in [1, 1000000], got 99999999"},
+           // Two spellings of one precision timed it twice (an outside probe).
+           {{"--dtype", "f32,fp32"}, "--dtype: 'fp32' names a precision given before"}}) {
     std::vector<std::string> arguments = {"bench", "model"};
     arguments.insert(arguments.end(), flags.begin(), flags.end());
     const CliRun run = runCli(arguments);
