@@ -63,7 +63,6 @@ void refuseOptionsNoMapUses(const std::vector<std::string>& flags_given, const M
   }
 }
 
-
 // A stop signal (SIGINT, SIGTERM, SIGHUP) stops the server through a pipe: the handler only
 // writes one byte (all a signal handler may safely do), and a waiting thread reads it and stops
 // the server. Masks would not do, as OpenBLAS starts its threads before main() with nothing
