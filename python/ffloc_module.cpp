@@ -408,8 +408,11 @@ class PyLocalizer {
  public:
   PyLocalizer(Map map, LocalizeOptions options) : map_(std::move(map)), options_(std::move(options)) {}
 
+  // `name` as any object: a wrong type was pybind11's TypeError, not ffloc.Error, and its message
+  // printed the whole image array (an outside probe). None is no name.
   Result localize(const py::handle& image, const py::handle& intrinsics, const py::handle& distortion,
-                  std::string name) const {
+                  const py::handle& name_given) const {
+    std::string name = name_given.is_none() ? "" : optionValue<std::string>(name_given, "name");
     py::object keep;
     const Intrinsics camera = intrinsicsFrom(intrinsics, distortion);
     const cv::Mat rgb = imageFrom(image, keep, name);
@@ -768,7 +771,7 @@ PYBIND11_MODULE(_ffloc, m) {
            "map: a Map or a map file; keyword query options as the CLI's flags (preset, top_k, features, seed, "
            "selection, retrieval, solver, verify, pose_guided)")
       .def("localize", &PyLocalizer::localize, py::arg("image"), py::arg("intrinsics"),
-           py::arg("distortion") = py::none(), py::arg("name") = "",
+           py::arg("distortion") = py::none(), py::arg("name") = py::none(),
            "image: a path or an H x W x 3 uint8 RGB array; intrinsics: 3x3 or (fx, fy, cx, cy)")
       .def_property_readonly("map", &PyLocalizer::map);
 

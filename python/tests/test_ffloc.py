@@ -177,6 +177,14 @@ def test_bad_images_raise_errors_naming_the_image(cli_map, query, image, message
         localizer.localize(image, query.intrinsics)
 
 
+def test_a_name_of_another_type_is_refused_naming_it(cli_map, query):
+    # It was pybind11's TypeError, whose message printed the whole image array.
+    localizer = ffloc.Localizer(str(cli_map), threads=1)
+    with pytest.raises(ffloc.Error, match="name: expected a string, got 5"):
+        localizer.localize(query.image_path, query.intrinsics, name=5)
+    assert localizer.localize(query.image_path, query.intrinsics, name=None).to_dict()["name"] == str(query.image_path)
+
+
 @pytest.mark.parametrize(
     "intrinsics, message",
     [
