@@ -272,6 +272,14 @@ T optionValue(const py::handle& value, const std::string& field) {
   }
 }
 
+// A thread count as the CLI's --threads takes it: any other type was pybind11's TypeError, not
+// ffloc.Error, and named no argument (an outside probe).
+int threadsValue(const py::handle& value) {
+  const int64_t threads = optionValue<int64_t>(value, "threads");
+  if (const std::string problem = threadCountProblem(threads); !problem.empty()) throw InputError("threads: " + problem);
+  return static_cast<int>(threads);
+}
+
 // A seed in the CLI's and the server's range: Python took 2^63 to 2^64 - 1, which they refuse
 // (an outside probe), so a seed written down in one could not be given to the other.
 uint64_t seedValue(const py::handle& value, const std::string& field) {
@@ -456,7 +464,8 @@ PnpOptions pnpOptions(const py::dict& given) {
 
 py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& points3d, const py::handle& intrinsics,
                                const py::object& options, const std::optional<std::pair<int, int>>& image_size,
-                               int threads) {
+                               const py::handle& threads_given) {
+  const int threads = threadsValue(threads_given);
   Correspondences pairs;
   pairs.pixels = pointsFrom<Eigen::Vector2d>(points2d, "points2d");
   pairs.points = pointsFrom<Eigen::Vector3d>(points3d, "points3d");
@@ -621,9 +630,9 @@ PYBIND11_MODULE(_ffloc, m) {
   map_class
       .def_static("load",
                   [](const py::handle& path, const std::optional<std::string>& model,
-                     const std::optional<std::string>& dtype, int threads) {
+                     const std::optional<std::string>& dtype, const py::handle& threads) {
                     return loadMapRefusingIgnoredSettings(pathArgument(path, "path", "a map file path"), model,
-                                                          dtype, threads);
+                                                          dtype, threadsValue(threads));
                   },
                   py::arg("path"), py::arg("model") = py::none(), py::arg("dtype") = py::none(),
                   py::arg("threads") = 0, "Opens a map from 'ffloc map' (model: for fastforward maps)")
@@ -667,7 +676,9 @@ PYBIND11_MODULE(_ffloc, m) {
       "build_map",
       [](const py::handle& scene_or_path, const py::handle& out_argument, const std::string& method, const py::object& model,
          const py::object& dtype, bool append, const py::object& use_depth, const py::object& max_image_size,
-         const py::object& max_features, const py::object& vlad, int threads, const std::string& format, bool quiet) {
+         const py::object& max_features, const py::object& vlad, const py::handle& threads_given,
+         const std::string& format, bool quiet) {
+        const int threads = threadsValue(threads_given);
         const std::string out = pathArgument(out_argument, "out", "a map file path");
         MapBuildOptions options;
         options.method = parseLocalizationMethod(method);
@@ -744,7 +755,9 @@ PYBIND11_MODULE(_ffloc, m) {
   refuseEmptyNew(localizer_class, MadeBy::kConstructor, "ffloc.Localizer(map) makes one");
   localizer_class
       .def(py::init([](const py::handle& map, const std::optional<std::string>& model,
-                       const std::optional<std::string>& dtype, int threads, const py::kwargs& kwargs) {
+                       const std::optional<std::string>& dtype, const py::handle& threads_given,
+                       const py::kwargs& kwargs) {
+             const int threads = threadsValue(threads_given);
              std::vector<std::string> unused;
              const LocalizeOptions options = localizeOptions(querySettings(kwargs, unused));
              refuseUnknown(unused, "Localizer");
@@ -784,8 +797,9 @@ PYBIND11_MODULE(_ffloc, m) {
   m.def(
       "evaluate",
       [](const py::handle& dataset, const py::handle& method_names, const py::object& max_queries,
-         const py::object& use_depth, const py::object& model, const py::object& dtype, int threads,
+         const py::object& use_depth, const py::object& model, const py::object& dtype, const py::handle& threads_given,
          const std::string& format, bool quiet, const py::kwargs& kwargs) {
+        const int threads = threadsValue(threads_given);
         std::vector<std::string> unused;
         const LocalizeOptions localize = localizeOptions(querySettings(kwargs, unused));
         refuseUnknown(unused, "evaluate");

@@ -268,6 +268,11 @@ def test_queries_from_several_threads_give_the_poses_of_serial_queries(cli, scen
     assert mismatches == []
     with pytest.raises(ffloc.Error, match="threads: must be 0"):
         ffloc.Localizer(shared.map, threads=999)
+    # Another type was pybind11's TypeError, naming no argument (an outside probe).
+    with pytest.raises(ffloc.Error, match="threads: expected an integer, got 1.5"):
+        ffloc.Localizer(shared.map, threads=1.5)
+    with pytest.raises(ffloc.Error, match="threads: expected an integer, got '2'"):
+        ffloc.evaluate("unused", threads="2")
 
 
 def test_paths_whose_bytes_are_not_utf8_work_as_python_gives_them(scene_dir, query, tmp_path):
