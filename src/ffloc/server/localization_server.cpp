@@ -240,19 +240,19 @@ Refusal postRefusal(const httplib::Request& request, size_t max_body_bytes) {
             "image/png or application/octet-stream (curl: -H 'Content-Type: image/jpeg' --data-binary @query.jpg), "
             "or as the 'image' part of a multipart form (curl: -F image=@query.jpg)"};
   }
-  // The HTTP library parses a form only when its type and boundary are written in lower case: any
-  // other spelling passed here and the form was read as an image ("fx: missing").
-  if (starts("multipart/form-data") &&
-      (type.rfind("multipart/form-data", 0) != 0 || type.find("boundary=") == std::string::npos)) {
-    return {415, "Content-Type '" + escapeControlCharacters(cutText(type, kMaxLoggedNameBytes)) +
-                     "': write it 'multipart/form-data; boundary=...', in lower case and with its boundary, the "
-                     "only spelling the HTTP library reads as a form"};
-  }
-  // The library takes all that follows 'boundary=' for the boundary: '; charset=utf-8' after it
-  // made every part unreadable, refused as a malformed request.
-  if (starts("multipart/form-data") && type.find(';', type.find("boundary=")) != std::string::npos) {
-    return {415, "Content-Type '" + escapeControlCharacters(cutText(type, kMaxLoggedNameBytes)) +
-                     "': put boundary=... last, the only place the HTTP library reads it from"};
+  if (starts("multipart/form-data")) {
+    const std::string shown = "Content-Type '" + escapeControlCharacters(cutText(type, kMaxLoggedNameBytes)) + "': ";
+    // The HTTP library parses a form only when its type and boundary are written in lower case:
+    // any other spelling passed here and the form was read as an image ("fx: missing").
+    const size_t boundary = type.find("boundary=");
+    if (type.rfind("multipart/form-data", 0) != 0 || boundary == std::string::npos) {
+      return {415, shown + "write it 'multipart/form-data; boundary=...', in lower case and with its boundary, the "
+                           "only spelling the HTTP library reads as a form"};
+    }
+    // The library takes all that follows 'boundary=' for the boundary: '; charset=utf-8' after it
+    // made every part unreadable, refused as a malformed request.
+    if (type.find(';', boundary) != std::string::npos)
+      return {415, shown + "put boundary=... last, the only place the HTTP library reads it from"};
   }
   if (!type.empty() && !starts("image/") && !starts("application/octet-stream") && !starts("multipart/form-data")) {
     return {415, "Content-Type '" + type +
