@@ -72,7 +72,6 @@ double requiredNumber(const std::map<std::string, std::string>& fields, const st
   return parseFiniteNumber(field, it->second);
 }
 
-
 std::string pixelLimitError(const cv::Size& size, size_t max_image_pixels) {
   return "image: " + std::to_string(size.width) + "x" + std::to_string(size.height) + " is more than the " +
          std::to_string(max_image_pixels) + " pixels this server accepts";
