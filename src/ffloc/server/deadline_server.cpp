@@ -262,6 +262,23 @@ void closeLeavingUnreadBody(socket_t socket, const std::atomic<socket_t>& server
 
 }  // namespace
 
+DeadlineServer::DeadlineServer(std::chrono::milliseconds headers, std::chrono::milliseconds body)
+    : header_deadline_(headers), body_deadline_(body) {
+  // Runs after the library has added its own connection headers, which contradicted ours: an
+  // answer that closes the connection also said `Keep-Alive: timeout=5, max=5` (and
+  // `Connection: close` twice when the client asked for it too), and HEAD answers said
+  // `Accept-Ranges: bytes` of a server that ignores Range.
+  set_post_routing_handler([](const httplib::Request&, httplib::Response& response) {
+    if (response.get_header_value("Connection") == "close") {
+      response.headers.erase("Connection");
+      response.headers.erase("Keep-Alive");
+      response.set_header("Connection", "close");
+    }
+    response.headers.erase("Accept-Ranges");
+    response.set_header("Accept-Ranges", "none");
+  });
+}
+
 void DeadlineServer::setConnectionLimits(size_t threads, size_t max_pending) {
   new_task_queue = [threads, max_pending] { return new BoundedConnectionPool(threads, max_pending); };
 }

@@ -23,8 +23,7 @@ class DeadlineServer : public httplib::Server {
  public:
   // `headers`: from a request's first byte to its blank line; `body`: from there to the body's
   // last byte.
-  DeadlineServer(std::chrono::milliseconds headers, std::chrono::milliseconds body)
-      : header_deadline_(headers), body_deadline_(body) {}
+  DeadlineServer(std::chrono::milliseconds headers, std::chrono::milliseconds body);
 
   // Serves connections on `threads` threads with at most `max_pending` accepted connections
   // waiting for one: beyond them a connection is answered 503 at once, on the accepting thread,

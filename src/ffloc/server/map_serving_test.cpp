@@ -452,6 +452,32 @@ TEST_F(MapServing, RangesAreIgnoredAndEveryAnswerIsWhole) {
             "Range: 'items=0-1' is no byte range; this server sends whole answers, so send no Range header");
 }
 
+// The library's own connection headers contradicted the server's: a refusal that closes the
+// connection also offered `Keep-Alive`, `Connection: close` came twice when the client had asked
+// for it too, and HEAD answers offered byte ranges the server ignores.
+TEST_F(MapServing, ConnectionHeadersSayWhatTheServerDoes) {
+  const auto count = [](const std::string& answer, const std::string& header) {
+    size_t found = 0;
+    for (size_t at = answer.find(header); at != std::string::npos; at = answer.find(header, at + 1)) ++found;
+    return found;
+  };
+  const std::string head = testing::rawExchange(port_, "HEAD / HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+  EXPECT_EQ(head.rfind("HTTP/1.1 200", 0), 0u) << head;
+  EXPECT_EQ(count(head, "Accept-Ranges: none\r\n"), 1u) << head;
+  EXPECT_EQ(count(head, "Accept-Ranges:"), 1u) << head;
+  const std::string refused = testing::rawExchange(
+      port_, "POST " + localizePath("kitchen") + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\nContent-Length: 5\r\n\r\n");
+  EXPECT_EQ(refused.rfind("HTTP/1.1 401", 0), 0u) << refused;
+  EXPECT_EQ(count(refused, "Connection: close\r\n"), 1u) << refused;
+  EXPECT_EQ(count(refused, "Keep-Alive:"), 0u) << refused;
+  httplib::Client keeping = client();
+  keeping.set_keep_alive(true);
+  const auto kept = keeping.Get("/health");
+  ASSERT_TRUE(kept);
+  EXPECT_FALSE(kept->get_header_value("Keep-Alive").empty());
+  EXPECT_EQ(kept->get_header_value("Connection"), "");
+}
+
 TEST_F(MapServing, TheSceneHoldsTheCamerasPointsAndTheLastAnswers) {
   const auto empty = client(kKitchenKey).Get("/maps/kitchen/scene");
   ASSERT_TRUE(empty);
