@@ -522,6 +522,14 @@ TEST_F(Cli, EvalWarnsWhenTheMapIsOfAnotherCapture) {
   EXPECT_TRUE(contains(no_depth.output, "error: --no-depth: the map's was set when 'ffloc map' built it; only classical "
                                         "built in memory (--methods classical) uses it here"))
       << no_depth.output;
+  // PnP's study settings changed the map's row, which 'ffloc localize' could then not reproduce
+  // (an outside review).
+  const CliRun threshold =
+      runCli({"eval", "--dataset", scene.string(), "--map", map.string(), "--inlier-threshold", "2"});
+  EXPECT_EQ(threshold.exit_code, 2) << threshold.output;
+  EXPECT_TRUE(contains(threshold.output, "error: --inlier-threshold: 'ffloc localize' does not take it, so the map's "
+                                         "row would not be what it answers"))
+      << threshold.output;
   // Seed 4: the same frame names, other poses.
   const fs::path other = dir_ / "other";
   ASSERT_EQ(runCli({"synth", "--out", other.string(), "--seed", "4", "--mapping-frames", "6", "--query-frames", "1",

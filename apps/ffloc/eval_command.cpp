@@ -57,6 +57,7 @@ struct EvalArguments {
   std::string map_path;
   std::vector<std::string> method_flags_given;
   std::vector<std::string> evaluation_flags_given;
+  std::vector<std::string> study_only_pnp_flags_given;
   std::string poses_path, ply_path;
   bool no_depth = false;
   std::string protocol;
@@ -214,6 +215,12 @@ int runEval(const EvalArguments& args) {
     if (const std::string problem = settingNoMethodUsesProblem(evaluated, methodSettingOfFlag().at(flag));
         !problem.empty())
       throw InputError(flag + ": " + problem);
+  // A saved map's row is what 'ffloc localize' would answer; with these it answered what no
+  // deployment can (an outside review tuned --inlier-threshold on a map's row).
+  if (!args.map_path.empty() && !args.study_only_pnp_flags_given.empty())
+    throw InputError(args.study_only_pnp_flags_given.front() +
+                     ": 'ffloc localize' does not take it, so the map's row would not be what it answers; study it "
+                     "on methods built in memory (--methods, without --map)");
   for (const std::string& flag : args.evaluation_flags_given) {
     const std::string& method = evaluationMethodOfFlag().at(flag);
     if (std::find(methods.begin(), methods.end(), method) != methods.end()) continue;
@@ -478,6 +485,10 @@ void registerEvalCommand(CLI::App& app, CommandRun& run) {
   cmd->callback([args, cmd, &run] {
     args->method_flags_given = flagsGiven(*cmd, methodSettingOfFlag());
     args->evaluation_flags_given = flagsGiven(*cmd, evaluationMethodOfFlag());
+    // PnP's settings that evaluation studies and 'ffloc localize' does not take.
+    for (const char* flag : {"--inlier-threshold", "--confidence-threshold", "--max-correspondences",
+                             "--min-correspondences"})
+      if (cmd->get_option(flag)->count() > 0) args->study_only_pnp_flags_given.push_back(flag);
     run = [args] { return runEval(*args); };
   });
 }
