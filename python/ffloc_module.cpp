@@ -846,7 +846,7 @@ PYBIND11_MODULE(_ffloc, m) {
           const auto pools = leasePools(threads);
           for (const std::string& method : methods) summaries.push_back(summarize(evaluateMethod(scene, method, options)));
         }
-        return toPython(summaryJson(summaries));
+        return toPython(summaryJson(summaries, scene.metric ? std::vector<std::string>{} : std::vector{scene.name}));
       },
       py::arg("dataset"), py::arg("methods") = "classical", py::arg("max_queries") = 0,
       py::arg("use_depth") = py::none(), py::arg("model") = py::none(), py::arg("dtype") = py::none(),

@@ -367,7 +367,7 @@ int runEval(const EvalArguments& args) {
   std::cerr << protocol_text;
   const auto [csv_path, markdown_path] = tableOutputs(args);
   if (!args.json_path.empty()) {
-    nlohmann::json summary = summaryJson(summaries);
+    nlohmann::json summary = summaryJson(summaries, non_metric);
     if (!args.protocol.empty()) {
       const BenchmarkProtocol& protocol = benchmarkProtocol(args.protocol);
       summary["protocol"] = {{"name", protocol.name},

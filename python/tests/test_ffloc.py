@@ -511,6 +511,7 @@ def test_evaluate_gives_the_summary_the_cli_writes(scene_dir, cli, tmp_path):
     assert len(from_python["results"]) == 2
     for ours, theirs in zip(from_python["results"], from_cli["results"]):
         assert set(ours) == set(theirs)
+        assert ours["metric"] is True  # a synthetic scene is in metres
         # Latency is measured, so it differs from run to run; everything else is equal.
         ours.pop("latency_ms")
         theirs.pop("latency_ms")

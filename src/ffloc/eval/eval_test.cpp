@@ -79,6 +79,9 @@ TEST(Report, SummaryJsonFollowsTheFixedSchema) {
   EXPECT_EQ(r["frames"], 3);
   EXPECT_EQ(r["failed"], 2);
   EXPECT_NEAR(r["acc"]["5cm_5deg"].get<double>(), 100.0 / 3.0, 1e-9);
+  EXPECT_EQ(r["metric"], true);
+  // A dataset of arbitrary scale says so: its "5cm_5deg" is in its own units (an outside review).
+  EXPECT_EQ(summaryJson({s}, {s.dataset})["results"][0]["metric"], false);
 }
 
 TEST(Report, CsvHasOneRowPerFrame) {

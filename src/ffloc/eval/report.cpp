@@ -23,13 +23,14 @@ std::string formatNumber(double value, int digits) {
 
 }  // namespace
 
-nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries) {
+nlohmann::json summaryJson(const std::vector<MethodSummary>& summaries, const std::vector<std::string>& non_metric) {
   nlohmann::json results = nlohmann::json::array();
   for (const MethodSummary& s : summaries) {
     nlohmann::json acc;
     for (size_t k = 0; k < accuracyThresholds().size(); ++k) acc[accuracyThresholds()[k].key] = s.accuracy_percent[k];
     results.push_back({{"dataset", s.dataset},
                        {"method", s.method},
+                       {"metric", std::find(non_metric.begin(), non_metric.end(), s.dataset) == non_metric.end()},
                        {"frames", s.frames},
                        {"failed", s.failed},
                        {"median_t", finiteOrNull(s.median_translation)},
