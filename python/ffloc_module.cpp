@@ -534,6 +534,7 @@ py::dict reportDict(const MapBuildReport& report) {
   out["images"] = report.images;
   out["previous_images"] = report.previous_images;
   out["added"] = report.added;
+  out["every_frame"] = report.every_frame;
   out["skipped_duplicates"] = report.skipped_duplicates;
   out["skipped_featureless"] = report.featureless.size();
   out["featureless_images"] = report.featureless;
@@ -717,7 +718,8 @@ PYBIND11_MODULE(_ffloc, m) {
       py::arg("dtype") = py::none(), py::arg("append") = false, py::arg("use_depth") = py::none(),
       py::arg("max_image_size") = py::none(), py::arg("max_features") = py::none(), py::arg("vlad") = py::none(),
       py::arg("threads") = 0, py::arg("format") = "auto", py::arg("quiet") = true,
-      "Maps the scene's mapping split into the file `out` (as 'ffloc map') and opens it");
+      "Maps the scene's mapping split (every frame of a scene without a split) into the file `out` "
+      "(as 'ffloc map') and opens it");
 
   py::class_<Result> result_class(m, "Result", "One query's answer");
   refuseEmptyNew(result_class, MadeBy::kLibrary, "Localizer.localize returns one");

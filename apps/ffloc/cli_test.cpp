@@ -558,6 +558,27 @@ TEST_F(Cli, MapSaysHowManyPointsCameFromDepth) {
   }
 }
 
+// A dataset without any split (a COLMAP model, a SLAM export) could not be mapped at all: "split
+// 'mapping' is empty", with no flag to choose frames (an outside review). It is mapped whole; a
+// split file, even an empty one, still decides.
+TEST_F(Cli, MapTakesEveryFrameOfADatasetWithoutASplit) {
+  const auto [scene, map] = mappedSyntheticScene(6, "classical");
+  ASSERT_FALSE(HasFailure());
+  nlohmann::json manifest = nlohmann::json::parse(std::ifstream(scene / "manifest.json"));
+  for (nlohmann::json& frame : manifest["frames"]) frame.erase("split");
+  std::ofstream(scene / "manifest.json") << manifest.dump();
+  const fs::path whole = dir_ / "whole.ffmap";
+  const CliRun run = runCli({"map", "--dataset", scene.string(), "-o", whole.string(), "--quiet"});
+  ASSERT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_TRUE(contains(run.output, "note: " + scene.string() + " has no split, so every frame was mapped")) << run.output;
+  EXPECT_TRUE(contains(run.output, "mapped 7 images")) << run.output;  // the 6 mapping frames and the query
+  std::ofstream(scene / "split_mapping.txt").flush();
+  const CliRun listed_none = runCli({"map", "--dataset", scene.string(), "-o", (dir_ / "none.ffmap").string()});
+  EXPECT_EQ(listed_none.exit_code, 2) << listed_none.output;
+  EXPECT_TRUE(contains(listed_none.output, "split 'mapping' is empty (split_mapping.txt lists 0 frame(s)"))
+      << listed_none.output;
+}
+
 // The .md of an --protocol run held the table alone, where the terminal also printed the protocol;
 // a dataset that is not 7-Scenes lost most of its mapping frames to its thinning, said without why
 // (found by an outside probe).

@@ -12,6 +12,7 @@
 #include "ffloc/core/error.h"
 #include "ffloc/core/threads.h"
 #include "ffloc/data/dataset.h"
+#include "ffloc/data/splits.h"
 #include "ffloc/pipeline/map_building.h"
 
 namespace ffloc::cli {
@@ -57,6 +58,9 @@ int runMap(const MapArguments& args) {
   options.fastforward.vlad = args.vlad;
   const Scene scene = loadDataset(args.dataset, args.format);
   const MapBuildReport report = buildMap(scene, args.output, options, [&] { return loadCommandModel(args.model); });
+  if (report.every_frame)
+    std::cerr << "note: " << args.dataset << " has no split, so every frame was mapped (" << kMappingSplitFile
+              << " in its folder chooses them)\n";
   if (report.previous_images > 0)
     std::cerr << "appended to " << args.output << " (" << report.previous_images << " images before)\n";
   if (options.method == LocalizationMethod::kClassical) {
@@ -92,11 +96,12 @@ void registerMapCommand(CLI::App& app, CommandRun& run) {
   auto args = std::make_shared<MapArguments>();
   CLI::App* cmd = app.add_subcommand(
       "map",
-      "Build a map of a dataset's mapping split, in one versioned, checksummed file. classical (the default): SIFT "
-      "keypoints and descriptors, links between the images, a 3D point per keypoint (lifted with the frame's depth "
-      "where it has depth, triangulated elsewhere), a VLAD vocabulary. fastforward (experimental): encoder tokens "
-      "(fp16) and global descriptors of every image for the network.");
-  cmd->add_option("--dataset", args->dataset, "Dataset folder (its mapping split is mapped)")
+      "Build a map of a dataset's mapping split (every frame where the dataset has no split), in one versioned, "
+      "checksummed file. classical (the default): SIFT keypoints and descriptors, links between the images, a 3D "
+      "point per keypoint (lifted with the frame's depth where it has depth, triangulated elsewhere), a VLAD "
+      "vocabulary. fastforward (experimental): encoder tokens (fp16) and global descriptors of every image for the "
+      "network.");
+  cmd->add_option("--dataset", args->dataset, "Dataset folder (its mapping split is mapped, or every frame where it has no split)")
       ->required()
       ->check(nonEmptyPath());
   cmd->add_option("--format", args->format, "Dataset format (auto detects)")->capture_default_str();

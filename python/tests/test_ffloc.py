@@ -68,6 +68,7 @@ def test_build_map_writes_the_map_the_cli_writes(scene_dir, cli_map, tmp_path):
     # Every mapping frame of the synthetic scene has depth: every point is lifted from it.
     assert built.build_report["points_from_depth"] == built.build_report["points"] > 0
     assert built.build_report["featureless_images"] == [] and built.build_report["skipped_featureless"] == 0
+    assert built.build_report["every_frame"] is False  # the scene has its split
     triangulated = ffloc.build_map(str(scene_dir), out=str(tmp_path / "nd.ffmap"), use_depth=False, threads=1)
     assert triangulated.build_report["points_from_depth"] == 0 < triangulated.build_report["points"]
     assert built.points(100).shape[1] == 3 and len(built.points(100)) <= 100

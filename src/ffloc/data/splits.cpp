@@ -55,6 +55,13 @@ void requireSplit(const Scene& scene, Split split) {
   throwInputError(scene.root.string(), 0, std::string("split '") + toString(split) + "' is empty" + files);
 }
 
+bool hasNoSplit(const Scene& scene) {
+  if (scene.frames.empty() || !scene.mappingIndices().empty() || !scene.queryIndices().empty()) return false;
+  for (const char* file : {kMappingSplitFile, kQuerySplitFile})
+    if (std::filesystem::exists(scene.root / file)) return false;
+  return true;
+}
+
 void requireSplits(const Scene& scene) {
   for (Split split : {Split::kMapping, Split::kQuery}) requireSplit(scene, split);
 }

@@ -19,6 +19,10 @@ bool applySplitFiles(Scene& scene);
 // list where there are some, unless the scene has a frame of `split`. Mapping requires it.
 void requireSplit(const Scene& scene, Split split);
 
+// Whether the scene has no split at all: frames, none of them in a split, and no split file. A
+// COLMAP model or a SLAM export has none; a map of it holds every frame.
+bool hasNoSplit(const Scene& scene);
+
 // requireSplit for both splits. Reading never requires this; evaluation does.
 void requireSplits(const Scene& scene);
 

@@ -78,8 +78,13 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
                         const std::function<LoadedModel()>& load_model) {
   // An append through a link replaced the link with a new map and left the map it named as it was.
   const std::filesystem::path output = followSymlinks(named_output);
-  requireSplit(scene, Split::kMapping);  // as evaluation says it, with what the split files list
-  const std::vector<size_t> frames = scene.mappingIndices();
+  // A COLMAP model or a SLAM export has no split, and its user's first command maps all of it
+  // (an outside review found no way to, short of converting and editing the copy).
+  const bool every_frame = hasNoSplit(scene);
+  if (!every_frame) requireSplit(scene, Split::kMapping);  // as evaluation says it, with what the split files list
+  std::vector<size_t> frames = scene.mappingIndices();
+  if (every_frame)
+    for (size_t i = 0; i < scene.frames.size(); ++i) frames.push_back(i);
   // Map files store image names as JSON text, which must be UTF-8: refused here, not when the
   // map is written after all the work.
   for (const size_t index : frames) {
@@ -110,6 +115,7 @@ MapBuildReport buildMap(const Scene& scene, const std::filesystem::path& named_o
   });
   const bool append = checkOutput();
   MapBuildReport report;
+  report.every_frame = every_frame;
   if (options.method == LocalizationMethod::kClassical) {
     ClassicalMap map = emptyClassicalMap(scene.metric, options.classical);
     if (append) {

@@ -45,9 +45,10 @@ struct MapBuildReport {
   size_t links = 0;                // classical
   size_t added_without_points = 0;  // fastforward: MappingReport's
   double seconds = 0;
+  bool every_frame = false;  // the scene has no split (hasNoSplit), so every frame was mapped
 };
 
-// Maps scene.mappingIndices() and writes the map to `output` atomically. `load_model` runs only
+// Maps scene.mappingIndices(), or every frame of a scene without a split, and writes the map to `output` atomically. `load_model` runs only
 // for FastForward. InputError naming the dataset when it has no mapping frame, naming the
 // output when appending to a map that is missing or of another method, or when it exists and is
 // not a map (only maps are replaced). An output that is a symbolic link writes (and appends to) the map it points to.
