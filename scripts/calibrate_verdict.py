@@ -64,6 +64,8 @@ def load(directory):
                         "focal_aspect", "focal_aspect_log_sigma", "focal_scan_factor", "focal_scan_inlier_gain"):
                 row[key] = number(row.get(key, "inf"))
             row["inliers"] = int(row["inliers"])
+            # PnP's outcome; CSVs written before 5 Dec 2026 named the column status.
+            row["pnp_status"] = row.get("pnp_status", row.get("status"))
             frames.append(row)
     return frames
 
@@ -176,14 +178,14 @@ def passes_agreement(row, rule):
 
 
 def localized(row, rule):
-    return (row["status"] == "success" and all(test(row, rule) for test in TESTS.values())
+    return (row["pnp_status"] == "success" and all(test(row, rule) for test in TESTS.values())
             and passes_agreement(row, rule))
 
 
 def score(frames, rule):
     marked = [f for f in frames if localized(f, rule)]
     good = sum(f["correct"] for f in marked)
-    correct = sum(f["correct"] for f in frames if f["status"] == "success")
+    correct = sum(f["correct"] for f in frames if f["pnp_status"] == "success")
     return len(marked), good, correct
 
 
@@ -250,7 +252,7 @@ def search(frames, noises=PIXEL_NOISES, grid=GRID, agreements=AGREEMENTS):
 
     Frames are the bits of an int, so that a rule's `localized` set is the AND of one mask per
     setting."""
-    frames = [f for f in frames if f["group"] in TUNING_SETS and f["status"] == "success"]
+    frames = [f for f in frames if f["group"] in TUNING_SETS and f["pnp_status"] == "success"]
 
     def mask(keep):
         return sum(1 << i for i, f in enumerate(frames) if keep(f))

@@ -102,6 +102,8 @@ TEST(Report, CsvHasOneRowPerFrame) {
   // The predicted uncertainty and the intrinsics fits, the last evidence columns, as
   // scripts/calibrate_verdict.py reads them.
   const std::string header = csv.substr(0, csv.find('\n'));
+  // PnP's outcome is not the verdict, and is not named status, as the verdict is everywhere else.
+  EXPECT_EQ(header.rfind("dataset,method,frame,pnp_status,", 0), 0u) << header;
   // The pose is camera-to-world, and named so.
   EXPECT_NE(header.find(",c2w_qw,c2w_qx,c2w_qy,c2w_qz,c2w_tx,c2w_ty,c2w_tz,"), std::string::npos) << header;
   EXPECT_NE(header.find(",predicted_centre_sigma,predicted_centre_sigma_relative,predicted_rotation_sigma_deg,"

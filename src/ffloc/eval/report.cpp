@@ -117,7 +117,9 @@ std::string perFrameCsv(const std::vector<FrameResult>& frames) {
   out.precision(9);
   // The pose camera-to-world, the project's convention: named qw..tz, the columns were read as the
   // world-to-camera pose --poses, the JSON and Python give under those names (an outside probe).
-  out << "dataset,method,frame,status,translation_error,rotation_error_deg,correspondences,inliers,"
+  // PnP's outcome is pnp_status: named status, it read "success" beside the verdict `uncertain` of
+  // a pose 49 deg off, where status means the verdict everywhere else (an outside review).
+  out << "dataset,method,frame,pnp_status,translation_error,rotation_error_deg,correspondences,inliers,"
          "source_ms,pnp_ms,c2w_qw,c2w_qx,c2w_qy,c2w_qz,c2w_tx,c2w_ty,c2w_tz,verdict,inlier_ratio,inlier_spread,agreement_translation,"
          "agreement_rotation_deg,agreement_distance,residual_sigma_px,predicted_centre_sigma,"
          "predicted_centre_sigma_relative,predicted_rotation_sigma_deg,focal_scale,focal_scale_log_sigma,"
