@@ -153,8 +153,14 @@ int runServe(const ServeArguments& args) {
   };
   MapCatalog catalog(std::move(sources), open);
   catalog.setLog([](const std::string& line) { std::cerr << line << "\n"; });
-  std::cerr << "K = " << options.localize.top_k << ", N = " << options.localize.num_features
-            << " (FastForward maps) unless a request says\n";
+  bool fastforward_served = false;
+  for (const std::string& name : catalog.names())
+    if (const std::shared_ptr<const ServedMap> map = catalog.get(name))
+      fastforward_served = fastforward_served || map->localizer->method() == LocalizationMethod::kFastForward;
+  // N was announced on a server of classical maps alone, which never read it (an outside review).
+  std::cerr << "K = " << options.localize.top_k;
+  if (fastforward_served) std::cerr << ", N = " << options.localize.num_features << " (FastForward maps)";
+  std::cerr << " unless a request says\n";
   refuseOptionsNoMapUses(args.method_flags_given, catalog);
   if (!args.keys_path.empty()) options.keys = ApiKeys::read(args.keys_path, catalog.names());
 

@@ -1,6 +1,7 @@
 #pragma once
 
 #include <chrono>
+#include <string>
 
 namespace ffloc {
 
@@ -8,5 +9,8 @@ namespace ffloc {
 inline double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
+
+// `time` in UTC as ISO 8601 to the millisecond, "2026-12-05T09:20:01.123Z": a log line's stamp.
+std::string utcTimestamp(std::chrono::system_clock::time_point time);
 
 }  // namespace ffloc

@@ -14,6 +14,7 @@
 #include <mutex>
 #include <sstream>
 #include <opencv2/imgcodecs.hpp>
+#include <regex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -412,6 +413,10 @@ TEST_F(ConnectionTest, QueryOfAClientThatLeftWhileItRanStopsAtTheNextStage) {
   stop();
   EXPECT_NE(log.str().find("POST /localize 499 client closed the connection while its query ran; stopped before PnP"),
             std::string::npos)
+      << log.str();
+  // Each line starts with when (UTC) and from whom (an outside review could match no line).
+  EXPECT_TRUE(std::regex_search(
+      log.str(), std::regex(R"((^|\n)20[0-9]{2}-[0-9]{2}-[0-9]{2}T[0-9]{2}:[0-9]{2}:[0-9]{2}\.[0-9]{3}Z 127\.0\.0\.1 POST /localize 499 )")))
       << log.str();
 }
 

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/allocator.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
 #include "ffloc/core/utf8.h"
 #include "ffloc/io/json_fields.h"
@@ -371,10 +372,12 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     setsockopt(socket, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
   });
 
-  // One line a request: its method, its path and what came of it.
+  // One line a request: when (UTC), from whom, its method, its path and what came of it. Without
+  // the first two no line could be matched with a client's or a proxy's log (an outside review).
   auto log = [this](const httplib::Request& request, const std::string& outcome) {
     if (!options_.log) return;
-    const std::string line = request.method + " " + cutText(request.path, kMaxLoggedNameBytes) + " " + outcome;
+    const std::string line = utcTimestamp(std::chrono::system_clock::now()) + " " + request.remote_addr + " " +
+                             request.method + " " + cutText(request.path, kMaxLoggedNameBytes) + " " + outcome;
     std::lock_guard<std::mutex> lock(http_->log_mutex);
     *options_.log << escapeControlCharacters(line) << std::endl;
   };
@@ -475,10 +478,13 @@ LocalizationServer::LocalizationServer(const MapCatalog& maps, ServerOptions opt
     body["names"] = names;
     body["metric"] = localizer.metric();
     body["model_id"] = localizer.modelId();
-    body["defaults"] = {{"top_k", options_.localize.top_k},
-                        {"features", options_.localize.num_features},
-                        {"seed", options_.localize.seed},
-                        {"selection", toString(options_.localize.selection)}};
+    // Only what this map's method reads: a classical map listed FastForward's features and
+    // selection (an outside review).
+    nlohmann::json defaults = {{"top_k", options_.localize.top_k}, {"seed", options_.localize.seed}};
+    if (methodUsesSetting(localizer.method(), "features")) defaults["features"] = options_.localize.num_features;
+    if (methodUsesSetting(localizer.method(), "selection"))
+      defaults["selection"] = toString(options_.localize.selection);
+    body["defaults"] = defaults;
     response.set_content(jsonText(body), kJson);
     log(request, "200");
   };

@@ -452,6 +452,14 @@ TEST_F(MapServing, RangesAreIgnoredAndEveryAnswerIsWhole) {
             "Range: 'items=0-1' is no byte range; this server sends whole answers, so send no Range header");
 }
 
+// A classical map's description listed FastForward's defaults too (an outside review).
+TEST_F(MapServing, AMapsDefaultsAreThoseItsMethodReads) {
+  const nlohmann::json described = body(client(kEveryMapKey).Get("/maps/kitchen"));
+  ASSERT_EQ(described["method"], "classical") << described;
+  EXPECT_EQ(described["defaults"], (nlohmann::json{{"top_k", ServerOptions().localize.top_k}, {"seed", 0}}))
+      << described;
+}
+
 // The library's own connection headers contradicted the server's: a refusal that closes the
 // connection also offered `Keep-Alive`, `Connection: close` came twice when the client had asked
 // for it too, and HEAD answers offered byte ranges the server ignores.

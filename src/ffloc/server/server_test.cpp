@@ -359,6 +359,7 @@ TEST_F(ServerTest, HealthAndMapDescribeWhatIsServed) {
   EXPECT_EQ(body(map)["names"][0], localizer_->cameras()[0].name);
   EXPECT_EQ(body(map)["model_id"], model_->id);
   EXPECT_EQ(body(map)["defaults"]["top_k"], 4);
+  EXPECT_TRUE(body(map)["defaults"].contains("features"));  // a FastForward map reads N
 }
 
 TEST_F(ServerTest, LocalizeAnswersWhatTheLibraryComputes) {
