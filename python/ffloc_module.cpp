@@ -747,6 +747,15 @@ PYBIND11_MODULE(_ffloc, m) {
       .def_property_readonly("inliers", [](const Result& r) { return r.answer["inliers"].get<int>(); })
       .def_property_readonly("selected", [](const Result& r) { return selectedNames(r); })
       .def_property_readonly("timings", [](const Result& r) { return toPython(r.answer["timings_ms"]); }, "milliseconds per stage")
+      // Reachable only through to_dict() before (an outside review).
+      .def_property_readonly(
+          "evidence",
+          [](const Result& r) -> py::object {
+            const auto found = r.answer.find("evidence");
+            return found == r.answer.end() || found->is_null() ? py::none() : toPython(*found);
+          },
+          "what the verdict judged (docs/verdict.md): inlier ratio and spread, the second estimate's agreement, the "
+          "predicted uncertainty, the intrinsics fits; None without a pose")
       .def("to_dict", [](const Result& r) { return answerDict(r); }, "What 'ffloc localize --json' prints")
       .def("__repr__", [](const Result& r) {
         return "<ffloc.Result " + r.answer["status"].get<std::string>() + ", " +

@@ -106,6 +106,7 @@ def test_the_same_query_through_python_and_the_cli_gives_identical_poses(cli_map
     assert without_timings(result.to_dict()) == without_timings(cli_answer)
     assert result.inliers == cli_answer["inliers"]
     assert set(result.timings) >= {"features", "pnp", "total"}
+    assert result.evidence == cli_answer["evidence"] and "inlier_spread" in result.evidence
 
 
 def test_an_array_and_four_numbers_give_the_pose_of_the_path_and_matrix(cli_map, query, cli_answer):
