@@ -19,6 +19,7 @@
 #include <torch/cuda.h>
 
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 #include "ffloc/core/stop_signals.h"
 #include "ffloc/core/testing/child_process.h"
 #include "ffloc/core/testing/shared_data.h"
@@ -572,6 +573,13 @@ TEST_F(Cli, MapTakesEveryFrameOfADatasetWithoutASplit) {
   ASSERT_EQ(run.exit_code, 0) << run.output;
   EXPECT_TRUE(contains(run.output, "note: " + scene.string() + " has no split, so every frame was mapped")) << run.output;
   EXPECT_TRUE(contains(run.output, "mapped 7 images")) << run.output;  // the 6 mapping frames and the query
+  // The intrinsics the images were given, for queries of the same camera (an outside review).
+  const nlohmann::json& camera = manifest["cameras"].begin().value();
+  EXPECT_TRUE(contains(run.output, "intrinsics of the mapping images: " + formatNumber(camera["fx"].get<double>()) + "," +
+                                       formatNumber(camera["fy"].get<double>()) + "," +
+                                       formatNumber(camera["cx"].get<double>()) + "," +
+                                       formatNumber(camera["cy"].get<double>()) + " at 256x192\n"))
+      << run.output;
   std::ofstream(scene / "split_mapping.txt").flush();
   const CliRun listed_none = runCli({"map", "--dataset", scene.string(), "-o", (dir_ / "none.ffmap").string()});
   EXPECT_EQ(listed_none.exit_code, 2) << listed_none.output;
