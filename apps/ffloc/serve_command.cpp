@@ -17,7 +17,9 @@
 #include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/allocator.h"
+#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 #include "ffloc/core/host_address.h"
 #include "ffloc/core/stop_signals.h"
 #include "ffloc/core/threads.h"
@@ -118,9 +120,11 @@ int runServe(const ServeArguments& args) {
   // what each arena once held: as more of the 64 connection threads served, the server's RSS
   // grew from 248 to 333 MiB between 1,000 and 10,000 requests of the load test, and stayed at
   // 197-200 MiB with two arenas (docs/server.md, "Memory under load"). Queries run one at a
-  // time, so two arenas cost no measurable contention.
+  // time, so one arena costs no contention that shows, and every query finds the pages an
+  // earlier one faulted in: redkitchen's classical queries took 91-94 ms at the median (p90
+  // 111-114, RSS +14-17 MiB over 30) with one, 104-106 ms (p90 156-158, +62 MiB) with two.
   AllocatorOptions allocator;
-  allocator.max_arenas = 2;
+  allocator.max_arenas = 1;
   configureAllocator(allocator);
   setLibraryThreadCount(args.model.threads);
   ServerOptions options;
@@ -148,7 +152,10 @@ int runServe(const ServeArguments& args) {
     ServedMap map;
     map.model_description = opened->model ? opened->model->description : opened->description;
     map.localizer = std::shared_ptr<const Localizer>(opened, opened->localizer.get());
-    std::cerr << "map: " << path.string() << ", " << opened->description << "\n";
+    const auto start = std::chrono::steady_clock::now();
+    warmUp(*map.localizer, options.localize);
+    std::cerr << "map: " << path.string() << ", " << opened->description << " (warmed up by a made-up query in "
+              << formatSignificant(secondsSince(start)) << " s)\n";
     return map;
   };
   MapCatalog catalog(std::move(sources), open);

@@ -149,4 +149,18 @@ void Localizer::estimateAndJudge(LocalizationResult& result, std::optional<PnpRe
   result.verdict = judgePose(evidence, result.pnp, metric(), options.verdict);
 }
 
+void warmUp(const Localizer& localizer, const LocalizeOptions& options) {
+  Intrinsics camera;
+  camera.width = 640;
+  camera.height = 480;
+  camera.fx = camera.fy = 525;
+  camera.cx = 320;
+  camera.cy = 240;
+  if (!localizer.cameras().empty()) camera = localizer.cameras().front().intrinsics;
+  cv::Mat noise(camera.height, camera.width, CV_8UC3);
+  cv::RNG rng(0);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  localizer.localize(noise, camera, "warm-up", options);
+}
+
 }  // namespace ffloc

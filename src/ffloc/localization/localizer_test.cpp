@@ -6,7 +6,10 @@
 #include <chrono>
 #include <random>
 #include <thread>
+#include <utility>
+#include <vector>
 
+#include "ffloc/geometry/camera.h"
 #include "ffloc/geometry/pose.h"
 
 namespace ffloc {
@@ -132,6 +135,45 @@ TEST(PoseGuidedMatching, AStopRequestedDuringTheLookStopsBeforeTheSecondPnp) {
   } catch (const QueryStopped& stopped) {
     EXPECT_STREQ(stopped.what(), "stopped before the second PnP");
   }
+}
+
+// Records what each query gave it: the image's size and the intrinsics.
+class RecordingLocalizer : public Localizer {
+ public:
+  explicit RecordingLocalizer(std::vector<MapCamera> cameras) : cameras_(std::move(cameras)) {}
+  LocalizationMethod method() const override { return LocalizationMethod::kClassical; }
+  bool metric() const override { return true; }
+  const std::vector<MapCamera>& cameras() const override { return cameras_; }
+  mutable std::vector<std::pair<cv::Size, Intrinsics>> queries;
+
+ protected:
+  void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string&, const LocalizeOptions&,
+               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedMatching&) const override {
+    queries.emplace_back(rgb.size(), intrinsics);
+    result.camera = intrinsics;
+  }
+
+ private:
+  std::vector<MapCamera> cameras_;
+};
+
+TEST(WarmUp, LocalizesAMadeUpImageOfTheFirstMappingCamerasSizeAndIntrinsics) {
+  MapCamera first{"a", Pose{}, Intrinsics{300, 310, 200, 150, 400, 300, {}}};
+  MapCamera second{"b", Pose{}, Intrinsics{500, 500, 320, 240, 640, 480, {}}};
+  const RecordingLocalizer localizer({first, second});
+  warmUp(localizer, LocalizeOptions{});
+  ASSERT_EQ(localizer.queries.size(), 1u);
+  EXPECT_EQ(localizer.queries[0].first, cv::Size(400, 300));
+  EXPECT_EQ(localizer.queries[0].second.fx, 300);
+  EXPECT_EQ(localizer.queries[0].second.cy, 150);
+}
+
+TEST(WarmUp, AMapWithoutCamerasIsWarmedAtAVgaCamera) {
+  const RecordingLocalizer localizer({});
+  warmUp(localizer, LocalizeOptions{});
+  ASSERT_EQ(localizer.queries.size(), 1u);
+  EXPECT_EQ(localizer.queries[0].first, cv::Size(640, 480));
+  EXPECT_NO_THROW(checkIntrinsicsFitImage(localizer.queries[0].second, 640, 480));
 }
 
 }  // namespace
