@@ -23,6 +23,7 @@ constexpr const char* kMethod = "fastforward";
 constexpr const char* kDescriptorsTensor = "descriptors";
 constexpr const char* kVladVocabularyTensor = "vlad_vocabulary";
 constexpr const char* kVladDescriptorsTensor = "vlad_descriptors";
+constexpr const char* kTokenVocabularyTensor = "token_vocabulary";
 
 std::string tokensTensorName(size_t index) { return "tokens." + std::to_string(index); }
 std::string pointsTensorName(size_t index) { return "points." + std::to_string(index); }
@@ -160,6 +161,19 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
       checksums[view.name] = tensorChecksum(view);
       tensors.push_back(view);
     }
+  }
+  if (!map.token_vocabulary.empty()) {
+    if (map.token_vocabulary.size() % map.token_dim != 0)
+      throw InputError(path.string() + ": map: token vocabulary of " + std::to_string(map.token_vocabulary.size()) +
+                       " values is not words x " + std::to_string(map.token_dim));
+    TensorView view;
+    view.name = kTokenVocabularyTensor;
+    view.dtype = DType::kF32;
+    view.shape = {static_cast<int64_t>(map.token_vocabulary.size() / map.token_dim), map.token_dim};
+    view.data = reinterpret_cast<const uint8_t*>(map.token_vocabulary.data());
+    view.nbytes = map.token_vocabulary.size() * sizeof(float);
+    checksums[view.name] = tensorChecksum(view);
+    tensors.push_back(view);
   }
   TensorView descriptor_view;
   descriptor_view.name = kDescriptorsTensor;
@@ -301,6 +315,16 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
                                    std::to_string(images.size()) + ", " + std::to_string(vlad_dim) + ") F32");
     if (!allFinite(per_image)) throwInputError(file, 0, "tensor 'vlad_descriptors' holds NaN or infinite values");
     vlad = reinterpret_cast<const float*>(per_image.data);
+  }
+
+  if (archive->contains(kTokenVocabularyTensor)) {
+    const TensorView& words = verified(kTokenVocabularyTensor);
+    if (words.dtype != DType::kF32 || words.shape.size() != 2 || words.shape[0] < 1 || words.shape[1] != map.token_dim)
+      throwInputError(file, 0, "tensor 'token_vocabulary' has shape " + words.shapeString() + ", expected (words, " +
+                                   std::to_string(map.token_dim) + ") F32");
+    if (!allFinite(words)) throwInputError(file, 0, "tensor 'token_vocabulary' holds NaN or infinite values");
+    map.token_vocabulary.resize(words.nbytes / sizeof(float));
+    std::memcpy(map.token_vocabulary.data(), words.data, words.nbytes);
   }
 
   std::set<std::string> names;

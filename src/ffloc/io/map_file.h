@@ -75,6 +75,10 @@ struct MapFile {
   // Optional (ffloc map --vlad): the classical VLAD vocabulary, words x 128 row-major, so that
   // FastForward can select its K images by classical retrieval. Empty: none.
   std::vector<float> vlad_centres;
+  // The vocabulary of FastForward's default retrieval (token VLAD, pipeline/token_vlad.h), words x
+  // token_dim row-major, learnt from the tokens when the map is built and kept by an append.
+  // Empty in maps written before 5 Dec 2026: the first query that ranks with it learns it then.
+  std::vector<float> token_vocabulary;
   std::vector<MapImage> images;
 };
 

@@ -72,6 +72,44 @@ TEST(MapFile, RoundTripIsExact) {
 // happens to the file: replaced by atomic rename, as `ffloc map` writes, deleted, or written over
 // in place and cut short, which under the file's own mapping changed the tokens of a served map or
 // ended the server with SIGBUS at its next query (found by an outside probe).
+// The token vocabulary is optional (maps written before 5 Dec 2026 have none) and, stored, comes
+// back exactly; one of another width than the tokens is refused when written and when read.
+TEST(MapFile, TheTokenVocabularyRoundTripsAndMustMatchTheTokenWidth) {
+  const auto dir = testing::makeTempDir("ffloc-map-vocabulary");
+  MapFile map = smallMap();
+  writeMapFile(map, dir / "none.ffmap");
+  EXPECT_TRUE(readMapFile(dir / "none.ffmap").token_vocabulary.empty());
+  for (int v = 0; v < 5 * map.token_dim; ++v) map.token_vocabulary.push_back(0.25f * v - 3);
+  writeMapFile(map, dir / "five.ffmap");
+  EXPECT_EQ(readMapFile(dir / "five.ffmap").token_vocabulary, map.token_vocabulary);
+
+  map.token_vocabulary.pop_back();
+  try {
+    writeMapFile(map, dir / "bad.ffmap");
+    FAIL() << "a vocabulary of 39 values for 8-wide tokens was written";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("token vocabulary of 39 values is not words x 8"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "bad.ffmap"));
+  map.token_vocabulary.push_back(1);
+  map.token_dim = 4;  // written 4-wide, then the description edited to say 8: the vocabulary is 10 x 4
+  for (MapImage& image : map.images) image.grid_cols *= 2;
+  writeMapFile(map, dir / "narrow.ffmap");
+  testing::editMetadata(dir / "narrow.ffmap", [](nlohmann::json& metadata) {
+    nlohmann::json description = nlohmann::json::parse(metadata[kMapMetadataKey].get<std::string>());
+    description["token_dim"] = 8;
+    for (const auto& [key, value] : mapMetadataEntries(description, "narrow.ffmap")) metadata[key] = value;
+  });
+  try {
+    readMapFile(dir / "narrow.ffmap");
+    FAIL() << "a 4-wide vocabulary was read for 8-wide tokens";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("tensor 'token_vocabulary' has shape (10, 4), expected (words, 8) F32"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(MapFile, TokensAreViewsOfASnapshotThatOutlivesAnyChangeToTheFile) {
   const auto dir = testing::makeTempDir("ffloc-map");
   const MapFile written = smallMap();

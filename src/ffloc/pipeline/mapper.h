@@ -34,7 +34,7 @@ struct MappingReport {
   // Added without depth for a model that matches on its tokens' 3D points: nothing in them can
   // be matched, so a query these images alone see is not placed.
   size_t added_without_points = 0;
-  double seconds = 0;             // reading, preprocessing and encoding the added images
+  double seconds = 0;             // reading, preprocessing and encoding the added images, and any vocabulary learnt
 };
 
 // Reads and encodes one posed image (with its depth's points, for a model whose tokens carry them).

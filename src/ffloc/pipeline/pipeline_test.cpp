@@ -110,6 +110,9 @@ TEST(Pipeline, MapRoundTripAppendAndRefusals) {
   EXPECT_EQ(map.images[0].grid_rows * map.images[0].grid_cols, 32 * 24);  // 160x120 -> 512x384
   EXPECT_EQ(map.images[0].intrinsics.width, 512);
   EXPECT_NEAR(map.images[0].intrinsics.fx, 150 * 3.2, 1e-9);
+  // The token vocabulary is learnt once, when the map is built.
+  EXPECT_EQ(map.token_vocabulary, TokenVlad::learnVocabulary(map));
+  EXPECT_EQ(map.token_vocabulary.size(), size_t{TokenVlad::kWords} * 64);
   const fs::path path = dir / "scene.ffmap";
   writeMapFile(map, path);
 
@@ -121,6 +124,7 @@ TEST(Pipeline, MapRoundTripAppendAndRefusals) {
     EXPECT_EQ(read.images[i].descriptor, map.images[i].descriptor);
     EXPECT_LT((read.images[i].camera_to_world.matrix() - map.images[i].camera_to_world.matrix()).norm(), 1e-12);
   }
+  EXPECT_EQ(read.token_vocabulary, map.token_vocabulary);
 
   // Append: one duplicate skipped, earlier images bit-identical.
   MapFile appended = readMapFile(path, model.id);
@@ -132,6 +136,23 @@ TEST(Pipeline, MapRoundTripAppendAndRefusals) {
   ASSERT_EQ(reread.images.size(), 5u);
   for (size_t i = 0; i < 3; ++i) EXPECT_EQ(reread.images[i].tokens, map.images[i].tokens) << i;
   EXPECT_EQ(reread.images[4].name, "frame4.png");
+  // The append keeps the vocabulary, whose words the five images' tokens would move.
+  EXPECT_EQ(reread.token_vocabulary, map.token_vocabulary);
+  EXPECT_NE(TokenVlad::learnVocabulary(reread), map.token_vocabulary);
+  // A map written before the vocabulary was stored learns the same one when it is ranked with.
+  MapFile without_vocabulary = reread;
+  without_vocabulary.token_vocabulary.clear();
+  const TokenVlad stored(reread), learnt(without_vocabulary);
+  const TokenVlad relearnt([&] {
+    MapFile learnt_now = reread;
+    learnt_now.token_vocabulary = TokenVlad::learnVocabulary(reread);
+    return learnt_now;
+  }());
+  ASSERT_EQ(learnt.imageDescriptors().size(), 5u);
+  for (size_t i = 0; i < 5; ++i) {
+    EXPECT_EQ(learnt.imageDescriptors()[i], relearnt.imageDescriptors()[i]) << i;
+    EXPECT_GT((stored.imageDescriptors()[i] - learnt.imageDescriptors()[i]).norm(), 0) << i;
+  }
   // A mapped name with another pose is another image: refused, not skipped.
   Scene moved = scene;
   moved.frames[2].camera_to_world.t.z() += 1;

@@ -16,16 +16,25 @@ cv::Mat storedTokenRows(const MapImage& image, int token_dim) {
 
 }  // namespace
 
-TokenVlad::TokenVlad(const MapFile& map, const VladOptions& options) {
+std::vector<float> TokenVlad::learnVocabulary(const MapFile& map) {
   if (map.images.empty()) throw InputError("map: holds no images to learn a token vocabulary from");
   // One image's tokens in float32 at a time: the map's fp16 tokens (memory-mapped, for a large
   // map) are never copied whole.
-  const auto tokensOf = [&map](size_t i) { return storedTokenRows(map.images[i], map.token_dim); };
   std::vector<int> rows;
   for (const MapImage& image : map.images) rows.push_back(static_cast<int>(image.tokenCount()));
-  vocabulary_ = VladVocabulary::train(rows, tokensOf, options);
+  const VladVocabulary vocabulary = VladVocabulary::train(
+      rows, [&map](size_t i) { return storedTokenRows(map.images[i], map.token_dim); }, VladOptions{kWords});
+  return std::vector<float>(vocabulary.centres().data(), vocabulary.centres().data() + vocabulary.centres().size());
+}
+
+TokenVlad::TokenVlad(const MapFile& map) {
+  if (map.images.empty()) throw InputError("map: holds no images to rank");
+  const std::vector<float> learnt = map.token_vocabulary.empty() ? learnVocabulary(map) : std::vector<float>{};
+  const std::vector<float>& words = map.token_vocabulary.empty() ? learnt : map.token_vocabulary;
+  vocabulary_ = VladVocabulary(Eigen::Map<const VladVocabulary::RowMatrixXf>(
+      words.data(), static_cast<Eigen::Index>(words.size() / map.token_dim), map.token_dim));
   images_.reserve(map.images.size());
-  for (size_t i = 0; i < map.images.size(); ++i) images_.push_back(vocabulary_.describe(tokensOf(i)));
+  for (const MapImage& image : map.images) images_.push_back(vocabulary_.describe(storedTokenRows(image, map.token_dim)));
 }
 
 Eigen::VectorXf TokenVlad::describe(const at::Tensor& tokens) const {
