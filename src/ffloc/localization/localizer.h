@@ -168,8 +168,9 @@ class Localizer {
 
 // Localizes one made-up query (noise, at the first mapping camera's size and intrinsics) and
 // forgets it, so that a server's first client does not pay for what every later query reuses:
-// OpenCV's SIFT buffers (a first classical query took 225 ms on redkitchen, the next 77-95 ms) and
-// FastForward's token vocabulary, learnt by the first query that needs it (2.2 s).
+// OpenCV's SIFT buffers (a first classical query took 274-316 ms on redkitchen, the next 85-125
+// ms) and FastForward's token-VLAD image descriptors (0.1 s; a map written before 5 Dec 2026 also
+// learns its vocabulary then, 1.3-1.5 s).
 void warmUp(const Localizer& localizer, const LocalizeOptions& options);
 
 }  // namespace ffloc
