@@ -234,12 +234,27 @@ py::array imageArray(cv::Mat rgb) {
                               free_when_done);
 }
 
-py::array pointArray(std::vector<Eigen::Vector3d> points) {
-  static_assert(sizeof(Eigen::Vector3d) == 3 * sizeof(double), "Vector3d must be packed for a zero-copy view");
-  auto* owner = new std::vector<Eigen::Vector3d>(std::move(points));
-  py::capsule free_when_done(owner, [](void* vector) { delete static_cast<std::vector<Eigen::Vector3d>*>(vector); });
-  return py::array_t<double>({static_cast<py::ssize_t>(owner->size()), py::ssize_t{3}},
+// An (n, N) array of n Eigen vectors of N doubles, handed to NumPy without copying.
+template <int N>
+py::array vectorArray(std::vector<Eigen::Matrix<double, N, 1>> vectors) {
+  using Vectors = std::vector<Eigen::Matrix<double, N, 1>>;
+  static_assert(sizeof(Eigen::Matrix<double, N, 1>) == N * sizeof(double), "vectors must be packed for a zero-copy view");
+  auto* owner = new Vectors(std::move(vectors));
+  py::capsule free_when_done(owner, [](void* held) { delete static_cast<Vectors*>(held); });
+  return py::array_t<double>({static_cast<py::ssize_t>(owner->size()), py::ssize_t{N}},
                              owner->empty() ? nullptr : owner->front().data(), free_when_done);
+}
+
+// Which of `pairs` lie within `threshold_px` of the pose (positive depth), as PnP counts its
+// inliers; every one false without a pose.
+py::array_t<bool> inlierMask(const Correspondences& pairs, const Intrinsics& camera,
+                             const std::optional<Pose>& camera_to_world, double threshold_px) {
+  py::array_t<bool> mask(static_cast<py::ssize_t>(pairs.size()));
+  std::fill(mask.mutable_data(), mask.mutable_data() + pairs.size(), false);
+  if (!camera_to_world) return mask;
+  for (const int index : findInliers(pairs.pixels, pairs.points, camera, camera_to_world->inverse(), threshold_px))
+    mask.mutable_data()[index] = true;
+  return mask;
 }
 
 // A keyword or dict option's value as T, or InputError naming the field: pybind11's own cast
@@ -373,6 +388,9 @@ struct Map {
 struct Result {
   nlohmann::json answer;  // what `ffloc localize --json` prints
   std::optional<Pose> camera_to_world;
+  Correspondences pairs;  // in `camera`'s grid: the undistorted full-size query
+  Intrinsics camera;
+  double inlier_threshold_px = 0;
 };
 
 // The mapping images a query used, named as Python names files (pythonPath).
@@ -430,6 +448,9 @@ class PyLocalizer {
     Result out;
     out.answer = localizationJson(name, result, map_.localizer());
     if (result.pnp.ok()) out.camera_to_world = result.pnp.camera_to_world;
+    out.pairs = result.correspondences;
+    out.camera = result.camera;
+    out.inlier_threshold_px = options_.pnp.inlier_threshold_px;
     return out;
   }
   const Map& map() const { return map_; }
@@ -508,17 +529,13 @@ py::tuple estimateAbsolutePose(const py::handle& points2d, const py::handle& poi
                      py::str(py::type::of(options).attr("__name__")).cast<std::string>());
   const PnpOptions pnp = pnpOptions(options.is_none() ? py::dict() : options.cast<py::dict>());
   PnpResult result;
-  std::vector<int> inliers;
   {
     py::gil_scoped_release unlocked;
     const auto pools = leasePools(threads);
     result = estimatePose(pairs, camera, pnp);
-    if (result.ok())
-      inliers = findInliers(pairs.pixels, pairs.points, camera, result.camera_to_world.inverse(), pnp.inlier_threshold_px);
   }
-  py::array_t<bool> mask(static_cast<py::ssize_t>(pairs.size()));
-  std::fill(mask.mutable_data(), mask.mutable_data() + pairs.size(), false);
-  for (int index : inliers) mask.mutable_data()[index] = true;
+  const py::array_t<bool> mask =
+      inlierMask(pairs, camera, result.ok() ? std::optional<Pose>(result.camera_to_world) : std::nullopt, pnp.inlier_threshold_px);
   py::dict info;
   info["status"] = toString(result.status);
   info["success"] = result.ok();
@@ -663,7 +680,7 @@ PYBIND11_MODULE(_ffloc, m) {
       // py::object, not size_t: pybind11 refused -1 with a TypeError and its signatures, not ffloc.Error.
       .def("points",
            [](const Map& map, const py::object& max_points) {
-             return pointArray(map.localizer().mapPoints(optionValue<size_t>(max_points, "max_points")));
+             return vectorArray<3>(map.localizer().mapPoints(optionValue<size_t>(max_points, "max_points")));
            },
            py::arg("max_points") = 100000, "At most max_points world points (N x 3); none for maps without points")
       .def_property_readonly("build_report",
@@ -756,6 +773,22 @@ PYBIND11_MODULE(_ffloc, m) {
           },
           "what the verdict judged (docs/verdict.md): inlier ratio and spread, the second estimate's agreement, the "
           "predicted uncertainty, the intrinsics fits; None without a pose")
+      // An outside review could count the inliers but not see them.
+      .def_property_readonly(
+          "correspondences",
+          [](const Result& r) {
+            py::dict pairs;
+            pairs["pixels"] = vectorArray<2>(r.pairs.pixels);
+            pairs["points"] = vectorArray<3>(r.pairs.points);
+            pairs["confidences"] = py::array_t<float>(static_cast<py::ssize_t>(r.pairs.size()), r.pairs.confidences.data());
+            pairs["inliers"] = inlierMask(r.pairs, r.camera, r.camera_to_world, r.inlier_threshold_px);
+            pairs["camera"] = toArray(r.camera.K());
+            return pairs;
+          },
+          "the pairs PnP chose from: 'pixels' (n, 2) in the undistorted query's grid, whose 3x3 K is 'camera', "
+          "'points' (n, 3) in the world frame, 'confidences' (n,), and 'inliers' (n,), those within PnP's inlier "
+          "threshold of the pose (none without one); PnP counts its inliers among the at most max_correspondences "
+          "pairs it drew, so 'inliers' may hold more than Result.inliers")
       .def("to_dict", [](const Result& r) { return answerDict(r); }, "What 'ffloc localize --json' prints")
       .def("__repr__", [](const Result& r) {
         return "<ffloc.Result " + r.answer["status"].get<std::string>() + ", " +

@@ -109,6 +109,31 @@ def test_the_same_query_through_python_and_the_cli_gives_identical_poses(cli_map
     assert result.evidence == cli_answer["evidence"] and "inlier_spread" in result.evidence
 
 
+def test_the_correspondences_are_the_pairs_the_pose_was_estimated_from(cli_map, query):
+    localizer = ffloc.Localizer(str(cli_map), threads=1)
+    result = localizer.localize(query.image_path, query.intrinsics)
+    pairs = result.correspondences
+    n = len(pairs["pixels"])
+    assert pairs["pixels"].shape == (n, 2) and pairs["points"].shape == (n, 3) and pairs["confidences"].shape == (n,)
+    assert pairs["inliers"].dtype == bool and pairs["inliers"].shape == (n,)
+    # The query has fewer pairs than PnP draws, so the mask holds exactly PnP's inliers.
+    assert 0 < result.inliers == pairs["inliers"].sum() < n <= 5000
+    # Each inlier's point, projected with the pose and the camera, lands within 8 px of its pixel.
+    world_to_camera = np.linalg.inv(result.pose)
+    in_camera = pairs["points"] @ world_to_camera[:3, :3].T + world_to_camera[:3, 3]
+    projected = in_camera @ pairs["camera"].T
+    error = np.linalg.norm(projected[:, :2] / projected[:, 2:] - pairs["pixels"], axis=1)
+    assert np.all(error[pairs["inliers"]] < 8) and np.all(error[~pairs["inliers"]] >= 8)
+    # A pose estimated again from them is the same pose, to a millimetre.
+    again, _, _ = ffloc.estimate_absolute_pose(pairs["pixels"], pairs["points"], pairs["camera"],
+                                               image_size=(query.width, query.height))
+    assert np.linalg.norm(again[:3, 3] - result.pose[:3, 3]) < 1e-3
+    # Without a pose no pair is an inlier.
+    noise = np.random.default_rng(0).integers(0, 256, (query.height, query.width, 3), dtype=np.uint8)
+    failed = localizer.localize(noise, query.intrinsics)
+    assert failed.pose is None and not failed.correspondences["inliers"].any()
+
+
 def test_an_array_and_four_numbers_give_the_pose_of_the_path_and_matrix(cli_map, query, cli_answer):
     localizer = ffloc.Localizer(str(cli_map), threads=1)
     image = ffloc.read_image(query.image_path)
