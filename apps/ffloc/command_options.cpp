@@ -295,7 +295,7 @@ void addQueryOptions(CLI::App& command, QueryArguments& args) {
   command.add_option("--retrieval", args.retrieval,
                      "fastforward: what retrieval ranks the mapping images by: encoder (pooled tokens), vlad (the "
                      "classical descriptor; the map must have been built with --vlad) or token-vlad (a VLAD of the "
-                     "encoder's tokens, its vocabulary learned from the map's by the first query that uses it)")
+                     "encoder's tokens, its vocabulary learned from the map's tokens when the map was built)")
       ->capture_default_str();
   command.add_option("--solver", args.solver, "PnP-RANSAC solver: lo-ransac or opencv-usac")->capture_default_str();
   command.add_flag("--no-verify", args.no_verify,
