@@ -17,9 +17,7 @@
 #include "command_options.h"
 #include "commands.h"
 #include "ffloc/core/allocator.h"
-#include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
-#include "ffloc/core/number_text.h"
 #include "ffloc/core/host_address.h"
 #include "ffloc/core/stop_signals.h"
 #include "ffloc/core/threads.h"
@@ -152,10 +150,8 @@ int runServe(const ServeArguments& args) {
     ServedMap map;
     map.model_description = opened->model ? opened->model->description : opened->description;
     map.localizer = std::shared_ptr<const Localizer>(opened, opened->localizer.get());
-    const auto start = std::chrono::steady_clock::now();
-    warmUp(*map.localizer, options.localize);
-    std::cerr << "map: " << path.string() << ", " << opened->description << " (warmed up by a made-up query in "
-              << formatSignificant(secondsSince(start)) << " s)\n";
+    const std::string warm_up = warmUp(*map.localizer, options.localize);
+    std::cerr << "map: " << path.string() << ", " << opened->description << " (" << warm_up << ")\n";
     return map;
   };
   MapCatalog catalog(std::move(sources), open);

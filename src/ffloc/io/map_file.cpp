@@ -31,6 +31,9 @@ std::string pointsTensorName(size_t index) { return "points." + std::to_string(i
 // Sides of an image, in pixels, beyond any camera; and token widths beyond any model.
 constexpr int64_t kMaxImageSide = 1 << 20;
 constexpr int64_t kMaxTokenDim = 1 << 16;
+// Words of a token vocabulary beyond any this project writes (128): each map image's descriptor
+// holds words x token width floats, and an outside probe's 20 000 words took a query to 1.5 GB.
+constexpr int64_t kMaxTokenVocabularyWords = 1024;
 
 // Exactly as written, once checked like every dataset reader's poses.
 Pose readPose(const JsonFields& image) {
@@ -303,7 +306,8 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
   if (archive->contains(kVladVocabularyTensor)) {
     const TensorView& centres = verified(kVladVocabularyTensor);
     if (centres.dtype != DType::kF32 || centres.shape.size() != 2 || centres.shape[1] != 128 || centres.shape[0] < 1)
-      throwInputError(file, 0, "tensor 'vlad_vocabulary' has shape " + centres.shapeString() + ", expected (words, 128) F32");
+      throwInputError(file, 0, "tensor 'vlad_vocabulary' has shape " + centres.shapeString() + " " +
+                                   toString(centres.dtype) + ", expected (words, 128) F32");
     if (!allFinite(centres)) throwInputError(file, 0, "tensor 'vlad_vocabulary' holds NaN or infinite values");
     map.vlad_centres.resize(centres.nbytes / sizeof(float));
     std::memcpy(map.vlad_centres.data(), centres.data, centres.nbytes);
@@ -319,9 +323,11 @@ MapFile readMapFile(const std::filesystem::path& path, const std::string& expect
 
   if (archive->contains(kTokenVocabularyTensor)) {
     const TensorView& words = verified(kTokenVocabularyTensor);
-    if (words.dtype != DType::kF32 || words.shape.size() != 2 || words.shape[0] < 1 || words.shape[1] != map.token_dim)
-      throwInputError(file, 0, "tensor 'token_vocabulary' has shape " + words.shapeString() + ", expected (words, " +
-                                   std::to_string(map.token_dim) + ") F32");
+    if (words.dtype != DType::kF32 || words.shape.size() != 2 || words.shape[0] < 1 ||
+        words.shape[0] > kMaxTokenVocabularyWords || words.shape[1] != map.token_dim)
+      throwInputError(file, 0, "tensor 'token_vocabulary' has shape " + words.shapeString() + " " + toString(words.dtype) +
+                                   ", expected (words, " + std::to_string(map.token_dim) + ") F32 with 1 to " +
+                                   std::to_string(kMaxTokenVocabularyWords) + " words");
     if (!allFinite(words)) throwInputError(file, 0, "tensor 'token_vocabulary' holds NaN or infinite values");
     map.token_vocabulary.resize(words.nbytes / sizeof(float));
     std::memcpy(map.token_vocabulary.data(), words.data, words.nbytes);

@@ -73,8 +73,9 @@ TEST(MapFile, RoundTripIsExact) {
 // in place and cut short, which under the file's own mapping changed the tokens of a served map or
 // ended the server with SIGBUS at its next query (found by an outside probe).
 // The token vocabulary is optional (maps written before 5 Dec 2026 have none) and, stored, comes
-// back exactly; one of another width than the tokens is refused when written and when read.
-TEST(MapFile, TheTokenVocabularyRoundTripsAndMustMatchTheTokenWidth) {
+// back exactly; one of another width than the tokens is refused when written and when read, and
+// one of more words than any map holds when read.
+TEST(MapFile, TheTokenVocabularyRoundTripsAndItsShapeIsChecked) {
   const auto dir = testing::makeTempDir("ffloc-map-vocabulary");
   MapFile map = smallMap();
   writeMapFile(map, dir / "none.ffmap");
@@ -104,7 +105,21 @@ TEST(MapFile, TheTokenVocabularyRoundTripsAndMustMatchTheTokenWidth) {
     readMapFile(dir / "narrow.ffmap");
     FAIL() << "a 4-wide vocabulary was read for 8-wide tokens";
   } catch (const InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("tensor 'token_vocabulary' has shape (10, 4), expected (words, 8) F32"),
+    EXPECT_NE(std::string(e.what()).find("tensor 'token_vocabulary' has shape (10, 4) F32, expected (words, 8) F32 "
+                                         "with 1 to 1024 words"),
+              std::string::npos)
+        << e.what();
+  }
+  // Each image's descriptor holds words x width floats: 20 000 words took a query to 1.5 GB.
+  map = smallMap();
+  map.token_vocabulary.assign(1025 * map.token_dim, 0.5f);
+  for (size_t v = 0; v < map.token_vocabulary.size(); v += 9) map.token_vocabulary[v] = static_cast<float>(v);
+  writeMapFile(map, dir / "many.ffmap");
+  try {
+    readMapFile(dir / "many.ffmap");
+    FAIL() << "a vocabulary of 1025 words was read";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("has shape (1025, 8) F32, expected (words, 8) F32 with 1 to 1024 words"),
               std::string::npos)
         << e.what();
   }

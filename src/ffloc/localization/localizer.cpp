@@ -7,6 +7,7 @@
 
 #include "ffloc/core/clock.h"
 #include "ffloc/core/error.h"
+#include "ffloc/core/number_text.h"
 
 namespace ffloc {
 
@@ -149,7 +150,7 @@ void Localizer::estimateAndJudge(LocalizationResult& result, std::optional<PnpRe
   result.verdict = judgePose(evidence, result.pnp, metric(), options.verdict);
 }
 
-void warmUp(const Localizer& localizer, const LocalizeOptions& options) {
+std::string warmUp(const Localizer& localizer, const LocalizeOptions& options) {
   Intrinsics camera;
   camera.width = 640;
   camera.height = 480;
@@ -160,7 +161,13 @@ void warmUp(const Localizer& localizer, const LocalizeOptions& options) {
   cv::Mat noise(camera.height, camera.width, CV_8UC3);
   cv::RNG rng(0);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
-  localizer.localize(noise, camera, "warm-up", options);
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    localizer.localize(noise, camera, "warm-up", options);
+  } catch (const InputError& e) {
+    return std::string("not warmed up: a made-up query at its first mapping camera was refused: ") + e.what();
+  }
+  return "warmed up by a made-up query in " + formatSignificant(secondsSince(start)) + " s";
 }
 
 }  // namespace ffloc

@@ -170,7 +170,10 @@ class Localizer {
 // forgets it, so that a server's first client does not pay for what every later query reuses:
 // OpenCV's SIFT buffers (a first classical query took 274-316 ms on redkitchen, the next 85-125
 // ms) and FastForward's token-VLAD image descriptors (0.1 s; a map written before 5 Dec 2026 also
-// learns its vocabulary then, 1.3-1.5 s).
-void warmUp(const Localizer& localizer, const LocalizeOptions& options);
+// learns its vocabulary then, 1.3-1.5 s). Best effort: returns what it did for a log line
+// ("warmed up by a made-up query in 0.2 s"), or, where the first camera is one no query could
+// have (an edited map's focal length of 1e6 px), why it did not; the map still answers queries
+// that bring their own intrinsics.
+std::string warmUp(const Localizer& localizer, const LocalizeOptions& options);
 
 }  // namespace ffloc

@@ -161,11 +161,22 @@ TEST(WarmUp, LocalizesAMadeUpImageOfTheFirstMappingCamerasSizeAndIntrinsics) {
   MapCamera first{"a", Pose{}, Intrinsics{300, 310, 200, 150, 400, 300, {}}};
   MapCamera second{"b", Pose{}, Intrinsics{500, 500, 320, 240, 640, 480, {}}};
   const RecordingLocalizer localizer({first, second});
-  warmUp(localizer, LocalizeOptions{});
+  EXPECT_EQ(warmUp(localizer, LocalizeOptions{}).rfind("warmed up by a made-up query in ", 0), 0u);
   ASSERT_EQ(localizer.queries.size(), 1u);
   EXPECT_EQ(localizer.queries[0].first, cv::Size(400, 300));
   EXPECT_EQ(localizer.queries[0].second.fx, 300);
   EXPECT_EQ(localizer.queries[0].second.cy, 150);
+}
+
+// An outside probe edited a map's first focal length to 1e6 px: `ffloc serve` ended at start
+// with a message about fx, where `ffloc localize` answered queries that gave their own.
+TEST(WarmUp, AFirstCameraNoQueryCouldHaveIsSaidAndNotLocalized) {
+  MapCamera absurd{"a", Pose{}, Intrinsics{1e6, 1e6, 200, 150, 400, 300, {}}};
+  const RecordingLocalizer localizer({absurd});
+  const std::string said = warmUp(localizer, LocalizeOptions{});
+  EXPECT_EQ(said.rfind("not warmed up: a made-up query at its first mapping camera was refused: ", 0), 0u) << said;
+  EXPECT_NE(said.find("fx"), std::string::npos) << said;
+  EXPECT_TRUE(localizer.queries.empty());
 }
 
 TEST(WarmUp, AMapWithoutCamerasIsWarmedAtAVgaCamera) {
