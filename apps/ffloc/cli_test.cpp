@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
@@ -633,6 +634,41 @@ TEST_F(Cli, TrainSaysAndKeepsOnlyWhatHappened) {
   EXPECT_TRUE(contains(refused.output, "no frame has 5 mapping frames of overlap")) << refused.output;
   std::ifstream after_in(run / "config.json");
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(after_in), {}), before);
+}
+
+// The pose list held every pose PnP found, an `uncertain` one (a query from another scene, 1-7 m
+// off) as any other (an outside probe): it holds the localized queries' alone.
+TEST_F(Cli, LocalizesPoseListHoldsTheLocalizedQueriesAlone) {
+  const auto [scene, map] = mappedSyntheticScene(20, "classical");
+  ASSERT_FALSE(HasFailure());
+  std::ifstream manifest_in(scene / "manifest.json");
+  const nlohmann::json camera = nlohmann::json::parse(manifest_in)["cameras"]["0"];
+  const std::string intrinsics = formatSignificant(camera["fx"].get<double>(), 17) + " " +
+                                 formatSignificant(camera["fy"].get<double>(), 17) + " " +
+                                 formatSignificant(camera["cx"].get<double>(), 17) + " " +
+                                 formatSignificant(camera["cy"].get<double>(), 17);
+  writeImage(scene / "flat.png", camera["width"].get<int>(), camera["height"].get<int>());
+  // The same image given a focal length 1.31 times its own: a pose, `uncertain` for its focal fit.
+  const std::string wrong_focal = "230 230 " + formatSignificant(camera["cx"].get<double>(), 17) + " " +
+                                  formatSignificant(camera["cy"].get<double>(), 17);
+  writeText(scene / "list.txt", "images/mapping_0002.png " + intrinsics + "\nimages/mapping_0002.png " + wrong_focal +
+                                    "\nflat.png " + intrinsics + "\n");
+  const fs::path poses = dir_ / "poses.txt";
+  const CliRun run = runCli({"localize", "--map", map.string(), "--images", (scene / "list.txt").string(), "--json",
+                             "--quiet", "--poses", poses.string()});
+  EXPECT_EQ(run.exit_code, 1) << run.output;
+  const nlohmann::json answers = nlohmann::json::parse(
+      run.output.substr(run.output.find('['), run.output.rfind(']') + 1 - run.output.find('[')));
+  ASSERT_EQ(answers.size(), 3u) << run.output;
+  EXPECT_EQ(answers[0]["status"], "localized") << run.output;
+  EXPECT_EQ(answers[1]["status"], "uncertain") << run.output;
+  EXPECT_FALSE(answers[1]["camera_to_world"].is_null()) << run.output;
+  EXPECT_EQ(answers[2]["status"], "failed") << run.output;
+  std::ifstream poses_in(poses);
+  const std::string list{std::istreambuf_iterator<char>(poses_in), {}};
+  EXPECT_EQ(list.rfind("images/mapping_0002.png ", 0), 0u) << list;
+  EXPECT_EQ(std::count(list.begin(), list.end(), '\n'), 1) << list;
+  EXPECT_TRUE(contains(run.output, "(the poses of the 1 localized of 3 queries)")) << run.output;
 }
 
 // A query of an --images list whose intrinsics the localizer refuses (a focal length out of range, a

@@ -301,7 +301,9 @@ int runLocalize(const LocalizeArguments& args) {
       frame.verdict = result.verdict.status;
       frame.estimate = result.pnp.camera_to_world;
       frame.inliers = result.pnp.inliers;
-      poses.push_back(frame);
+      // The pose list is for poses to use: an `uncertain` one (a query from another scene, 1-7 m
+      // off) read as any other there (an outside probe). Its status and pose stay in the answer.
+      if (result.localized()) poses.push_back(frame);
       any_not_localized |= !result.localized();
       if (q == 0 && !args.ply_path.empty()) {
         addPredictedPoints(ply, result.correspondences, options.pnp.confidence_threshold, 50000, PlyWriter::kRed);
@@ -330,7 +332,8 @@ int runLocalize(const LocalizeArguments& args) {
 
   if (!args.poses_path.empty()) {
     writeTextFile(args.poses_path, hlocPoseList(poses));
-    std::cerr << "wrote " << args.poses_path << "\n";
+    std::cerr << "wrote " << args.poses_path << " (the poses of the " << poses.size() << " localized of "
+              << queries.size() << " queries)\n";
   }
   if (!args.ply_path.empty()) {
     std::vector<Pose> cameras;
@@ -363,7 +366,7 @@ void registerLocalizeCommand(CLI::App& app, CommandRun& run) {
   cmd->add_option("--intrinsics", args->intrinsics, "Query pinhole intrinsics fx,fy,cx,cy in pixels of the image");
   cmd->add_option("--distortion", args->distortion,
                   "The query camera's lens distortion, OpenCV's k1,k2,p1,p2[,k3[,k4,k5,k6]], for every query");
-  cmd->add_option("--poses", args->poses_path, "Write the estimated poses as an hloc pose list");
+  cmd->add_option("--poses", args->poses_path, "Write the poses of the localized queries as an hloc pose list");
   cmd->add_option("--ply", args->ply_path,
                   "Write a PLY: mapping cameras (grey), estimated query cameras (blue), the first query's "
                   "correspondences' points with confidence >= 1.5 (red)");
