@@ -581,6 +581,13 @@ TEST_F(Cli, MapTakesEveryFrameOfADatasetWithoutASplit) {
                                        formatNumber(camera["cx"].get<double>()) + "," +
                                        formatNumber(camera["cy"].get<double>()) + " at 256x192\n"))
       << run.output;
+  // And its lens distortion, as --distortion takes it: fox's queries given the four numbers alone
+  // were 40 times farther off (an outside probe).
+  manifest["cameras"].begin().value()["distortion"] = {0.0125, -0.004, 0, 0};
+  std::ofstream(scene / "manifest.json") << manifest.dump();
+  const CliRun distorted = runCli({"map", "--dataset", scene.string(), "-o", (dir_ / "distorted.ffmap").string()});
+  ASSERT_EQ(distorted.exit_code, 0) << distorted.output;
+  EXPECT_TRUE(contains(distorted.output, " at 256x192, distortion 0.0125,-0.004,0,0\n")) << distorted.output;
   std::ofstream(scene / "split_mapping.txt").flush();
   const CliRun listed_none = runCli({"map", "--dataset", scene.string(), "-o", (dir_ / "none.ffmap").string()});
   EXPECT_EQ(listed_none.exit_code, 2) << listed_none.output;
