@@ -230,6 +230,15 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
     progress.update(i - first_new + 1);
   }
   progress.finish();
+  // A map of no point localizes nothing: every depth map of a dataset invalid (all zero, or a
+  // depth scale off by 1e12) gave one with exit 0 and no word (an outside probe).
+  const auto lifted = [](const ClassicalMapImage& image) { return image.depth_lifted; };
+  if (std::none_of(map.images.begin(), map.images.end(), [](const ClassicalMapImage& image) { return image.pointCount() > 0; }))
+    throw InputError(scene.root.string() + ": no mapping image gave a 3D point: " +
+                     (std::any_of(map.images.begin(), map.images.end(), lifted)
+                          ? "the depth maps hold no valid depth at the keypoints (all zero, or a wrong depth scale?); "
+                            "without their depth the keypoints are triangulated (ClassicalMappingOptions::use_depth)"
+                          : "no keypoint was matched in enough views to be triangulated"));
   report.seconds = secondsSince(start);
   return report;
 }

@@ -598,6 +598,25 @@ TEST_F(ClassicalTest, BadMapsAreRefusedNamingTheFile) {
             std::string::npos);
   EXPECT_NE(inputErrorOf([] { ClassicalLocalizer{ClassicalMap{}}; }).find("no images"), std::string::npos);
 
+  // Depth maps without a valid depth gave a map of no point, which localizes nothing, exit 0 (an
+  // outside probe); without their depth the same frames triangulate.
+  Scene no_valid_depth = *scene_;
+  for (size_t i = 0; i < 6; ++i) {
+    Frame& frame = no_valid_depth.frames[i];
+    ASSERT_TRUE(frame.depth);
+    frame.depth->path = blank_dir / ("zero" + std::to_string(i) + ".png");
+    cv::imwrite(frame.depth->path.string(), cv::Mat(frame.intrinsics.height, frame.intrinsics.width, CV_16UC1, cv::Scalar(0)));
+  }
+  ClassicalMap pointless = emptyClassicalMap(true, quiet());
+  const std::string said = inputErrorOf([&] { addToClassicalMap(pointless, no_valid_depth, {0, 1, 2, 3, 4, 5}, quiet()); });
+  EXPECT_NE(said.find("no mapping image gave a 3D point: the depth maps hold no valid depth at the keypoints"),
+            std::string::npos)
+      << said;
+  ClassicalMappingOptions triangulate = quiet();
+  triangulate.use_depth = false;
+  ClassicalMap triangulated = emptyClassicalMap(true, triangulate);
+  EXPECT_GT(addToClassicalMap(triangulated, no_valid_depth, {0, 1, 2, 3, 4, 5}, triangulate).points, 0u);
+
   // A map of another version, a corrupted one, another method's file, a non-map.
   const ClassicalMap map = build({0, 1, 2, 3, 4, 5});
   const fs::path path = *dir_ / "small.ffmap";
