@@ -735,6 +735,26 @@ TEST_F(Cli, QueryListsTakePathsWithSpacesAndNameTheLineOfARefusedQuery) {
   EXPECT_EQ(three.exit_code, 2) << three.output;
   EXPECT_TRUE(contains(three.output, "three.txt:1: query 'images/near view.png': intrinsics must be four numbers"))
       << three.output;
+  // In a list, such a line is its query's error and the others run (it stopped the whole list
+  // before any query: an outside probe); so is a line without intrinsics.
+  writeText(scene / "mixed.txt", "images/near view.png 200 200 127.5 95.5\nimages/near view.png 200 200 127.5\n"
+                                 "images/near view.png\n");
+  const CliRun mixed = runCli({"localize", "--map", map.string(), "--images", (scene / "mixed.txt").string(), "--json",
+                               "--quiet"});
+  EXPECT_EQ(mixed.exit_code, 2) << mixed.output;
+  const size_t array_at = mixed.output.find('[');
+  ASSERT_NE(array_at, std::string::npos) << mixed.output;
+  const nlohmann::json answers = nlohmann::json::parse(mixed.output.substr(array_at));
+  ASSERT_EQ(answers.size(), 3u) << mixed.output;
+  EXPECT_NE(answers[0]["status"], "error") << mixed.output;
+  EXPECT_EQ(answers[1]["status"], "error") << mixed.output;
+  EXPECT_TRUE(contains(answers[1]["error"].get<std::string>(),
+                       "mixed.txt:2: query 'images/near view.png': intrinsics must be four numbers fx,fy,cx,cy, got "
+                       "'200 200 127.5'"))
+      << mixed.output;
+  EXPECT_EQ(answers[2]["status"], "error") << mixed.output;
+  EXPECT_TRUE(contains(answers[2]["error"].get<std::string>(), "mixed.txt:3: query 'images/near view.png': no intrinsics"))
+      << mixed.output;
   writeText(scene / "nul.txt", std::string("images/query_0000_near.png\0.jpg 200 200 127.5 95.5\n", 51));
   const CliRun nul = runCli({"localize", "--map", map.string(), "--images", (scene / "nul.txt").string()});
   EXPECT_EQ(nul.exit_code, 2) << nul.output;

@@ -49,6 +49,9 @@ struct Query {
   std::filesystem::path path;
   Intrinsics intrinsics;  // fx == 0: not given
   std::string list_line;  // "list.txt:3" for a query from --images; empty for --image
+  // Why the list's line gives no intrinsics, answered as this query's error while the others run
+  // (one line of three numbers stopped a whole list before any query: an outside probe).
+  std::string intrinsics_error;
 
   // "list.txt:3: query 'q.jpg'" for a query from --images, which its errors start with: a focal
   // length out of range named no line of a long list. Empty for --image.
@@ -154,17 +157,23 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
     query.name = path;
     query.path = listedPath(list, path);
     query.list_line = list.string() + ":" + std::to_string(number);
+    const std::string at_line = list.string() + ":" + std::to_string(number) + ": ";
     if (given) {
-      query.intrinsics = parseIntrinsics(line.substr(starts[first_number]), query.location());
+      try {
+        query.intrinsics = parseIntrinsics(line.substr(starts[first_number]), query.location());
+      } catch (const InputError& e) {
+        query.intrinsics_error = e.what();
+      }
     } else if (const size_t image_end = misgivenIntrinsicsStart(line, starts, first_number, list);
                image_end > 0) {
-      throwInputError(list.string(), number,
-                      "query '" + trimmed(line.substr(0, image_end)) + "': intrinsics must be four numbers fx,fy,cx,cy, got '" +
-                          trimmed(line.substr(image_end)) + "'");
+      query.name = trimmed(line.substr(0, image_end));
+      query.path = listedPath(list, query.name);
+      query.intrinsics_error = at_line + "query '" + query.name + "': intrinsics must be four numbers fx,fy,cx,cy, got '" +
+                               trimmed(line.substr(image_end)) + "'";
     } else if (fallback.fx > 0) {
       query.intrinsics = fallback;
     } else {
-      throwInputError(list.string(), number, "query '" + path + "': no intrinsics (add fx fy cx cy or --intrinsics)");
+      query.intrinsics_error = at_line + "query '" + path + "': no intrinsics (add fx fy cx cy or --intrinsics)";
     }
     queries.push_back(query);
   }
@@ -290,38 +299,44 @@ int runLocalize(const LocalizeArguments& args) {
   for (size_t q = 0; q < queries.size(); ++q) {
     const Query& query = queries[q];
     nlohmann::json r;
-    try {
-      const cv::Mat image = readImageRgb(query.path);
-      noteExifTurn(query.path, image);
-      const LocalizationResult result = localizer.localize(image, query.intrinsics, query.name, options);
-      r = localizationJson(query.name, result, localizer);
-      FrameResult frame;
-      frame.frame = query.name;
-      frame.status = result.pnp.status;
-      frame.verdict = result.verdict.status;
-      frame.estimate = result.pnp.camera_to_world;
-      frame.inliers = result.pnp.inliers;
-      // The pose list is for poses to use: an `uncertain` one (a query from another scene, 1-7 m
-      // off) read as any other there (an outside probe). Its status and pose stay in the answer.
-      if (result.localized()) poses.push_back(frame);
-      any_not_localized |= !result.localized();
-      if (q == 0 && !args.ply_path.empty()) {
-        addPredictedPoints(ply, result.correspondences, options.pnp.confidence_threshold, 50000, PlyWriter::kRed);
-      }
-      if (result.pnp.ok()) estimated_cameras.emplace_back(result.pnp.camera_to_world, result.camera);
-    } catch (const InputError& e) {
-      // An --image query's error named neither it nor the flag when about its intrinsics; one that
-      // names a flag or the image says enough.
-      const std::string what = withFlagName(e.what());
-      const bool named = what.rfind("--", 0) == 0 || what.find(query.path.string()) != std::string::npos;
-      // Named, it was named twice: "list.txt:3: query 'q.png': q.png: image: ...".
-      const std::string location = named                     ? query.list_line
-                                   : !query.list_line.empty() ? query.location()
-                                                              : "query '" + query.path.string() + "'";
-      const std::string error = location.empty() ? what : location + ": " + what;
-      if (queries.size() == 1) throw InputError(error);
-      r = {{"name", query.name}, {"status", "error"}, {"error", error}};
+    if (!query.intrinsics_error.empty()) {
+      if (queries.size() == 1) throw InputError(query.intrinsics_error);
+      r = {{"name", query.name}, {"status", "error"}, {"error", query.intrinsics_error}};
       any_input_error = true;
+    } else {
+      try {
+        const cv::Mat image = readImageRgb(query.path);
+        noteExifTurn(query.path, image);
+        const LocalizationResult result = localizer.localize(image, query.intrinsics, query.name, options);
+        r = localizationJson(query.name, result, localizer);
+        FrameResult frame;
+        frame.frame = query.name;
+        frame.status = result.pnp.status;
+        frame.verdict = result.verdict.status;
+        frame.estimate = result.pnp.camera_to_world;
+        frame.inliers = result.pnp.inliers;
+        // The pose list is for poses to use: an `uncertain` one (a query from another scene, 1-7 m
+        // off) read as any other there (an outside probe). Its status and pose stay in the answer.
+        if (result.localized()) poses.push_back(frame);
+        any_not_localized |= !result.localized();
+        if (q == 0 && !args.ply_path.empty()) {
+          addPredictedPoints(ply, result.correspondences, options.pnp.confidence_threshold, 50000, PlyWriter::kRed);
+        }
+        if (result.pnp.ok()) estimated_cameras.emplace_back(result.pnp.camera_to_world, result.camera);
+      } catch (const InputError& e) {
+        // An --image query's error named neither it nor the flag when about its intrinsics; one that
+        // names a flag or the image says enough.
+        const std::string what = withFlagName(e.what());
+        const bool named = what.rfind("--", 0) == 0 || what.find(query.path.string()) != std::string::npos;
+        // Named, it was named twice: "list.txt:3: query 'q.png': q.png: image: ...".
+        const std::string location = named                     ? query.list_line
+                                     : !query.list_line.empty() ? query.location()
+                                                                : "query '" + query.path.string() + "'";
+        const std::string error = location.empty() ? what : location + ": " + what;
+        if (queries.size() == 1) throw InputError(error);
+        r = {{"name", query.name}, {"status", "error"}, {"error", error}};
+        any_input_error = true;
+      }
     }
     if (!args.json) printText(r);
     results.push_back(r);
