@@ -47,6 +47,24 @@ TEST(BadInput, TinySevenScenesReads) {
   EXPECT_EQ(readDepthMetres(scene.frames[1])(2, 3), 1.5f);
 }
 
+// Found by an outside probe: colour JPEGs turned by 180 degrees by their EXIF orientation, their
+// depth maps not, kept their size, and the map paired each pixel with another's depth: queries came
+// back `localized` 179 deg off.
+TEST(BadInput, AnImageTurnedByItsExifOrientationBesideADepthMapNotTurnedIsRefused) {
+  const auto dir = makeSevenScenes();
+  cv::Mat3b gradient(6, 8);
+  for (int y = 0; y < 6; ++y)
+    for (int x = 0; x < 8; ++x) gradient(y, x) = cv::Vec3b(static_cast<uint8_t>(30 * x), static_cast<uint8_t>(40 * y), 90);
+  fs::remove(dir / "frame-000001.color.png");
+  writeTextFile(dir / "frame-000001.color.jpg", testing::jpegWithExifOrientation(gradient, 3));
+  expectInputError([&] { loadDataset(dir); },
+                   {"frame 'frame-000001.color.jpg'", "frame-000001.color.jpg is turned by its EXIF orientation",
+                    "frame-000001.depth.png is not"});
+  // Orientation 1 (as stored) is no turn.
+  writeTextFile(dir / "frame-000001.color.jpg", testing::jpegWithExifOrientation(gradient, 1));
+  EXPECT_EQ(loadDataset(dir).frames.size(), 2u);
+}
+
 // Found by an outside probe: with both a PNG and a JPEG the PNG was taken without a word; with the
 // documented intrinsics, a half-size image had its principal point in a corner, or its depth map
 // blamed.

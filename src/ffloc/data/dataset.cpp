@@ -83,6 +83,16 @@ void requirePlausibleFrames(const Scene& scene) {
     } catch (const InputError& error) {
       throwInputError(scene.root.string(), 0, where + error.what());
     }
+    // A depth map is read against the image as decoded: an image turned by its EXIF orientation
+    // and its depth map not turned alike pair each pixel with another's depth. Turned by 180
+    // degrees the size still fits, and every mapping frame so was mapped without a word, its
+    // queries `localized` 179 deg off (an outside probe).
+    if (frame.depth && decodingTurnsImage(frame.image_path) && !decodingTurnsImage(frame.depth->path))
+      throwInputError(scene.root.string(), 0,
+                      where + frame.image_path.string() + " is turned by its EXIF orientation as it is decoded, and "
+                      "its depth map " + frame.depth->path.string() + " is not: each pixel would get another's depth. "
+                      "Store the image upright (its pose and intrinsics then of the upright image) with its depth "
+                      "turned alike, or remove the orientation tag");
     // After the size: intrinsics for an image of another size were judged as they stood, and a
     // lens that folds the image they describe was blamed for what a wrong size did.
     try {

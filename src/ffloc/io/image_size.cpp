@@ -140,6 +140,21 @@ std::optional<ImageHeader> fileImageHeader(const std::filesystem::path& path) {
   return imageHeader(in);
 }
 
+bool decodingTurnsImage(const std::filesystem::path& path) {
+  const std::optional<ImageHeader> header = fileImageHeader(path);
+  if (!header || !header->with_exif) return false;
+  const int flags = cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR;
+  cv::Mat as_decoded, as_stored;
+  try {
+    as_decoded = cv::imread(path.string(), flags);
+    as_stored = cv::imread(path.string(), flags | cv::IMREAD_IGNORE_ORIENTATION);
+  } catch (const cv::Exception&) {
+    return false;  // left to the reader that decodes it, which names the file
+  }
+  if (as_decoded.empty() || as_stored.empty()) return false;
+  return as_decoded.size() != as_stored.size() || cv::norm(as_decoded, as_stored, cv::NORM_INF) != 0;
+}
+
 std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path) {
   const std::optional<ImageHeader> header = fileImageHeader(path);
   if (!header) return std::nullopt;

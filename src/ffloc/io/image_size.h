@@ -32,6 +32,11 @@ struct ImageHeader {
 };
 std::optional<ImageHeader> fileImageHeader(const std::filesystem::path& path);
 
+// Whether decoding the file (as readImageRgb and readDepthMetres decode it) turns or mirrors its
+// pixels by an EXIF orientation. A turn of 180 degrees keeps the size, so only the pixels tell:
+// false without EXIF data, two decodings otherwise.
+bool decodingTurnsImage(const std::filesystem::path& path);
+
 // fileImageHeader's stored size alone: for explaining why a decoder refused a file.
 std::optional<cv::Size> fileFrameSize(const std::filesystem::path& path);
 
