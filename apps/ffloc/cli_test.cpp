@@ -581,8 +581,14 @@ TEST_F(Cli, MapTakesEveryFrameOfADatasetWithoutASplit) {
                                        formatNumber(camera["cx"].get<double>()) + "," +
                                        formatNumber(camera["cy"].get<double>()) + " at 256x192\n"))
       << run.output;
-  // And its lens distortion, as --distortion takes it: fox's queries given the four numbers alone
-  // were 40 times farther off (an outside probe).
+  // An append's counts are of the images it added, and say so.
+  const CliRun again = runCli({"map", "--dataset", scene.string(), "-o", whole.string(), "--append"});
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_TRUE(contains(again.output, "\nin the 0 images added: 0 points (0 lifted from depth, 0 triangulated), 0 links\n"))
+      << again.output;
+  EXPECT_FALSE(contains(run.output, "images added")) << run.output;
+  // The mapping camera's lens distortion is printed too, as --distortion takes it: fox's queries
+  // given the four numbers alone were 40 times farther off (an outside probe).
   manifest["cameras"].begin().value()["distortion"] = {0.0125, -0.004, 0, 0};
   std::ofstream(scene / "manifest.json") << manifest.dump();
   const CliRun distorted = runCli({"map", "--dataset", scene.string(), "-o", (dir_ / "distorted.ffmap").string()});

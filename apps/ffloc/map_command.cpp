@@ -112,6 +112,9 @@ int runMap(const MapArguments& args) {
   // "depth where the frames have it, triangulated elsewhere" was printed for --no-depth and for
   // datasets without depth alike.
   if (options.method == LocalizationMethod::kClassical) {
+    // An append's counts are of the images it added: "0 points" after one that added none read as
+    // the whole map's (an outside probe).
+    if (report.previous_images > 0) std::cout << "in the " << report.added << " images added: ";
     std::cout << report.points << " points (" << report.points_from_depth << " lifted from depth, "
               << report.points - report.points_from_depth << " triangulated"
               << (args.no_depth ? ": --no-depth" : "") << "), " << report.links << " links\n";
