@@ -444,11 +444,11 @@ class PyLocalizer {
     const cv::Mat rgb = imageFrom(image, keep, name);
     py::gil_scoped_release unlocked;
     const auto pools = leasePools(map_.threads);
-    const LocalizationResult result = map_.localizer().localize(rgb, camera, name, options_);
+    LocalizationResult result = map_.localizer().localize(rgb, camera, name, options_);
     Result out;
     out.answer = localizationJson(name, result, map_.localizer());
     if (result.pnp.ok()) out.camera_to_world = result.pnp.camera_to_world;
-    out.pairs = result.correspondences;
+    out.pairs = std::move(result.correspondences);
     out.camera = result.camera;
     out.inlier_threshold_px = options_.pnp.inlier_threshold_px;
     return out;

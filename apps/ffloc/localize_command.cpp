@@ -157,7 +157,6 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
     query.name = path;
     query.path = listedPath(list, path);
     query.list_line = list.string() + ":" + std::to_string(number);
-    const std::string at_line = list.string() + ":" + std::to_string(number) + ": ";
     if (given) {
       try {
         query.intrinsics = parseIntrinsics(line.substr(starts[first_number]), query.location());
@@ -168,12 +167,13 @@ std::vector<Query> readQueryList(const std::filesystem::path& list, const Intrin
                image_end > 0) {
       query.name = trimmed(line.substr(0, image_end));
       query.path = listedPath(list, query.name);
-      query.intrinsics_error = at_line + "query '" + query.name + "': intrinsics must be four numbers fx,fy,cx,cy, got '" +
-                               trimmed(line.substr(image_end)) + "'";
+      query.intrinsics_error = query.list_line + ": query '" + query.name +
+                               "': intrinsics must be four numbers fx,fy,cx,cy, got '" + trimmed(line.substr(image_end)) +
+                               "'";
     } else if (fallback.fx > 0) {
       query.intrinsics = fallback;
     } else {
-      query.intrinsics_error = at_line + "query '" + path + "': no intrinsics (add fx fy cx cy or --intrinsics)";
+      query.intrinsics_error = query.list_line + ": query '" + path + "': no intrinsics (add fx fy cx cy or --intrinsics)";
     }
     queries.push_back(query);
   }

@@ -232,8 +232,9 @@ ClassicalMappingReport addToClassicalMap(ClassicalMap& map, const Scene& scene, 
   progress.finish();
   // A map of no point localizes nothing: every depth map of a dataset invalid (all zero, or a
   // depth scale off by 1e12) gave one with exit 0 and no word (an outside probe).
+  const auto has_points = [](const ClassicalMapImage& image) { return image.pointCount() > 0; };
   const auto lifted = [](const ClassicalMapImage& image) { return image.depth_lifted; };
-  if (std::none_of(map.images.begin(), map.images.end(), [](const ClassicalMapImage& image) { return image.pointCount() > 0; }))
+  if (std::none_of(map.images.begin(), map.images.end(), has_points))
     throw InputError(scene.root.string() + ": no mapping image gave a 3D point: " +
                      (std::any_of(map.images.begin(), map.images.end(), lifted)
                           ? "the depth maps hold no valid depth at the keypoints (all zero, or a wrong depth scale?); "

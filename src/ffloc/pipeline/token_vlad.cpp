@@ -29,8 +29,7 @@ std::vector<float> TokenVlad::learnVocabulary(const MapFile& map) {
 
 TokenVlad::TokenVlad(const MapFile& map) {
   if (map.images.empty()) throw InputError("map: holds no images to rank");
-  const std::vector<float> learnt = map.token_vocabulary.empty() ? learnVocabulary(map) : std::vector<float>{};
-  const std::vector<float>& words = map.token_vocabulary.empty() ? learnt : map.token_vocabulary;
+  const std::vector<float> words = map.token_vocabulary.empty() ? learnVocabulary(map) : map.token_vocabulary;
   vocabulary_ = VladVocabulary(Eigen::Map<const VladVocabulary::RowMatrixXf>(
       words.data(), static_cast<Eigen::Index>(words.size() / map.token_dim), map.token_dim));
   images_.reserve(map.images.size());
