@@ -13,7 +13,8 @@ std::optional<std::filesystem::path> sharedDir();
 // sharedDir()/relative when it exists.
 std::optional<std::filesystem::path> sharedPath(const std::string& relative);
 
-// A fresh empty temporary directory, unique per call.
+// A fresh empty temporary directory, unique per call, removed when the process exits
+// (kept when FFLOC_KEEP_TEST_DIRS is set).
 std::filesystem::path makeTempDir(const std::string& prefix);
 
 }  // namespace ffloc::testing
