@@ -5,8 +5,8 @@
 A pose counts as correct within (25 cm, 5 deg). Files are named SET.*: the tuning sets are tuning
 (synthetic seed 5000), heldout (seed 9000), heldout2 (seed 9500), heldout3 (9900), heldout4 (9950),
 t640 and h640 (seeds 5000 and 9000 at 640 x 480) and real, each 256 x 192 one held out once before
-it was folded into tuning (docs/verdict.md); heldout5 to heldout11 (seeds 9975, 9990, 9995 at
-640 x 480, 9985, 9997, and 9999 and 9998 at 640 x 480) are only reported, never searched over.
+it was folded into tuning (docs/verdict.md); heldout5 to heldout12 (seeds 9975, 9990, 9995 at
+640 x 480, 9985, 9997, and 9999, 9998 and 9996 at 640 x 480) are only reported, never searched over.
 
   scripts/calibrate_verdict.py DIR            search, then report the best rule
   scripts/calibrate_verdict.py DIR --report   report the rule in verdict.h's defaults

@@ -26,7 +26,7 @@ class ClassicalLocalizer : public Localizer {
  protected:
   void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                const LocalizeOptions& options, LocalizationResult& result,
-               std::optional<PnpResult>& second_estimate, PoseGuidedMatching& pose_guided) const override;
+               std::optional<PnpResult>& second_estimate, PoseGuidedLooks& pose_guided) const override;
 
  private:
   ClassicalMap map_;
@@ -38,6 +38,9 @@ class ClassicalLocalizer : public Localizer {
   // Matches `query` against `images` (ratio test) and appends the pairs and the images to
   // `result`.
   void matchImages(const SiftFeatures& query, const std::vector<size_t>& images, LocalizationResult& result) const;
+  // Appends the matches of the result's selected images that pass kNearbyPairRatio but not the
+  // map's ratio and that `pose` projects within kNearbyPairAngle of their query keypoint.
+  void addPairsNearPose(const SiftFeatures& query, const Pose& pose, LocalizationResult& result) const;
   // The `count` mapping images outside `exclude` that see the most of their searched points
   // inside the query's image at `pose`, each point from a direction within
   // kMaxViewingAngleDeg of the query's; best first.

@@ -220,8 +220,10 @@ bool hasVnniProducts() {
 }
 
 std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query, const std::vector<const cv::Mat*>& images,
-                                                           float ratio, ProductKernel kernel) {
+                                                           float ratio, ProductKernel kernel,
+                                                           std::vector<std::vector<float>>* distance_ratios) {
   std::vector<std::vector<std::pair<int, int>>> matches(images.size());
+  if (distance_ratios) distance_ratios->assign(images.size(), {});
   int total = 0;
   std::vector<int> first_row(images.size() + 1, 0);
   for (size_t i = 0; i < images.size(); ++i) {
@@ -247,6 +249,7 @@ std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query,
   const size_t image_count = images.size();
   std::vector<int> nearest(static_cast<size_t>(query.rows) * image_count, -1);
   std::vector<float> nearest_distance(nearest.size(), 0.0f);
+  std::vector<float> nearest_ratio(distance_ratios ? nearest.size() : 0, 0.0f);
   const auto scan = [&](int q, const float* products) {
     for (size_t i = 0; i < image_count; ++i) {
       if (images[i]->rows < 2) continue;  // the ratio test needs two neighbours
@@ -255,6 +258,9 @@ std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query,
       if (found.index < 0 || !(found.nearest < max_squared_ratio * found.second)) continue;
       nearest[static_cast<size_t>(q) * image_count + i] = found.index;
       nearest_distance[static_cast<size_t>(q) * image_count + i] = found.nearest;
+      if (distance_ratios)
+        nearest_ratio[static_cast<size_t>(q) * image_count + i] =
+            found.second > 0 ? std::sqrt(found.nearest / found.second) : 0.0f;
     }
   };
 
@@ -317,8 +323,12 @@ std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query,
       }
     }
   for (size_t i = 0; i < images.size(); ++i)
-    for (int t = 0; t < images[i]->rows; ++t)
-      if (best_query[i][t] >= 0) matches[i].emplace_back(best_query[i][t], t);
+    for (int t = 0; t < images[i]->rows; ++t) {
+      const int q = best_query[i][t];
+      if (q < 0) continue;
+      matches[i].emplace_back(q, t);
+      if (distance_ratios) (*distance_ratios)[i].push_back(nearest_ratio[static_cast<size_t>(q) * image_count + i]);
+    }
   return matches;
 }
 

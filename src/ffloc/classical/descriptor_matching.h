@@ -48,9 +48,12 @@ enum class ProductKernel {
 // quantized RootSIFT (CV_8U rows of 128, quantizeDescriptors): the squared distances are exact
 // integers, then, per image, the two nearest of every query row and the same one-to-one rule as
 // DescriptorIndex::match. Exact search finds the true second neighbour, which the kd-forest
-// misses often enough to let ambiguous matches through (docs/classical.md).
+// misses often enough to let ambiguous matches through (docs/classical.md). `distance_ratios`,
+// when given, receives each match's distance to the nearest over that to the second nearest, in
+// the order of the matches.
 std::vector<std::vector<std::pair<int, int>>> matchExactly(const cv::Mat& query, const std::vector<const cv::Mat*>& images,
-                                                           float ratio, ProductKernel kernel = ProductKernel::kFastest);
+                                                           float ratio, ProductKernel kernel = ProductKernel::kFastest,
+                                                           std::vector<std::vector<float>>* distance_ratios = nullptr);
 
 // Whether ProductKernel::kFastest runs the VNNI kernel on this CPU.
 bool hasVnniProducts();

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 #include <set>
 #include <utility>
@@ -142,11 +143,22 @@ void expectTheEdgeDecided(ProductKernel kernel) {
                                                           {&matched, &unmatched, &far}};
   for (const std::vector<const cv::Mat*>& images : calls) {
     SCOPED_TRACE(std::to_string(images.size()) + " images");
-    const std::vector<Matches> found = matchExactly(query, images, 0.8f, kernel);
+    std::vector<std::vector<float>> ratios;
+    const std::vector<Matches> found = matchExactly(query, images, 0.8f, kernel, &ratios);
     ASSERT_EQ(found.size(), images.size());
+    ASSERT_EQ(ratios.size(), images.size());
     for (size_t i = 0; i < images.size(); ++i) {
       const Matches wanted = images[i] == &matched ? Matches{{0, 0}} : Matches{};
       EXPECT_EQ(found[i], wanted) << "image " << i;
+      ASSERT_EQ(ratios[i].size(), found[i].size());
+      if (!ratios[i].empty()) EXPECT_FLOAT_EQ(ratios[i][0], std::sqrt(6399.0f / 10000.0f));
+    }
+    // A looser test lets the other image's query through, and says by how much it failed 0.8.
+    const std::vector<Matches> loose = matchExactly(query, images, 0.9f, kernel, &ratios);
+    for (size_t i = 0; i < images.size(); ++i) {
+      if (images[i] == &far) continue;
+      ASSERT_EQ(loose[i], (Matches{{0, 0}})) << "image " << i;
+      EXPECT_FLOAT_EQ(ratios[i][0], std::sqrt((images[i] == &matched ? 6399.0f : 6401.0f) / 10000.0f));
     }
   }
 }

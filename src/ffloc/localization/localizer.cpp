@@ -107,29 +107,36 @@ LocalizationResult Localizer::localize(const cv::Mat& rgb, const Intrinsics& int
 
   LocalizationResult result;
   std::optional<PnpResult> second;
-  PoseGuidedMatching pose_guided;
+  PoseGuidedLooks pose_guided;
   predict(rgb, sized, name, options, result, second, pose_guided);
   stopIfRequested(options, "before PnP");
   estimateAndJudge(result, second, options);
-  if (pose_guided && options.pose_guided_retrieval && !result.localized() && result.pnp.ok()) {
-    stopIfRequested(options, "before the pose-guided matching");
-    LocalizationResult again = result;
-    const size_t before = again.correspondences.size();
-    const auto start = std::chrono::steady_clock::now();
-    pose_guided(result.pnp.camera_to_world, again);
-    again.timings.matching += secondsSince(start);
-    const bool added = again.correspondences.size() > before;
-    if (added) {
-      stopIfRequested(options, "before the second PnP");
-      estimateAndJudge(again, std::nullopt, options);
-    }
-    if (added && again.pnp.ok()) {
-      result = std::move(again);
-    } else {
-      result.timings = again.timings;  // the first answer stands; the look still took its time
-    }
+  if (options.pose_guided_retrieval) {
+    lookAgain(pose_guided.more_images, false, options, result);
+    lookAgain(pose_guided.nearby_pairs, true, options, result);
   }
   return result;
+}
+
+void Localizer::lookAgain(const PoseGuidedLooks::Look& look, bool only_if_localized, const LocalizeOptions& options,
+                          LocalizationResult& result) const {
+  if (!look || result.localized() || !result.pnp.ok()) return;
+  stopIfRequested(options, "before a pose-guided look");
+  LocalizationResult again = result;
+  const size_t before = again.correspondences.size();
+  const auto start = std::chrono::steady_clock::now();
+  look(result.pnp.camera_to_world, again);
+  again.timings.matching += secondsSince(start);
+  const bool added = again.correspondences.size() > before;
+  if (added) {
+    stopIfRequested(options, "before PnP on the pose-guided look");
+    estimateAndJudge(again, std::nullopt, options);
+  }
+  if (added && again.pnp.ok() && (!only_if_localized || again.localized())) {
+    result = std::move(again);
+  } else {
+    result.timings = again.timings;  // the answer before stands; the look still took its time
+  }
 }
 
 void Localizer::estimateAndJudge(LocalizationResult& result, std::optional<PnpResult> second,

@@ -57,8 +57,10 @@ struct LocalizeOptions {
   // compare the poses (the verdict's agreement test). Doubles the network time.
   bool verify_with_second_reference = true;
   // Classical: when the first pose is not `localized`, also match the top_k mapping images that
-  // pose sees (beyond those retrieval chose) and estimate again. Far and opposite views, which
-  // retrieval ranks poorly, gain most (docs/classical.md); a localized query pays nothing.
+  // pose sees (beyond those retrieval chose) and estimate again; when that is not `localized`
+  // either, add the looser matches the pose places close to their keypoints and estimate once
+  // more. Far and opposite views, which retrieval ranks poorly, gain most (docs/classical.md); a
+  // localized query pays nothing.
   bool pose_guided_retrieval = true;
   // Asked between the stages of a query (after the query's features, after a network pass,
   // before PnP, before and after a second look); when it answers true, localize() stops there
@@ -122,9 +124,18 @@ struct LocalizationResult {
   bool localized() const { return verdict.status == PoseStatus::kLocalized; }
 };
 
-// A method's second look, given the first pose: appends the correspondences of the mapping images
-// that pose sees (and adds them to `selected`). Empty for a method without one.
-using PoseGuidedMatching = std::function<void(const Pose& first_pose, LocalizationResult& result)>;
+// A method's further looks at a query whose pose the verdict did not accept, each given that pose
+// and appending correspondences to the result. Empty for a method without them.
+struct PoseGuidedLooks {
+  using Look = std::function<void(const Pose& pose, LocalizationResult& result)>;
+  // The mapping images that pose sees (added to `selected`). Its answer replaces the first
+  // whenever PnP finds a pose.
+  Look more_images;
+  // Pairs that pose places close to their query keypoint, among matches a looser test lets
+  // through. Chosen by the pose, they agree with it by construction, so their answer is taken
+  // only when `localized`.
+  Look nearby_pairs;
+};
 
 // The queries' side of a map, whatever the method. `localize` checks the options and the
 // query's intrinsics against the image (InputError naming the field), runs the method, then
@@ -152,14 +163,18 @@ class Localizer {
  protected:
   // Fills the correspondences, camera, selection and timings. `second_estimate` receives the
   // method's own second estimate for the verdict's agreement test; left empty, a half-sample
-  // estimate (halfSampleEstimate) stands in. `pose_guided` may receive the method's second look,
-  // which localize() calls when the first pose is not `localized` (LocalizeOptions::
-  // pose_guided_retrieval); it must stay valid until localize() returns.
+  // estimate (halfSampleEstimate) stands in. `pose_guided` may receive the method's further looks,
+  // which localize() takes in turn while the pose is not `localized` (LocalizeOptions::
+  // pose_guided_retrieval); they must stay valid until localize() returns.
   virtual void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                        const LocalizeOptions& options, LocalizationResult& result,
-                       std::optional<PnpResult>& second_estimate, PoseGuidedMatching& pose_guided) const = 0;
+                       std::optional<PnpResult>& second_estimate, PoseGuidedLooks& pose_guided) const = 0;
 
  private:
+  // One of `pose_guided`'s looks at a result not `localized`: its answer replaces the result when
+  // PnP finds a pose and, if `only_if_localized`, the verdict accepts it.
+  void lookAgain(const PoseGuidedLooks::Look& look, bool only_if_localized, const LocalizeOptions& options,
+                 LocalizationResult& result) const;
   // PnP on the result's correspondences, then the evidence (with `second`, else a half-sample
   // estimate) and the verdict. Adds to the result's PnP and verification times.
   void estimateAndJudge(LocalizationResult& result, std::optional<PnpResult> second,

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <optional>
 #include <random>
 #include <thread>
 #include <utility>
@@ -49,35 +50,46 @@ Correspondences randomPairs(size_t count, uint32_t seed) {
   return pairs;
 }
 
-// A method whose first pairs and second look are given: image 0 first, image 1 on the second look.
+// A method whose first pairs and looks are given: image 0 first, image 1 on the look at more
+// images, then the nearby pairs (none: no such look).
 class ScriptedLocalizer : public Localizer {
  public:
-  ScriptedLocalizer(Correspondences first, Correspondences second_look)
-      : first_(std::move(first)), second_look_(std::move(second_look)) {}
+  ScriptedLocalizer(Correspondences first, Correspondences second_look, std::optional<Correspondences> nearby = {})
+      : first_(std::move(first)), second_look_(std::move(second_look)), nearby_(std::move(nearby)) {}
   LocalizationMethod method() const override { return LocalizationMethod::kClassical; }
   bool metric() const override { return true; }
   const std::vector<MapCamera>& cameras() const override { return cameras_; }
   int looks() const { return looks_; }
+  int nearbyLooks() const { return nearby_looks_; }
 
  protected:
   void predict(const cv::Mat&, const Intrinsics& intrinsics, const std::string&, const LocalizeOptions&,
-               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedMatching& pose_guided) const override {
+               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedLooks& pose_guided) const override {
     result.camera = intrinsics;
     result.correspondences = first_;
     result.selected = {0};
-    pose_guided = [this](const Pose&, LocalizationResult& again) {
+    pose_guided.more_images = [this](const Pose&, LocalizationResult& again) {
       ++looks_;
-      for (size_t i = 0; i < second_look_.size(); ++i)
-        again.correspondences.add(second_look_.pixels[i], second_look_.points[i], second_look_.confidences[i]);
+      append(second_look_, again.correspondences);
       again.selected.push_back(1);
       std::this_thread::sleep_for(std::chrono::milliseconds(20));  // a look that takes its time
     };
+    if (nearby_)
+      pose_guided.nearby_pairs = [this](const Pose&, LocalizationResult& again) {
+        ++nearby_looks_;
+        append(*nearby_, again.correspondences);
+      };
   }
 
  private:
+  static void append(const Correspondences& pairs, Correspondences& to) {
+    for (size_t i = 0; i < pairs.size(); ++i) to.add(pairs.pixels[i], pairs.points[i], pairs.confidences[i]);
+  }
+
   std::vector<MapCamera> cameras_;
   Correspondences first_, second_look_;
-  mutable std::atomic<int> looks_{0};
+  std::optional<Correspondences> nearby_;
+  mutable std::atomic<int> looks_{0}, nearby_looks_{0};
 };
 
 LocalizationResult localizeWith(const ScriptedLocalizer& localizer, const LocalizeOptions& options = {}) {
@@ -125,6 +137,37 @@ TEST(PoseGuidedMatching, ALocalizedPoseTakesNoSecondLook) {
   EXPECT_EQ(result.selected, (std::vector<size_t>{0}));
 }
 
+// The nearby pairs come last, after a look at more images that left the pose `uncertain`, and
+// their answer is taken only when `localized`: pairs a pose chose agree with it by construction.
+TEST(PoseGuidedMatching, NearbyPairsAreTakenOnlyWhenTheyGiveALocalizedPose) {
+  const ScriptedLocalizer without(exactPairs(14, 1), Correspondences{});
+  const LocalizationResult before = localizeWith(without);
+  ASSERT_EQ(before.verdict.status, PoseStatus::kUncertain);
+
+  const ScriptedLocalizer useless(exactPairs(14, 1), Correspondences{}, randomPairs(3000, 3));
+  const LocalizationResult kept = localizeWith(useless);
+  EXPECT_EQ(useless.looks(), 1);
+  EXPECT_EQ(useless.nearbyLooks(), 1);
+  EXPECT_EQ(kept.verdict.status, PoseStatus::kUncertain);
+  EXPECT_EQ(kept.correspondences.size(), before.correspondences.size());
+  EXPECT_TRUE(kept.pnp.camera_to_world.matrix().isApprox(before.pnp.camera_to_world.matrix()));
+
+  const ScriptedLocalizer useful(exactPairs(14, 1), Correspondences{}, exactPairs(300, 2));
+  const LocalizationResult taken = localizeWith(useful);
+  EXPECT_TRUE(taken.localized()) << taken.verdict.reason;
+  EXPECT_EQ(taken.correspondences.size(), 314u);
+  EXPECT_LT(translationError(taken.pnp.camera_to_world, truePose()), 0.05);
+
+  const ScriptedLocalizer localized_first(exactPairs(14, 1), exactPairs(300, 2), exactPairs(300, 5));
+  EXPECT_TRUE(localizeWith(localized_first).localized());
+  EXPECT_EQ(localized_first.nearbyLooks(), 0);  // the look at more images was enough
+
+  LocalizeOptions no_look;
+  no_look.pose_guided_retrieval = false;
+  localizeWith(useful, no_look);
+  EXPECT_EQ(useful.nearbyLooks(), 1);  // still the one of the query above
+}
+
 TEST(PoseGuidedMatching, AStopRequestedDuringTheLookStopsBeforeTheSecondPnp) {
   const ScriptedLocalizer localizer(exactPairs(14, 1), exactPairs(300, 2));
   LocalizeOptions options;
@@ -133,7 +176,7 @@ TEST(PoseGuidedMatching, AStopRequestedDuringTheLookStopsBeforeTheSecondPnp) {
     localizeWith(localizer, options);
     FAIL() << "the query ran to its end";
   } catch (const QueryStopped& stopped) {
-    EXPECT_STREQ(stopped.what(), "stopped before the second PnP");
+    EXPECT_STREQ(stopped.what(), "stopped before PnP on the pose-guided look");
   }
 }
 
@@ -148,7 +191,7 @@ class RecordingLocalizer : public Localizer {
 
  protected:
   void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string&, const LocalizeOptions&,
-               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedMatching&) const override {
+               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedLooks&) const override {
     queries.emplace_back(rgb.size(), intrinsics);
     result.camera = intrinsics;
   }

@@ -182,7 +182,7 @@ QueryPrediction FastForwardLocalizer::predictCoordinates(const cv::Mat& rgb, con
 
 void FastForwardLocalizer::predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                                    const LocalizeOptions& options, LocalizationResult& result,
-                                   std::optional<PnpResult>& second_estimate, PoseGuidedMatching& /*pose_guided*/) const {
+                                   std::optional<PnpResult>& second_estimate, PoseGuidedLooks& /*pose_guided*/) const {
   c10::InferenceMode inference;
   QueryPrediction first;
   const EncodedQuery query = encode(rgb, intrinsics, name, options, first.timings);

@@ -70,7 +70,7 @@ class FastForwardLocalizer : public Localizer {
  protected:
   void predict(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,
                const LocalizeOptions& options, LocalizationResult& result,
-               std::optional<PnpResult>& second_estimate, PoseGuidedMatching& pose_guided) const override;
+               std::optional<PnpResult>& second_estimate, PoseGuidedLooks& pose_guided) const override;
 
  private:
   EncodedQuery encode(const cv::Mat& rgb, const Intrinsics& intrinsics, const std::string& name,

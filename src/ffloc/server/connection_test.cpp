@@ -50,7 +50,7 @@ class GatedLocalizer : public Localizer {
 
  protected:
   void predict(const cv::Mat&, const Intrinsics& intrinsics, const std::string& name, const LocalizeOptions&,
-               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedMatching&) const override {
+               LocalizationResult& result, std::optional<PnpResult>&, PoseGuidedLooks&) const override {
     std::unique_lock<std::mutex> lock(mutex_);
     names_.push_back(name);
     changed_.notify_all();
