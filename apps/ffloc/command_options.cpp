@@ -302,8 +302,8 @@ void addQueryOptions(CLI::App& command, QueryArguments& args) {
                    "fastforward: skip the second prediction behind the verdict (then a half-sample RANSAC estimate "
                    "stands in; about half the latency)");
   command.add_flag("--no-pose-guided", args.no_pose_guided,
-                   "classical: when the first pose is not localized, do not match the mapping images it sees and "
-                   "estimate again");
+                   "classical: when the first pose is not localized, do not look again (at the mapping images it "
+                   "sees, then at looser matches it places near their keypoints)");
 }
 
 LocalizeOptions localizeOptions(const QueryArguments& args) {
