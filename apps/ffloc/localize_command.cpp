@@ -299,10 +299,14 @@ int runLocalize(const LocalizeArguments& args) {
   for (size_t q = 0; q < queries.size(); ++q) {
     const Query& query = queries[q];
     nlohmann::json r;
-    if (!query.intrinsics_error.empty()) {
-      if (queries.size() == 1) throw InputError(query.intrinsics_error);
-      r = {{"name", query.name}, {"status", "error"}, {"error", query.intrinsics_error}};
+    // A lone query's bad input ends the command; in a list it is that query's answer.
+    const auto answerInputError = [&](const std::string& error) {
+      if (queries.size() == 1) throw InputError(error);
+      r = {{"name", query.name}, {"status", "error"}, {"error", error}};
       any_input_error = true;
+    };
+    if (!query.intrinsics_error.empty()) {
+      answerInputError(query.intrinsics_error);
     } else {
       try {
         const cv::Mat image = readImageRgb(query.path);
@@ -332,10 +336,7 @@ int runLocalize(const LocalizeArguments& args) {
         const std::string location = named                     ? query.list_line
                                      : !query.list_line.empty() ? query.location()
                                                                 : "query '" + query.path.string() + "'";
-        const std::string error = location.empty() ? what : location + ": " + what;
-        if (queries.size() == 1) throw InputError(error);
-        r = {{"name", query.name}, {"status", "error"}, {"error", error}};
-        any_input_error = true;
+        answerInputError(location.empty() ? what : location + ": " + what);
       }
     }
     if (!args.json) printText(r);

@@ -5,7 +5,6 @@
 #include <cstdio>
 #include <cstring>
 #include <set>
-#include <tuple>
 #include <nlohmann/json.hpp>
 
 #include "ffloc/core/error.h"
@@ -82,6 +81,24 @@ bool allFinite(const TensorView& view) {
   return true;
 }
 
+// Appends a rows x cols tensor over `data` (which must outlive the write) and its checksum.
+void addTensor(const std::string& name, DType dtype, const void* data, size_t rows, size_t cols, size_t element_bytes,
+               std::vector<TensorView>& tensors, nlohmann::json& checksums) {
+  TensorView view;
+  view.name = name;
+  view.dtype = dtype;
+  view.shape = {static_cast<int64_t>(rows), static_cast<int64_t>(cols)};
+  view.data = static_cast<const uint8_t*>(data);
+  view.nbytes = rows * cols * element_bytes;
+  checksums[view.name] = tensorChecksum(view);
+  tensors.push_back(view);
+}
+
+void addF32Tensor(const std::string& name, const std::vector<float>& values, size_t rows, size_t cols,
+                  std::vector<TensorView>& tensors, nlohmann::json& checksums) {
+  addTensor(name, DType::kF32, values.data(), rows, cols, sizeof(float), tensors, checksums);
+}
+
 }  // namespace
 
 bool StoredTokens::operator==(const StoredTokens& other) const {
@@ -106,27 +123,14 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
     if (image.descriptor.size() != descriptor_dim)
       throw InputError(where + ": descriptor of length " + std::to_string(image.descriptor.size()) + ", expected " +
                        std::to_string(descriptor_dim));
-    TensorView view;
-    view.name = tokensTensorName(i);
-    view.dtype = DType::kF16;
-    view.shape = {static_cast<int64_t>(image.tokenCount()), map.token_dim};
-    view.data = reinterpret_cast<const uint8_t*>(image.tokens.data());
-    view.nbytes = image.tokens.size() * sizeof(uint16_t);
-    checksums[view.name] = tensorChecksum(view);
-    tensors.push_back(view);
+    addTensor(tokensTensorName(i), DType::kF16, image.tokens.data(), image.tokenCount(), map.token_dim, sizeof(uint16_t),
+              tensors, checksums);
     descriptors.insert(descriptors.end(), image.descriptor.begin(), image.descriptor.end());
     if (!image.token_points.empty()) {
       if (image.token_points.size() != 3 * image.tokenCount())
         throw InputError(where + ": " + std::to_string(image.token_points.size()) + " point values for " +
                          std::to_string(image.tokenCount()) + " tokens");
-      TensorView points;
-      points.name = pointsTensorName(i);
-      points.dtype = DType::kF32;
-      points.shape = {static_cast<int64_t>(image.tokenCount()), 3};
-      points.data = reinterpret_cast<const uint8_t*>(image.token_points.data());
-      points.nbytes = image.token_points.size() * sizeof(float);
-      checksums[points.name] = tensorChecksum(points);
-      tensors.push_back(points);
+      addF32Tensor(pointsTensorName(i), image.token_points, image.tokenCount(), 3, tensors, checksums);
     }
 
     const Intrinsics& k = image.intrinsics;
@@ -151,41 +155,17 @@ void writeMapFile(const MapFile& map, const std::filesystem::path& path) {
     vlad_descriptors.insert(vlad_descriptors.end(), image.vlad_descriptor.begin(), image.vlad_descriptor.end());
   }
   if (vlad_dim > 0) {
-    for (auto [name, values, rows, cols] :
-         {std::tuple<const char*, const std::vector<float>*, size_t, size_t>{kVladVocabularyTensor, &map.vlad_centres,
-                                                                            vlad_dim / 128, 128},
-          {kVladDescriptorsTensor, &vlad_descriptors, map.images.size(), vlad_dim}}) {
-      TensorView view;
-      view.name = name;
-      view.dtype = DType::kF32;
-      view.shape = {static_cast<int64_t>(rows), static_cast<int64_t>(cols)};
-      view.data = reinterpret_cast<const uint8_t*>(values->data());
-      view.nbytes = values->size() * sizeof(float);
-      checksums[view.name] = tensorChecksum(view);
-      tensors.push_back(view);
-    }
+    addF32Tensor(kVladVocabularyTensor, map.vlad_centres, vlad_dim / 128, 128, tensors, checksums);
+    addF32Tensor(kVladDescriptorsTensor, vlad_descriptors, map.images.size(), vlad_dim, tensors, checksums);
   }
   if (!map.token_vocabulary.empty()) {
     if (map.token_vocabulary.size() % map.token_dim != 0)
       throw InputError(path.string() + ": map: token vocabulary of " + std::to_string(map.token_vocabulary.size()) +
                        " values is not words x " + std::to_string(map.token_dim));
-    TensorView view;
-    view.name = kTokenVocabularyTensor;
-    view.dtype = DType::kF32;
-    view.shape = {static_cast<int64_t>(map.token_vocabulary.size() / map.token_dim), map.token_dim};
-    view.data = reinterpret_cast<const uint8_t*>(map.token_vocabulary.data());
-    view.nbytes = map.token_vocabulary.size() * sizeof(float);
-    checksums[view.name] = tensorChecksum(view);
-    tensors.push_back(view);
+    addF32Tensor(kTokenVocabularyTensor, map.token_vocabulary, map.token_vocabulary.size() / map.token_dim,
+                 map.token_dim, tensors, checksums);
   }
-  TensorView descriptor_view;
-  descriptor_view.name = kDescriptorsTensor;
-  descriptor_view.dtype = DType::kF32;
-  descriptor_view.shape = {static_cast<int64_t>(map.images.size()), static_cast<int64_t>(descriptor_dim)};
-  descriptor_view.data = reinterpret_cast<const uint8_t*>(descriptors.data());
-  descriptor_view.nbytes = descriptors.size() * sizeof(float);
-  checksums[descriptor_view.name] = tensorChecksum(descriptor_view);
-  tensors.push_back(descriptor_view);
+  addF32Tensor(kDescriptorsTensor, descriptors, map.images.size(), descriptor_dim, tensors, checksums);
 
   const nlohmann::json metadata = {{"method", kMethod}, {"version", MapFile::kVersion}, {"model_id", map.model_id},
                                    {"token_dim", map.token_dim},   {"metric", map.metric},

@@ -67,11 +67,6 @@ TEST(MapFile, RoundTripIsExact) {
   EXPECT_EQ(files, 1u);
 }
 
-// Tokens are views into one snapshot of the file, not per-image copies (a 150-image
-// large-configuration map held 236 MB of those). The snapshot keeps the map read intact whatever
-// happens to the file: replaced by atomic rename, as `ffloc map` writes, deleted, or written over
-// in place and cut short, which under the file's own mapping changed the tokens of a served map or
-// ended the server with SIGBUS at its next query (found by an outside probe).
 // The token vocabulary is optional (maps written before 5 Dec 2026 have none) and, stored, comes
 // back exactly; one of another width than the tokens is refused when written and when read, and
 // one of more words than any map holds when read.
@@ -125,6 +120,11 @@ TEST(MapFile, TheTokenVocabularyRoundTripsAndItsShapeIsChecked) {
   }
 }
 
+// Tokens are views into one snapshot of the file, not per-image copies (a 150-image
+// large-configuration map held 236 MB of those). The snapshot keeps the map read intact whatever
+// happens to the file: replaced by atomic rename, as `ffloc map` writes, deleted, or written over
+// in place and cut short, which under the file's own mapping changed the tokens of a served map or
+// ended the server with SIGBUS at its next query (found by an outside probe).
 TEST(MapFile, TokensAreViewsOfASnapshotThatOutlivesAnyChangeToTheFile) {
   const auto dir = testing::makeTempDir("ffloc-map");
   const MapFile written = smallMap();

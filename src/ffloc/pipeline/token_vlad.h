@@ -13,10 +13,9 @@ namespace ffloc {
 // VLAD over the encoder's own tokens as local descriptors, with a vocabulary learned from the
 // map's tokens when the map is built (MapFile::token_vocabulary). Each image's descriptor is
 // words x token width floats (128 KB for the dense-SIFT encoder's 256-wide tokens), computed
-// from its stored tokens rather than stored. For the
-// dense-SIFT encoder this is DenseVLAD (Torii et al. 2015: dense RootSIFT at two scales), which
-// ranked the pose-nearest mapping image better than pooling the same tokens on the held-out
-// synthetic scenes (docs/pipeline.md, "Retrieval").
+// from its stored tokens rather than stored. For the dense-SIFT encoder this is DenseVLAD (Torii
+// et al. 2015: dense RootSIFT at two scales), which ranked the pose-nearest mapping image better
+// than pooling the same tokens on the held-out synthetic scenes (docs/pipeline.md, "Retrieval").
 class TokenVlad {
  public:
   // kWords = 128: recall@10 of the pose-nearest image on the 10 held-out synthetic scenes (150
